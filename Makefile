@@ -1,0 +1,22 @@
+# Two commands: `make demo` and `make test`. Both bootstrap .venv idempotently first.
+SHELL := /bin/bash
+PY := .venv/bin/python
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
+.PHONY: setup demo test bench clean
+
+setup:
+	@bash scripts/setup_env.sh
+
+demo: setup
+	$(PY) scripts/demo.py --out runs/demo
+
+test: setup
+	$(PY) -m pytest -q tests
+
+bench: setup
+	$(PY) scripts/bench_filters.py
+	$(PY) scripts/bench_graph.py
+
+clean:
+	rm -rf runs ros_ws/build

@@ -1,0 +1,172 @@
+"""Start a run's node graph (one process per node, or all in one process), supervise it, keep the bag whole.
+
+Everything is validated before anything starts: the scenario's top-level keys, the truth, every sensor and
+every filter are built once in the launcher, so a bad key stops the run with a message naming it.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from orbit_sim.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from orbit_sim.graph import Graph, build_graph, resolve_filters
+
+TOP_LEVEL_KEYS = ("scenario", "description", "seed", "earth", "time", "truth", "sensors", "filter_defaults",
+                  "filters", "default_filters", "variants", "scoring")
+MAX_DOMAIN_ID = 101
+
+
+@dataclass
+class RunPlan:
+    out: Path
+    run: dict
+    graph: Graph
+    config_path: Path
+    logs: Path = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.logs = self.out / "logs"
+
+    @property
+    def bag_dir(self) -> Path:
+        return Path(self.run["bag_dir"])
+
+
+def local_dds_env(domain_id: int) -> dict[str, str]:
+    """Environment for DDS on this host only, on its own domain."""
+    if not 0 <= domain_id <= MAX_DOMAIN_ID:
+        raise ScenarioError(f"ROS domain id must be in [0, {MAX_DOMAIN_ID}], got {domain_id}")
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    return env
+
+
+def validate(cfg: dict, filters: list[str], source: str) -> None:
+    """Build every object of the run once; raises ScenarioError naming the first bad key or value."""
+    from orbit_sim.truth import build_truth
+    from radar_sensor.sensor import build_sensor
+    from tracker_filters.builders import build_filter_stack
+
+    top = Section(cfg, "")
+    top.mark(*TOP_LEVEL_KEYS)
+    top.finish()
+    if source == "truth":
+        build_truth(cfg)
+    for name in (cfg.get("sensors") or {}):
+        build_sensor(cfg, name)
+    for name in filters:
+        build_filter_stack(cfg, name)
+
+
+def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,
+                overrides: list[str] = (), variant: str | None = None, record: bool = True,
+                source: str = "truth", extra: dict | None = None, cfg: dict | None = None) -> RunPlan:
+    """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``."""
+    if cfg is None:
+        cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
+    names = resolve_filters(cfg, filters)
+    validate(cfg, names, source)
+    graph = build_graph(cfg, names, record, source)
+    out = Path(out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
+           "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0) if seed is None else seed)}
+    run.update(extra or {})
+    config_path = out / "run_config.yaml"
+    config_path.write_text(yaml.safe_dump(run, sort_keys=False))
+    return RunPlan(out, run, graph, config_path)
+
+
+def _start_order(graph: Graph) -> list:
+    order = {"recorder": 0, "filter": 1, "sensor": 2, "truth": 3, "player": 3}
+    return sorted(graph.nodes, key=lambda n: order[n.kind])
+
+
+def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False) -> int:
+    """One process per node; returns 0 on success, non-zero (naming the failed node) otherwise."""
+    env = local_dds_env(domain_id)
+    plan.logs.mkdir(exist_ok=True)
+    procs: dict[str, subprocess.Popen] = {}
+    interrupted = []
+
+    def forward(signum, _frame):
+        interrupted.append(signum)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for spec in _start_order(plan.graph):
+            log = open(plan.logs / f"{spec.name}.log", "w")
+            procs[spec.name] = subprocess.Popen(
+                [sys.executable, "-m", spec.module, "--name", spec.name, "--config", str(plan.config_path)],
+                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        return _supervise(plan, procs, interrupted, timeout_s, quiet)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
+    deadline = time.monotonic() + timeout_s
+    failed: list[str] = []
+    while any(p.poll() is None for p in procs.values()):
+        failed = [n for n, p in procs.items() if p.poll() not in (None, 0)]
+        if failed or interrupted or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    if failed or interrupted or time.monotonic() > deadline:
+        _stop_all(procs)
+    failed = [n for n, p in procs.items() if p.returncode not in (0, None)]
+    if interrupted:
+        print(f"[launcher] interrupted; bag closed at {plan.bag_dir}", file=sys.stderr)
+        return 128 + interrupted[0]
+    if time.monotonic() > deadline:
+        print(f"[launcher] timed out after {timeout_s:.0f} s", file=sys.stderr)
+        return 124
+    for name in failed:
+        print(f"[launcher] node '{name}' failed (exit code {procs[name].returncode}); "
+              f"log: {plan.logs / (name + '.log')}", file=sys.stderr)
+        if not quiet:
+            tail = (plan.logs / f"{name}.log").read_text(errors="replace").splitlines()[-8:]
+            print("\n".join(f"    {line}" for line in tail), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _stop_all(procs: dict) -> None:
+    """SIGINT every node except the recorder, then the recorder (it closes the bag), escalating if needed."""
+    others = [p for n, p in procs.items() if n != "recorder"]
+    for group in (others, [procs["recorder"]] if "recorder" in procs else []):
+        for p in group:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in group:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events") -> int:
+    """All nodes in this process on one executor."""
+    import importlib
+
+    import rclpy
+
+    from orbit_sim.bench_node import spin_nodes
+
+    os.environ.update(local_dds_env(domain_id))
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    try:
+        nodes = [importlib.import_module(spec.module).NODE_CLASS(spec.name, plan.run)
+                 for spec in _start_order(plan.graph)]
+        return spin_nodes(nodes, executor)
+    finally:
+        rclpy.try_shutdown()

@@ -1,0 +1,1 @@
+"""Sensor models and nodes: ground radar and inter-satellite range/azimuth/elevation, relative position."""

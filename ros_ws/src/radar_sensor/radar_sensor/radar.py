@@ -1,0 +1,161 @@
+"""Ground radar on the rotating Earth: range, azimuth, elevation (and optionally range rate) of an ECI state.
+
+Paper 000, eqs. 8-16. The station sits at WGS84 geodetic (lat, lon, h) (``frames.geodetic_to_ecef``; the
+paper uses a sphere of radius Re + h, eq. 8). A state's ECI position is rotated to ECEF with the Earth
+rotation angle theta(t) = theta0 + OMEGA_EARTH t, then to the station's East-North-Up frame (eqs. 9-10):
+
+    u = M (R3(theta) r_eci - s) = T(t) r_eci - M s,        T(t) = M R3(theta(t))
+
+and converted to polar form (eqs. 11-13):
+
+    range = |u|,  azimuth = atan2(u_E, u_N) in [0, 2 pi),  elevation = atan2(u_U, hypot(u_E, u_N)).
+
+Azimuth convention: the paper writes theta = atan(y/x) in ENU (counter-clockwise from East, and quadrant-
+ambiguous). Radars report azimuth clockwise from North, so this model uses atan2(East, North), wrapped to
+[0, 2 pi). Consequently the azimuth row of the Jacobian differs from the paper's eq. 16 (whose H22 also has
+a sign error: d atan(y/x)/dy = +x/(x^2 + y^2)).
+
+Range rate (optional 4th component) is the rate of |u| seen from the Earth-fixed station:
+    w = T (v_eci - omega x r_eci),   range_rate = u . w / |u|.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from orbit_sim.constants import OMEGA_EARTH
+from orbit_sim.frames import earth_rotation_angle, enu_rotation, geodetic_to_ecef
+from tracker_filters.models import wrapped_residual
+
+_TWO_PI = 2.0 * np.pi
+_OMEGA_SKEW = np.array([[0.0, -OMEGA_EARTH, 0.0],
+                        [OMEGA_EARTH, 0.0, 0.0],
+                        [0.0, 0.0, 0.0]])
+"""[omega x] for the Earth rotation vector omega = OMEGA_EARTH e_z."""
+
+
+class GroundRadarModel:
+    """MeasurementModel of a ground radar at WGS84 (lat, lon, h) for ECI states [x y z vx vy vz, ...].
+
+    Extra state components beyond the first six are ignored (their Jacobian columns are zero).
+    """
+
+    def __init__(self, lat_rad: float, lon_rad: float, h_m: float, theta0: float = 0.0,
+                 with_range_rate: bool = False) -> None:
+        self.lat_rad = float(lat_rad)
+        self.lon_rad = float(lon_rad)
+        self.h_m = float(h_m)
+        self.theta0 = float(theta0)
+        self.with_range_rate = bool(with_range_rate)
+        self.station_ecef = geodetic_to_ecef(self.lat_rad, self.lon_rad, self.h_m)
+        self._M = enu_rotation(self.lat_rad, self.lon_rad)
+        self._station_enu = self._M @ self.station_ecef
+        self._T_cache: tuple[float, np.ndarray] = (float("nan"), np.eye(3))
+        base = ("range", "azimuth", "elevation")
+        self.labels: Sequence[str] = base + ("range_rate",) if self.with_range_rate else base
+        self.angle_indices: Sequence[int] = (1, 2)
+
+    def eci_to_enu_rotation(self, t: float) -> np.ndarray:
+        """T(t) = M R3(theta(t)): ECI vector components -> station ENU components, shape (3, 3).
+
+        The last T is cached: a filter step evaluates h and its Jacobian at the same time t.
+        """
+        if t != self._T_cache[0]:
+            theta = float(earth_rotation_angle(t, self.theta0))
+            c, s = math.cos(theta), math.sin(theta)
+            T = self._M @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            T.flags.writeable = False
+            self._T_cache = (t, T)
+        return self._T_cache[1]
+
+    def enu(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Station-to-target vector in ENU (paper eq. 10) for a state (n,) -> (3,) or batch (m, n) -> (m, 3)."""
+        x = np.asarray(x, dtype=float)
+        return x[..., 0:3] @ self.eci_to_enu_rotation(t).T - self._station_enu
+
+    def h(self, x: np.ndarray, t: float) -> np.ndarray:
+        """[range, azimuth, elevation(, range_rate)] (paper eqs. 11-14) for (n,) -> (d,) or (m, n) -> (m, d).
+
+        A single state is converted in Python floats (numpy's per-call overhead on 3-vectors would
+        dominate the EKF's step time); a batch is vectorised over rows.
+        """
+        x = np.asarray(x, dtype=float)
+        T = self.eci_to_enu_rotation(t)
+        u = x[..., 0:3] @ T.T - self._station_enu
+        if self.with_range_rate:
+            w = (x[..., 3:6] - x[..., 0:3] @ _OMEGA_SKEW.T) @ T.T
+        if x.ndim == 1:
+            e, n, up = u.tolist()
+            horiz = math.hypot(e, n)
+            rng = math.hypot(horiz, up)
+            z = [rng, math.atan2(e, n) % _TWO_PI, math.atan2(up, horiz)]
+            if self.with_range_rate:
+                z.append(float(u @ w) / rng)
+            return np.array(z)
+        e, n, up = u[..., 0], u[..., 1], u[..., 2]
+        horiz = np.hypot(e, n)
+        rng = np.hypot(horiz, up)
+        cols = [rng, np.mod(np.arctan2(e, n), _TWO_PI), np.arctan2(up, horiz)]
+        if self.with_range_rate:
+            cols.append(np.sum(u * w, axis=-1) / rng)
+        return np.stack(cols, axis=-1)
+
+    def elevation(self, x: np.ndarray, t: float) -> np.ndarray | float:
+        """Elevation [rad] of a state (n,) -> float or batch (m, n) -> (m,), for the visibility mask."""
+        u = self.enu(x, t)
+        el = np.arctan2(u[..., 2], np.hypot(u[..., 0], u[..., 1]))
+        return float(el) if np.ndim(el) == 0 else el
+
+    def jacobian(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Analytic d h / d x at a single state x (n,), shape (d, n) (paper eqs. 15-16, radar azimuth).
+
+        Singular at the zenith (horizontal distance 0), where azimuth is undefined.
+        """
+        x = np.asarray(x, dtype=float)
+        T = self.eci_to_enu_rotation(t)
+        u = T @ x[0:3] - self._station_enu
+        e, n, up = u.tolist()
+        horiz2 = e * e + n * n
+        horiz = math.sqrt(horiz2)
+        rng2 = horiz2 + up * up
+        rng = math.sqrt(rng2)
+        c = up / (rng2 * horiz)
+        d_polar = np.array([
+            [e / rng, n / rng, up / rng],
+            [n / horiz2, -e / horiz2, 0.0],
+            [-e * c, -n * c, horiz / rng2],
+        ])
+        H = np.zeros((len(self.labels), x.shape[0]))
+        H[0:3, 0:3] = d_polar @ T
+        if self.with_range_rate:
+            w = T @ (x[3:6] - _OMEGA_SKEW @ x[0:3])
+            rdot = float(u @ w) / rng
+            d_u = (w - rdot * u / rng) / rng
+            d_w = u / rng
+            H[3, 0:3] = d_u @ T - d_w @ T @ _OMEGA_SKEW
+            H[3, 3:6] = d_w @ T
+        return H
+
+    def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
+        """z - z_pred with azimuth and elevation wrapped to (-pi, pi]; broadcasts over batches."""
+        return wrapped_residual(z, z_pred, self.angle_indices)
+
+    def position_from_measurement(self, z: np.ndarray, t: float) -> np.ndarray:
+        """ECI position (3,) of the target seen at [range, azimuth, elevation, ...] z at time t.
+
+        Inverse of the polar conversion (eqs. 11-13) and of the ENU/ECEF rotations (eqs. 9-10).
+        """
+        rng, az, el = (float(v) for v in np.asarray(z, dtype=float)[0:3])
+        u = rng * np.array([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
+        return self.eci_to_enu_rotation(t).T @ (u + self._station_enu)
+
+    def position_jacobian(self, z: np.ndarray, t: float) -> np.ndarray:
+        """d position_from_measurement / d [range, azimuth, elevation], shape (3, 3)."""
+        rng, az, el = (float(v) for v in np.asarray(z, dtype=float)[0:3])
+        ca, sa, ce, se = np.cos(az), np.sin(az), np.cos(el), np.sin(el)
+        d_u = np.array([[ce * sa, rng * ce * ca, -rng * se * sa],
+                        [ce * ca, -rng * ce * sa, -rng * se * ca],
+                        [se, 0.0, rng * ce]])
+        return self.eci_to_enu_rotation(t).T @ d_u

@@ -1,0 +1,23 @@
+"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench also uses it in place."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "tracker_filters"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="Tracking bench team",
+    maintainer_email="bench@example.org",
+    description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
+    license="Apache-2.0",
+    entry_points={"console_scripts": ["filter_node = tracker_filters.filter_node:main"]},
+)

@@ -1,0 +1,65 @@
+"""Interfaces every dynamics and measurement model implements, so any filter runs on any model.
+
+The split follows Stone Soup: a dynamics model (transition), a measurement model (observation) and a
+filter (predictor + updater) are separate objects. Filters only talk to models through these methods.
+
+Array convention: a single state is shape (n,); a batch of states (sigma points, particles) is shape
+(m, n), one state per row. Every method that takes ``x`` accepts both and returns the matching shape.
+"""
+from __future__ import annotations
+
+from typing import Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class DynamicsModel(Protocol):
+    """State transition x(t + dt) = f(x(t), dt) with additive process noise of covariance Q(dt)."""
+
+    labels: Sequence[str]
+    """One name per state component, e.g. ("x", "y", "z", "vx", "vy", "vz")."""
+    frame: str
+    """Frame of the state vector, e.g. "eci" or "lvlh"."""
+
+    def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """Propagate one state (n,) or a batch (m, n) by dt seconds (dt may be negative or zero)."""
+
+    def transition_matrix(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """Jacobian d f(x, dt) / dx at the single state x, shape (n, n)."""
+
+    def process_noise(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """Discrete process-noise covariance Q for a step of dt seconds, shape (n, n)."""
+
+
+@runtime_checkable
+class MeasurementModel(Protocol):
+    """Observation z = h(x, t) + v, v ~ N(0, R); angle components are differenced with wrapping."""
+
+    labels: Sequence[str]
+    """One name per measurement component, e.g. ("range", "azimuth", "elevation")."""
+    angle_indices: Sequence[int]
+    """Indices of components that are angles and must be wrapped to (-pi, pi] when differenced."""
+
+    def h(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Predicted measurement for one state (n,) -> (d,) or a batch (m, n) -> (m, d) at time t."""
+
+    def jacobian(self, x: np.ndarray, t: float) -> np.ndarray:
+        """d h / d x at the single state x, shape (d, n)."""
+
+    def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
+        """z - z_pred with angle components wrapped to (-pi, pi]; broadcasts over batches."""
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray:
+    """Wrap angles to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+
+
+def wrapped_residual(z: np.ndarray, z_pred: np.ndarray, angle_indices: Sequence[int]) -> np.ndarray:
+    """Difference z - z_pred with the given components wrapped; shared by all measurement models."""
+    d = np.asarray(z, dtype=float) - np.asarray(z_pred, dtype=float)
+    if len(angle_indices):
+        idx = list(angle_indices)
+        d[..., idx] = wrap_angle(d[..., idx])
+    return d

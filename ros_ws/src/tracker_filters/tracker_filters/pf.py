@@ -1,0 +1,309 @@
+"""Particle filters, vectorised over the cloud (a batch (N, n) through ``propagate`` and ``h``).
+
+- ``SIRParticleFilter`` ("sir"): paper 001 §3 exactly — transition-prior proposal, log-weights updated by the
+  likelihood, multinomial resampling when N_eff = 1/Σw² < N_th = 2N/3, weighted mean and spread as output.
+- ``RegularisedParticleFilter`` ("pf"): the bench's default. Each particle is the centre of a Gaussian kernel
+  N(c_i, Q + h²C) (regularised PF, Musso, Oudjane & Le Gland 2001, with the Liu & West 2001 shrinkage
+  c_i = a·x_i + (1 − a)·x̄, a = √(1 − h²), which keeps the cloud's mean and covariance C). The importance
+  density is the linearised optimal proposal of each kernel given z (Doucet, Godsill & Andrieu 2000): one
+  gain K from the Jacobian at the cloud mean, the per-particle mean found by Gauss–Newton passes on the full
+  nonlinear h, and exact importance weights p(z|x)·N(x; c_i, S)/N(x; m_i, Σ). It stays healthy when the
+  likelihood is far narrower than the cloud (paper 001: 2 cm range against a 50 m prior), where the SIR
+  collapses onto a handful of particles.
+
+Both keep normalised log-weights (logsumexp), report ``diagnostics()["n_eff"]`` (before resampling), and
+recover from a likelihood that vanishes for every particle (overflow, NaN) by re-drawing the cloud from the
+predicted mean and covariance, with a warning, instead of producing a NaN estimate.
+"""
+from __future__ import annotations
+
+from abc import abstractmethod
+
+import numpy as np
+from scipy.linalg import lapack
+from scipy.special import logsumexp
+
+from tracker_filters.covariance import ensure_pd
+from tracker_filters.filter_base import Filter, StepResult
+from tracker_filters.models import DynamicsModel, MeasurementModel
+from tracker_filters.resampling import RESAMPLERS
+
+
+def sampling_factor(M: np.ndarray) -> np.ndarray:
+    """A matrix L with L Lᵀ = M for a symmetric positive semi-definite M (eigen-decomposition if singular)."""
+    try:
+        return np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (M + M.T))
+        return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def mahalanobis_sq(D: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """Row-wise |L⁻¹ d_i|² for D (N, d) and a lower Cholesky factor L (d, d).
+
+    Multiplies by the explicit d×d inverse from LAPACK dtrtri: scipy's solve_triangular costs 15 µs on a
+    6×6 system and, with N = 10 000 right-hand sides or a multi-threaded OpenBLAS under load, 1–14 ms
+    (measured), against the 5 ms per-step target.
+    """
+    L_inv, info = lapack.dtrtri(L, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"triangular inverse failed (LAPACK info={info})")
+    W = D @ L_inv.T
+    return np.einsum("ij,ij->i", W, W)
+
+
+def weighted_moments(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted mean Σ w_i x_i and spread Σ w_i (x_i − x̄)(x_i − x̄)ᵀ (paper 001 step 8)."""
+    mean = w @ X
+    D = X - mean
+    return mean, (D.T * w) @ D
+
+
+def innovation_nis(nu: np.ndarray, w: np.ndarray, extra_cov: np.ndarray) -> float:
+    """NIS of the mean innovation ν̄ = Σ w_i ν_i against the weighted spread of ν_i plus ``extra_cov``."""
+    nu_bar, spread = weighted_moments(nu, w)
+    S = spread + extra_cov
+    return float(nu_bar @ np.linalg.solve(S, nu_bar))
+
+
+def silverman_bandwidth(n_particles: int, dim: int) -> float:
+    """Optimal Gaussian-kernel width h = (4 / (N (n + 2)))^(1 / (n + 4)) in units of the cloud spread."""
+    return (4.0 / (n_particles * (dim + 2.0))) ** (1.0 / (dim + 4.0))
+
+
+class ParticleFilterBase(Filter):
+    """Cloud bookkeeping shared by the particle filters: sampling, weights, resampling, recovery.
+
+    ``threshold`` is N_th / N: the cloud is resampled when N_eff < threshold·N.
+    """
+
+    def __init__(
+        self,
+        dynamics: DynamicsModel,
+        n_particles: int = 1000,
+        resampling: str = "multinomial",
+        threshold: float = 2.0 / 3.0,
+        seed: int | None = None,
+    ) -> None:
+        super().__init__(dynamics)
+        if int(n_particles) != n_particles or n_particles < 2:
+            raise ValueError(f"{self.name}: n_particles must be an integer >= 2, got {n_particles!r}")
+        if resampling not in RESAMPLERS:
+            raise ValueError(f"{self.name}: resampling must be one of {sorted(RESAMPLERS)}, got {resampling!r}")
+        if not 0.0 < threshold <= 1.0:
+            raise ValueError(f"{self.name}: threshold must be in (0, 1], got {threshold!r}")
+        self.n_particles = int(n_particles)
+        self.resampling = resampling
+        self.threshold = float(threshold)
+        self._resample = RESAMPLERS[resampling]
+        self._rng = np.random.default_rng(seed)
+        self.particles: np.ndarray | None = None
+        self._logw: np.ndarray | None = None
+        self._n_eff = float(self.n_particles)
+        self._resampled = False
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalised particle weights (N,)."""
+        return np.exp(self._logw)
+
+    def initialise(self, x0: np.ndarray, P0: np.ndarray, t0: float) -> None:
+        """Start from mean x0 and covariance P0: N particles drawn from N(x0, P0), equal weights."""
+        super().initialise(x0, P0, t0)
+        self._draw_cloud(self.x, self.P)
+        self._n_eff = float(self.n_particles)
+
+    def diagnostics(self) -> dict[str, float]:
+        """``n_eff``: 1/Σw² after the last update, before resampling; ``resampled``: 1 if it resampled."""
+        return {"n_eff": self._n_eff, "resampled": float(self._resampled)}
+
+    def process(self, t: float, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> StepResult:
+        """``Filter.process``; a rejected or failed step also leaves the particle cloud untouched."""
+        saved = self._cloud_state()
+        result = super().process(t, z, R, model)
+        if not result.accepted:
+            self._restore_cloud(saved)
+        return result
+
+    def _cloud_state(self) -> tuple:
+        return self.particles, self._logw, self._n_eff, self._resampled
+
+    def _restore_cloud(self, state: tuple) -> None:
+        self.particles, self._logw, self._n_eff, self._resampled = state
+
+    def _draw_cloud(self, mean: np.ndarray, cov: np.ndarray) -> None:
+        """Replace the cloud by N equally weighted draws from N(mean, cov)."""
+        noise = self._rng.standard_normal((self.n_particles, mean.size))
+        self.particles = mean + noise @ sampling_factor(cov).T
+        self._logw = np.full(self.n_particles, -np.log(self.n_particles))
+
+    def _drop_nonfinite(self, when: str) -> None:
+        """Give zero weight to particles with non-finite components (their values are replaced by 0)."""
+        bad = ~np.all(np.isfinite(self.particles), axis=1)
+        if not np.any(bad):
+            return
+        if np.all(bad):
+            raise FloatingPointError(f"{self.name}: every particle became non-finite {when}")
+        self.particles = np.where(bad[:, None], 0.0, self.particles)
+        logw = np.where(bad, -np.inf, self._logw)
+        self._logw = logw - logsumexp(logw)
+        self._warnings.append(f"{self.name}: {int(bad.sum())} particles non-finite {when}; weights set to 0")
+
+    def _set_moments(self, extra_cov: np.ndarray | None = None) -> None:
+        """x, P = weighted mean and spread of the cloud (+ ``extra_cov``)."""
+        self.x, self.P = weighted_moments(self.particles, self.weights)
+        if extra_cov is not None:
+            self.P = self.P + extra_cov
+
+    def _absorb(self, loglik: np.ndarray) -> None:
+        """w_i ∝ w_i·exp(loglik_i) in log space; N_eff; resample below the threshold (paper 001 steps 3–6).
+
+        If no particle keeps a finite positive weight, the cloud is re-drawn from the current (predicted)
+        x, P and the measurement is not used; a warning says so.
+        """
+        logw = self._logw + np.where(np.isnan(loglik), -np.inf, loglik)
+        top = np.max(logw)
+        self._resampled = False
+        if not np.isfinite(top):
+            self._warnings.append(
+                f"{self.name}: every particle weight vanished (likelihood underflow/overflow or NaN) at "
+                f"t={self.t} s; cloud re-drawn from the predicted mean and covariance, measurement not used")
+            self._draw_cloud(self.x, self.P)
+            self._n_eff = float(self.n_particles)
+            return
+        logw = logw - (top + np.log(np.sum(np.exp(logw - top))))
+        w = np.exp(logw)
+        self._n_eff = float(1.0 / np.sum(w * w))
+        if self._n_eff < self.threshold * self.n_particles:
+            self.particles = self.particles[self._resample(w, self._rng)]
+            logw = np.full(self.n_particles, -np.log(self.n_particles))
+            self._resampled = True
+        self._logw = logw
+
+    def _nis(self, nu: np.ndarray, extra_cov: np.ndarray) -> float:
+        """``innovation_nis`` over the particles with a finite innovation and a non-zero weight."""
+        usable = np.all(np.isfinite(nu), axis=1) & np.isfinite(self._logw)
+        w = self.weights[usable]
+        if not np.sum(w) > 0.0:
+            return float("inf")
+        return innovation_nis(nu[usable], w / np.sum(w), extra_cov)
+
+    @staticmethod
+    def _measurement_loglik(nu: np.ndarray, L_R: np.ndarray) -> np.ndarray:
+        """log N(ν_i; 0, R) up to a constant, for innovations ν (N, d) and chol(R) = L_R."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            return -0.5 * mahalanobis_sq(nu, L_R)
+
+    @abstractmethod
+    def _predict(self, dt: float) -> None:
+        """Propagate the cloud by dt seconds and refresh x, P."""
+
+    @abstractmethod
+    def _update(self, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> float:
+        """Weight (and move) the cloud with z; refresh x, P; return the NIS."""
+
+
+class SIRParticleFilter(ParticleFilterBase):
+    """Sequential importance resampling with the transition prior as proposal (paper 001 §3, steps 1–8)."""
+
+    name = "sir"
+
+    def _predict(self, dt: float) -> None:
+        """Step 2: x_i ~ p(x_k | x_i): propagate each particle and add a draw of N(0, Q(dt))."""
+        Q = self.dynamics.process_noise(self.x, dt)
+        noise = self._rng.standard_normal(self.particles.shape) @ sampling_factor(Q).T
+        self.particles = self.dynamics.propagate(self.particles, dt) + noise
+        self._drop_nonfinite("after propagation")
+        self._set_moments()
+
+    def _update(self, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> float:
+        """Steps 3–6: w_i ∝ w_i·p(z | x_i), N_eff, multinomial resampling; step 8: moments."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            nu = model.residual(z, model.h(self.particles, self.t))
+        nis = self._nis(nu, R)
+        self._absorb(self._measurement_loglik(nu, np.linalg.cholesky(R)))
+        self._set_moments()
+        return nis
+
+
+class RegularisedParticleFilter(ParticleFilterBase):
+    """Regularised particle filter with a linearised optimal proposal (module docstring).
+
+    ``bandwidth`` scales the kernel width h (1 = Silverman's optimum for N and n); ``iterations`` is the number
+    of Gauss–Newton passes that place each proposal mean on the nonlinear measurement surface.
+    Process noise is carried as a pending covariance Q_pend (propagated with the transition matrix) until the
+    next update, where it becomes part of each particle's kernel.
+    """
+
+    name = "pf"
+
+    def __init__(
+        self,
+        dynamics: DynamicsModel,
+        n_particles: int = 1000,
+        resampling: str = "systematic",
+        threshold: float = 2.0 / 3.0,
+        seed: int | None = None,
+        bandwidth: float = 1.0,
+        iterations: int = 2,
+    ) -> None:
+        super().__init__(dynamics, n_particles, resampling, threshold, seed)
+        n = len(dynamics.labels)
+        h = bandwidth * silverman_bandwidth(self.n_particles, n)
+        if not 0.0 < h < 1.0:
+            raise ValueError(f"pf: bandwidth must give a kernel width h in (0, 1), got h={h!r}")
+        if int(iterations) != iterations or iterations < 1:
+            raise ValueError(f"pf: iterations must be an integer >= 1, got {iterations!r}")
+        self.bandwidth = float(bandwidth)
+        self.iterations = int(iterations)
+        self._h2 = h * h
+        self._Q_pend = np.zeros((n, n))
+
+    def initialise(self, x0: np.ndarray, P0: np.ndarray, t0: float) -> None:
+        super().initialise(x0, P0, t0)
+        self._Q_pend = np.zeros_like(self.P)
+
+    def _cloud_state(self) -> tuple:
+        return super()._cloud_state() + (self._Q_pend,)
+
+    def _restore_cloud(self, state: tuple) -> None:
+        super()._restore_cloud(state[:-1])
+        self._Q_pend = state[-1]
+
+    def _predict(self, dt: float) -> None:
+        """Propagate the kernel centres; Q_pend ← Φ Q_pend Φᵀ + Q(dt); P = cloud spread + Q_pend."""
+        Phi = self.dynamics.transition_matrix(self.x, dt)
+        Q = self.dynamics.process_noise(self.x, dt)
+        self.particles = self.dynamics.propagate(self.particles, dt)
+        self._drop_nonfinite("after propagation")
+        self._Q_pend = Phi @ self._Q_pend @ Phi.T + Q
+        self._set_moments(self._Q_pend)
+
+    def _update(self, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> float:
+        """Draw each particle from its kernel's linearised posterior and weight it exactly."""
+        x_bar, C = weighted_moments(self.particles, self.weights)
+        a = np.sqrt(1.0 - self._h2)
+        centres = a * self.particles + (1.0 - a) * x_bar
+        S, _ = ensure_pd(self._Q_pend + self._h2 * C)
+        H = model.jacobian(x_bar, self.t)
+        P_zz = H @ S @ H.T + R
+        K = np.linalg.solve(P_zz, H @ S).T
+        Sigma, _ = ensure_pd(S - K @ P_zz @ K.T)
+        with np.errstate(invalid="ignore", over="ignore"):
+            nu = model.residual(z, model.h(centres, self.t))
+            nis = self._nis(nu, P_zz)
+            means = centres + nu @ K.T
+            for _ in range(self.iterations - 1):
+                nu_m = model.residual(z, model.h(means, self.t))
+                means = centres + (nu_m + (means - centres) @ H.T) @ K.T
+            eps = self._rng.standard_normal(self.particles.shape)
+            self.particles = means + eps @ np.linalg.cholesky(Sigma).T
+            nu_new = model.residual(z, model.h(self.particles, self.t))
+            loglik = (self._measurement_loglik(nu_new, np.linalg.cholesky(R))
+                      - 0.5 * mahalanobis_sq(self.particles - centres, np.linalg.cholesky(S))
+                      + 0.5 * np.sum(eps * eps, axis=1))
+        self._drop_nonfinite("after the proposal")
+        self._Q_pend = np.zeros_like(self._Q_pend)
+        self._absorb(loglik)
+        self._set_moments()
+        return nis

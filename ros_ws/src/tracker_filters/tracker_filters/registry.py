@@ -1,0 +1,52 @@
+"""Filters by name, for scenario files and the filter node: ``make_filter("ukf", dynamics, alpha=1.0)``.
+
+To register a filter, add its class to FILTERS. A filter class takes the dynamics model first and its
+tuning parameters as keyword arguments, and raises ValueError for an invalid parameter value.
+"""
+from __future__ import annotations
+
+import inspect
+
+from tracker_filters.ekf import ExtendedKalmanFilter
+from tracker_filters.filter_base import Filter
+from tracker_filters.kf import KalmanFilter
+from tracker_filters.models import DynamicsModel
+from tracker_filters.ukf import UnscentedKalmanFilter
+
+FILTERS: dict[str, type] = {
+    "kf": KalmanFilter,
+    "ekf": ExtendedKalmanFilter,
+    "ukf": UnscentedKalmanFilter,
+}
+
+
+def filter_parameters(name: str) -> list[str]:
+    """Names of the keyword parameters filter ``name`` accepts (beyond the dynamics model)."""
+    params = list(inspect.signature(_filter_class(name).__init__).parameters.values())[2:]
+    return [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+
+
+def make_filter(name: str, dynamics: DynamicsModel, **params) -> Filter:
+    """Build filter ``name`` over ``dynamics`` with tuning ``params``.
+
+    Raises ValueError naming the unknown filter and the registered names, an unknown parameter and the
+    accepted ones, or an invalid parameter value (e.g. "ukf: alpha must be in (0, 1], got -1").
+    """
+    cls = _filter_class(name)
+    allowed = filter_parameters(name)
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ValueError(f"{name}: unknown parameter(s) {', '.join(unknown)}; "
+                         f"allowed: {', '.join(allowed) or 'none'}")
+    try:
+        return cls(dynamics, **params)
+    except ValueError as err:
+        message = str(err)
+        raise ValueError(message if message.startswith(f"{name}:") else f"{name}: {message}") from err
+
+
+def _filter_class(name: str) -> type:
+    try:
+        return FILTERS[name]
+    except KeyError:
+        raise ValueError(f"unknown filter {name!r}; allowed: {', '.join(sorted(FILTERS))}") from None

