@@ -290,6 +290,8 @@ def test_writer_guards(tmp_path):
         writer.add_topic("/chatter", "bench_msgs/msg/StepAck")
     with pytest.raises(ValueError):
         writer.add_topic("/other", "std_msgs/msg/String", {"reliability": "sometimes"})
+    with pytest.raises(ValueError):
+        writer.add_topic("/other", "std_msgs/msg/String", {"reliabilty": "reliable"})
     writer.write("/chatter", bytearray(data), 5)
     writer.close()
     writer.close()

@@ -76,6 +76,8 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
     validate(cfg, names, source)
     graph = build_graph(cfg, names, record, source)
     out = Path(out).resolve()
+    if record and (out / "bag").exists():
+        raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
     out.mkdir(parents=True, exist_ok=True)
     run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
            "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0) if seed is None else seed)}

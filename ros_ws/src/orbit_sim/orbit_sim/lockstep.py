@@ -5,7 +5,8 @@ with the cumulative number of measurements it has published; each filter acknowl
 it consumed with its cumulative count. The source may publish step k when every sensor has acknowledged
 step k - 1 - ``window`` and no filter is more than ``window`` measurements behind. ``window = 0`` is
 strict lock-step; a small window lets the processes of the graph work in parallel. Nothing is ever
-dropped: the window only bounds how far the source runs ahead.
+dropped: the window only bounds how far the source runs ahead. When the source publishes the measurements
+itself (bag replay, ``sensor_acks=False``) it counts them with :meth:`Pacer.on_published`.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ class Pacer:
     sensors: list[str]
     filter_inputs: dict[str, list[str]]  # filter -> sensors it consumes
     window: int = 0
+    sensor_acks: bool = True
     sensor_step: dict[str, int] = field(default_factory=dict)
     published: dict[str, int] = field(default_factory=dict)
     consumed: dict[str, int] = field(default_factory=dict)
@@ -51,11 +53,11 @@ class Pacer:
 
     def can_publish(self, step: int) -> bool:
         """Whether step ``step`` may be published now."""
-        if any(acked < step - 1 - self.window for acked in self.sensor_step.values()):
+        if self.sensor_acks and any(acked < step - 1 - self.window for acked in self.sensor_step.values()):
             return False
         return all(self.backlog(f) <= self.window for f in self.filter_inputs)
 
     def complete(self, last_step: int) -> bool:
         """Every sensor handled ``last_step`` and every filter consumed all it was sent."""
-        return (all(acked >= last_step for acked in self.sensor_step.values())
+        return ((not self.sensor_acks or all(acked >= last_step for acked in self.sensor_step.values()))
                 and all(self.backlog(f) == 0 for f in self.filter_inputs))

@@ -22,8 +22,10 @@ class SourceNode(BenchNode):
     def setup(self) -> None:
         self._created = time.monotonic()
         filters = {f.name: f.inputs for f in self.graph.of_kind("filter")}
-        sensors = [s.name for s in self.graph.of_kind("sensor")]
-        self.pacer = Pacer(sensors, filters, window=int(self.cfg.get("time", {}).get("pacing_window", 0)))
+        sensor_nodes = [s.name for s in self.graph.of_kind("sensor")]
+        streams = sensor_nodes or sorted({s for inputs in filters.values() for s in inputs})
+        self.pacer = Pacer(streams, filters, window=int(self.cfg.get("time", {}).get("pacing_window", 0)),
+                           sensor_acks=bool(sensor_nodes))
         self._waiting_for = {n.name for n in self.graph.nodes if n.name != self.get_name()}
         self._next = 0
         self._started = None

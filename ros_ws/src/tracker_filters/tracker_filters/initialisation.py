@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbit_sim.constants import MU_EARTH
+from tracker_filters.sigma_points import ScaledSigmaPoints
 
 
 def _velocity_covariance(velocity_sigma: float | np.ndarray) -> np.ndarray:
@@ -30,19 +31,31 @@ def _velocity_covariance(velocity_sigma: float | np.ndarray) -> np.ndarray:
 
 def initial_state_from_scan(z: np.ndarray, R: np.ndarray, model, t: float,
                             velocity_sigma: float | np.ndarray,
-                            velocity_mean: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                            velocity_mean: np.ndarray | None = None,
+                            method: str = "unscented") -> tuple[np.ndarray, np.ndarray]:
     """(x0 (6,), P0 (6, 6)) in ECI at time t from one radar measurement z with noise covariance R.
 
     ``model`` is a radar measurement model offering ``position_from_measurement(z, t)`` and
     ``position_jacobian(z, t)`` (radar_sensor.radar.GroundRadarModel). Only the first three components of
     z (range, azimuth, elevation) and the matching 3x3 block of R are used.
     """
+    z3 = np.asarray(z, dtype=float)[0:3]
     R3 = np.asarray(R, dtype=float)[0:3, 0:3]
-    J = model.position_jacobian(z, t)
+    if method == "jacobian":
+        r0 = model.position_from_measurement(z3, t)
+        J = model.position_jacobian(z3, t)
+        P_pos = J @ R3 @ J.T
+    elif method == "unscented":
+        points = ScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
+        positions = np.array([model.position_from_measurement(zi, t) for zi in points.generate(z3, R3)])
+        r0 = points.mean(positions)
+        P_pos = points.covariance(positions - r0)
+    else:
+        raise ValueError(f"method must be 'unscented' or 'jacobian', got {method!r}")
     v0 = np.zeros(3) if velocity_mean is None else np.asarray(velocity_mean, dtype=float)
-    x0 = np.concatenate((model.position_from_measurement(z, t), v0))
+    x0 = np.concatenate((r0, v0))
     P0 = np.zeros((6, 6))
-    P0[0:3, 0:3] = J @ R3 @ J.T
+    P0[0:3, 0:3] = P_pos
     P0[3:6, 3:6] = _velocity_covariance(velocity_sigma)
     return x0, P0
 
