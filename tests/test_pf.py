@@ -189,7 +189,8 @@ def test_invalid_parameters_raise(cls, params):
         cls(DYN, **params)
 
 
-@pytest.mark.parametrize("params", [{"bandwidth": 0.0}, {"bandwidth": 10.0}, {"iterations": 0}])
+@pytest.mark.parametrize("params", [{"bandwidth": 0.0}, {"bandwidth": 10.0}, {"iterations": -1},
+                                    {"iterations": 1.5}])
 def test_invalid_pf_parameters_raise(params):
     with pytest.raises(ValueError):
         RegularisedParticleFilter(DYN, **params)

@@ -241,11 +241,14 @@ class SIRParticleFilter(ParticleFilterBase):
 class RegularisedParticleFilter(ParticleFilterBase):
     """Regularised particle filter with a linearised optimal proposal (module docstring).
 
-    ``bandwidth`` scales the kernel width h (1 = Silverman's optimum for N and n); ``iterations`` is the
-    maximum number of Gauss–Newton passes that place each proposal mean on the nonlinear measurement surface
-    (the first always runs; a further one only while it moves the probed means by > PASS_TOLERANCE σ).
-    On paper 001's set-up one pass leaves N_eff ≈ 5–25 of 10 000 at the first update (50 m cloud), two give
-    ≈ 1 250; afterwards the probe stops at one pass (measured with scripts/formation_pf_study.py).
+    ``bandwidth`` scales the kernel width h (1 = Silverman's optimum for N and n). The proposal means start
+    from h linearised at the cloud mean (no per-particle h evaluation); ``iterations`` is the maximum number
+    of Gauss–Newton passes on the nonlinear h that follow, each run only while it would move the probed
+    means by > PASS_TOLERANCE σ. On paper 001's set-up the probe asks for one pass at the first update
+    (50 m cloud; N_eff ≈ 1 250 of 10 000 with it, ≈ 1 000 without) and none afterwards, so a steady-state
+    step evaluates h once per particle (measured with scripts/formation_pf_study.py). Starting the passes
+    from h(c_i) instead, with H at the mean, left N_eff ≈ 5–25 at that first update: the proposal means all
+    land near the measured point, close to the cloud mean, where the mean's linearisation is accurate.
     Process noise is carried as a pending covariance Q_pend (propagated with the transition matrix) until the
     next update, where it becomes part of each particle's kernel.
     """
@@ -267,12 +270,17 @@ class RegularisedParticleFilter(ParticleFilterBase):
         h = bandwidth * silverman_bandwidth(self.n_particles, n)
         if not 0.0 < h < 1.0:
             raise ValueError(f"pf: bandwidth must give a kernel width h in (0, 1), got h={h!r}")
-        if int(iterations) != iterations or iterations < 1:
-            raise ValueError(f"pf: iterations must be an integer >= 1, got {iterations!r}")
+        if int(iterations) != iterations or iterations < 0:
+            raise ValueError(f"pf: iterations must be an integer >= 0, got {iterations!r}")
         self.bandwidth = float(bandwidth)
         self.iterations = int(iterations)
         self._h2 = h * h
         self._Q_pend = np.zeros((n, n))
+        self._passes = 0
+
+    def diagnostics(self) -> dict[str, float]:
+        """Base diagnostics plus ``gn_passes``: nonlinear Gauss–Newton passes the last update ran."""
+        return {**super().diagnostics(), "gn_passes": float(self._passes)}
 
     def initialise(self, x0: np.ndarray, P0: np.ndarray, t0: float) -> None:
         super().initialise(x0, P0, t0)
@@ -305,9 +313,10 @@ class RegularisedParticleFilter(ParticleFilterBase):
         K = np.linalg.solve(P_zz, H @ S).T
         L_sigma = np.linalg.cholesky(ensure_pd(S - K @ P_zz @ K.T)[0])
         with np.errstate(invalid="ignore", over="ignore"):
-            nu = model.residual(z, model.h(centres, self.t))
-            nis = self._nis(nu, P_zz)
-            means = self._proposal_means(centres, centres + nu @ K.T, z, model, H, K, L_sigma)
+            nu_bar = model.residual(z, model.h(x_bar, self.t))
+            nis = float(nu_bar @ np.linalg.solve(H @ (C + self._Q_pend) @ H.T + R, nu_bar))
+            linearised = centres + (nu_bar + (x_bar - centres) @ H.T) @ K.T
+            means = self._proposal_means(centres, linearised, z, model, H, K, L_sigma)
             eps = self._rng.standard_normal(self.particles.shape)
             self.particles = means + eps @ L_sigma.T
             nu_new = model.residual(z, model.h(self.particles, self.t))
@@ -331,11 +340,13 @@ class RegularisedParticleFilter(ParticleFilterBase):
         whole cloud only if it would move a probed mean by more than PASS_TOLERANCE proposal σ.
         """
         probe = slice(None, None, max(1, self.n_particles // PROBE_SIZE))
-        for _ in range(self.iterations - 1):
+        self._passes = 0
+        for _ in range(self.iterations):
             step = self._gauss_newton(centres[probe], means[probe], z, model, H, K) - means[probe]
             if np.max(mahalanobis_sq(step, L_sigma)) <= PASS_TOLERANCE ** 2:
                 break
             means = self._gauss_newton(centres, means, z, model, H, K)
+            self._passes += 1
         return means
 
     def _gauss_newton(self, centres: np.ndarray, means: np.ndarray, z: np.ndarray, model: MeasurementModel,

@@ -19,6 +19,7 @@ from scipy.linalg import expm
 
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.hill import cw_matrix
+from tracker_filters.orbit_dynamics import white_acceleration_q
 
 POSITION_VELOCITY = ("x", "y", "z", "vx", "vy", "vz")
 BIAS = ("bx", "by", "bz")
@@ -29,16 +30,12 @@ _CACHE_SIZE = 32
 def wna_block(sigma: float | Sequence[float], dt: float) -> np.ndarray:
     """Discrete white-noise-acceleration Q (6, 6) over [x y z vx vy vz] for a step dt (|dt| is used).
 
-    ``sigma`` is the per-axis spectral density root [m/s^(3/2)], a scalar or 3 values.
+    ``sigma`` is the per-axis spectral density root [m/s^(3/2)], a scalar or 3 values: the unit-PSD
+    block of ``orbit_dynamics.white_acceleration_q`` scaled by sigma_axis^2 (it only couples an axis'
+    position with its own velocity).
     """
-    T = abs(float(dt))
-    s2 = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (3,))
-    Q = np.zeros((6, 6))
-    idx = np.arange(3)
-    Q[idx, idx] = s2 * T ** 3 / 3.0
-    Q[idx, idx + 3] = Q[idx + 3, idx] = s2 * T ** 2 / 2.0
-    Q[idx + 3, idx + 3] = s2 * T
-    return Q
+    s = np.tile(np.broadcast_to(np.asarray(sigma, dtype=float), (3,)), 2)
+    return white_acceleration_q(1.0, dt, 3) * np.outer(s, s)
 
 
 def van_loan(A: np.ndarray, Qc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -165,8 +162,10 @@ class SchweighartSedwickDynamics(LinearRelativeDynamics):
 
     Coefficients, as in the original:
       n = sqrt(mu / r_ref^3); s = 3 J2 Re^2 / (8 r_ref^2) (1 + 3 cos 2 i_ref); c = sqrt(1 + s)
-      (paper 004 eq. 8 drops the 1/8 and the square-root argument's structure);
+      (paper 004 eq. 8 drops the 1/8; its cross-track line reads z'' - q^2 y, a typo for z'' + q^2 z);
       in-plane:   x'' - 2 (n c) y' - (5 c^2 - 2) n^2 x = 0,   y'' + 2 (n c) x' = 0.
+    Its bounded in-plane motion needs vy = -2 n c x (CW: -2 n x); started where the osculating and mean
+    orbits agree (argument of latitude 45 deg), the J2 truth drifts ~18x less with SS's condition (test).
     The original's right-hand sides (the -3 n^2 J2 Re^2/r_ref {...} sin^2(k t) terms of paper 004 eq. 7)
     are the J2 motion of ONE satellite about the reference orbit; they are the same for chief and deputy
     and cancel in the chief-deputy relative motion, which is why the homogeneous form is used here.
@@ -183,8 +182,10 @@ class SchweighartSedwickDynamics(LinearRelativeDynamics):
     cross-track amplitude grow (the l-forcing), which no homogeneous model represents.
 
     ``a`` is the reference-orbit radius: use the chief's MEAN orbital radius (its orbit-averaged |r|).
-    A J2 orbit's osculating a differs from it by up to ~1.5 J2 Re^2/a sin^2 i (~9 km at 7100 km), which
-    shifts n by ~2e-3, more than the J2 corrections this model adds. With j2 = 0 the model is exactly CW.
+    For a chief started on an osculating circular orbit of a = 7100 km, the mean radius differs from a by
+    -8 to +14 km depending on i and the starting argument of latitude (short-period J2 terms, amplitude
+    ~1.5 J2 Re^2 / a sin^2 i); that shifts n by up to ~3e-3, more than the J2 corrections this model adds.
+    With j2 = 0 the model is exactly CW.
     Provenance: the original paper was not available here; s, c, k, the in-plane coefficients and the
     q / l formulas above were cross-checked against several independent public re-implementations of
     SS 2002 (all agree), against paper 004 eqs. 7-8 (same structure, garbled constants) and numerically

@@ -1,0 +1,108 @@
+"""The launcher's promises: bad input stops it before anything starts; signals and dead nodes leave a
+complete bag; normal runs leave no shared-memory files behind."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from graph_helpers import ROOT, SHORT_PASS, read_bag, script
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--filters", "ekf,kalman9000"], "'filters.kalman9000.type' must be one of"),
+    (["--set", "sensors.radar.sigma_rnge=3"], "unknown key(s) 'sensors.radar.sigma_rnge'"),
+    (["--set", "sensors.radar.sigma_range=-1"], "'sensors.radar.sigma_range' must be > 0, got -1.0"),
+    (["--set", "sensors.radar.p_detect=1.5"], "'sensors.radar.p_detect' must be in [0, 1], got 1.5"),
+    (["--set", "colour=blue"], "unknown key(s) 'colour' in the scenario's top level"),
+    (["--set", "filters.ukf.params.alpha=-1"], "alpha"),
+    (["--variant", "nope"], "unknown variant 'nope'; allowed: table3_angles"),
+])
+def test_bad_input_stops_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "bad"
+    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "64", *args, timeout=60)
+    assert res.returncode == 2
+    assert message in res.stderr
+    assert not (out / "bag").exists()
+
+
+def test_unknown_scenario_lists_the_available_ones(tmp_path: Path) -> None:
+    res = script("launch.py", "leo_radr", "--out", str(tmp_path / "x"), timeout=60)
+    assert res.returncode == 2 and "unknown scenario 'leo_radr'; available: " in res.stderr
+    assert "leo_radar" in res.stderr
+
+
+def _launch_background(out: Path, domain: int, *extra: str) -> subprocess.Popen:
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    return subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
+                             "--domain-id", str(domain), "--no-score", "--set", "time.pacing_window=0", *extra],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
+    log = out / "logs" / "truth.log"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if log.exists() and "stepping" in log.read_text():
+            time.sleep(1.0)
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"the run never started stepping: {proc.poll()} {log.read_text() if log.exists() else ''}")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_leaves_a_complete_readable_bag(tmp_path: Path, sig: int) -> None:
+    out = tmp_path / "sig"
+    proc = _launch_background(out, 65 if sig == signal.SIGINT else 66)
+    _wait_for_stepping(out, proc)
+    proc.send_signal(sig)
+    proc.wait(timeout=60)
+    assert proc.returncode == 128 + sig
+    bag = read_bag(out / "bag")
+    steps = [m.step for _, m in bag["/truth/state"]]
+    assert len(steps) > 10 and steps == list(range(len(steps)))  # nothing lost before the interruption
+    assert "/ukf/estimate" in bag
+
+
+def test_dead_node_is_named_and_bag_closed(tmp_path: Path) -> None:
+    out = tmp_path / "dead"
+    proc = _launch_background(out, 67)
+    _wait_for_stepping(out, proc)
+    found = subprocess.run(["pgrep", "-f", "--", f"--name ekf --config {out.resolve()}"], capture_output=True, text=True)
+    os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1
+    assert "node 'ekf' failed" in err
+    assert read_bag(out / "bag")["/truth/state"]
+
+
+def _shm_files() -> set[str]:
+    return {p.name for p in Path("/dev/shm").glob("fastrtps_*")} if Path("/dev/shm").is_dir() else set()
+
+
+def test_normal_runs_leave_no_shared_memory_behind(tmp_path: Path) -> None:
+    before = _shm_files()
+    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "shm"), "--domain-id", "68", "--no-score",
+                 "--set", "time.duration=5")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert _shm_files() - before == set()
+
+
+def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> None:
+    out = tmp_path / "mc"
+    res = script("montecarlo.py", "leo_radar", "--runs", "3", "--jobs", "2", "--out", str(out), "--json",
+                 "--domain-base", "70", *SHORT_PASS, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    scored = json.loads(res.stdout)
+    assert scored["runs"] == 3 and set(scored["filters"]) == {"ekf", "ukf"}
+    assert all((out / f"run_{i:03d}" / "bag" / "metadata.yaml").is_file() for i in range(3))
+    assert (out / "report" / "report.md").is_file()
+    # seeds differ between runs: the measurement noise differs
+    r0 = [m.range for _, m in read_bag(out / "run_000" / "bag")["/radar/measurement"]][:5]
+    r1 = [m.range for _, m in read_bag(out / "run_001" / "bag")["/radar/measurement"]][:5]
+    assert r0 != r1
