@@ -72,11 +72,12 @@ def main() -> None:
     for name, dyn_name, size, target, f in cases:
         dim = len(f.dynamics.labels)
         wall, cpu, p90 = time_steps(f, dim, args.steps, args.warmup, args.seed)
-        target_text = "-" if target is None else f"{target * 1e3:.1f} ms" if target >= 1e-3 else f"{target * 1e6:.0f} us"
+        target_text = "-" if target is None else _fmt(target)
         ok = "-" if target is None else ("yes" if wall <= target else "NO")
         print(f"{name:<6} {dyn_name:<10} {size:<18} {_fmt(wall):>12} {_fmt(cpu):>11} {_fmt(p90):>10} "
               f"{target_text:>9}  {ok}")
-    print("models: tracker_filters.relative_dynamics (CWDynamics, CWBiasDynamics) + radar_sensor.isl.RangeAzElModel")
+    print("models: tracker_filters.relative_dynamics CWDynamics / CWBiasDynamics, "
+          "radar_sensor.isl.RangeAzElModel")
 
 
 def _fmt(seconds: float) -> str:

@@ -2,12 +2,12 @@
 
 ∫ f(x) N(x; 0, I_n) dx is split into a radius and a direction. With x = r·s, |s| = 1, λ = r²/2:
 
-    ∫ f N dx = 1/Γ(n/2) ∫_0^∞ λ^(n/2 − 1) e^(−λ) ⟨f(√(2λ) s)⟩_s dλ,   ⟨·⟩_s = mean over the unit sphere.
+    ∫ f N dx = 1/Γ(n/2) ∫_0^∞ λ^(n/2 − 1) e^(−λ) ⟨f(√(2λ) s)⟩_s dλ,   ⟨·⟩_s: mean over the unit sphere.
 
 The sphere mean uses the third-degree spherical rule (the 2n points ±e_j, weights 1/(2n)); the radial
 integral uses the order-n' generalized Gauss–Laguerre rule with α = n/2 − 1 (nodes λ_i, weights A_i).
-The product rule has 2·n·n' points ξ = √(2λ_i)·(±e_j) with weights A_i / (2n·Γ(n/2)); it is exact for every
-polynomial of degree ≤ 3 and, for n' ≥ 2, also for the radial moments E|x|^(2k), k ≤ 2n' − 1.
+The product rule has 2·n·n' points ξ = √(2λ_i)·(±e_j) with weights A_i / (2n·Γ(n/2)); it is exact for
+every polynomial of degree ≤ 3 and for the radial moments E|x|^(2k), k ≤ 2n' − 1 (E|x|⁴ needs n' ≥ 2).
 n' = 1 gives λ_1 = n/2: the standard cubature Kalman filter points ±√n·e_j with weights 1/(2n).
 """
 from __future__ import annotations

@@ -8,10 +8,14 @@ gradient is frozen at the sub-step's midpoint position r + v h / 2, and the froz
 solved exactly:
     Phi_h = [[C, S], [G S, C]],   C = sum_k G^k h^(2k) / (2k)!,   S = sum_k G^k h^(2k+1) / (2k+1)!
 truncated after the G terms: |G| h^2 <= 2.6e-6 s^-2 * (10 s)^2 = 2.6e-4, so the first omitted term,
-G^2 h^4 / 24, is below 3e-9 of the kept ones. Freezing G at the midpoint makes the sub-step error O(h^3 |dG/dt|), i.e. a relative error
-~1e-7 on a 10 s sub-step (measured against finite differences of ``propagate`` in
-tests/test_kf_ekf_ukf.py). This costs one gravity-gradient evaluation per sub-step, versus four plus
-6x6 products for RK4-integrated variational equations; the EKF's 100 us per-step budget is why.
+G^2 h^4 / 24, is below 3e-9 of the kept ones. Freezing G at the midpoint is exact to first order in h for the
+blocks whose integrals weight G symmetrically over the sub-step (d v / d r = int G dt, d r / d v; the
+second-order remainder is ~4e-5 of d v / d r at h = 10 s); d r / d r and d v / d v
+weight it towards the start / end, so their gravity-gradient part (G h^2 / 2) carries a relative error
+~ h |dG/dt| / (6 |G|) ~ 4e-3 for h = 10 s (absolute ~5e-7), and 4e-5 (absolute ~5e-13) on the filters'
+0.1 s steps. tests/test_kf_ekf_ukf.py checks this against finite differences of ``propagate``. The cost
+is one gravity-gradient evaluation per sub-step, versus four plus 6x6 products for RK4-integrated
+variational equations; the EKF's 100 us per-step budget is why.
 
 Process noise. The paper's eq. 18, 2 sigma_m^2 tau_m [[T^3/3, T^2/2], [T^2/2, T]] padded with zeros, is a
 garbled Singer-model block that leaves y and z noiseless. This model uses the standard continuous white-

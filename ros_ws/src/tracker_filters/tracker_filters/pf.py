@@ -191,15 +191,6 @@ class ParticleFilterBase(Filter):
             self._resampled = True
         self._logw = logw
 
-    def _nis(self, nu: np.ndarray, extra_cov: np.ndarray) -> float:
-        """``innovation_nis`` over the particles with a finite innovation and a non-zero weight."""
-        usable = np.all(np.isfinite(nu), axis=1) & np.isfinite(self._logw)
-        w = self.weights[usable]
-        if not np.sum(w) > 0.0:
-            return float("inf")
-        with np.errstate(over="ignore", invalid="ignore"):
-            return innovation_nis(nu[usable], w / np.sum(w), extra_cov)
-
     @staticmethod
     def _measurement_loglik(nu: np.ndarray, L_R: np.ndarray) -> np.ndarray:
         """log N(ν_i; 0, R) up to a constant, for innovations ν (N, d) and chol(R) = L_R."""
@@ -236,6 +227,15 @@ class SIRParticleFilter(ParticleFilterBase):
         self._absorb(self._measurement_loglik(nu, np.linalg.cholesky(R)))
         self._set_moments()
         return nis
+
+    def _nis(self, nu: np.ndarray, extra_cov: np.ndarray) -> float:
+        """Predicted-measurement NIS (``innovation_nis``) over particles with finite ν and non-zero weight."""
+        usable = np.all(np.isfinite(nu), axis=1) & np.isfinite(self._logw)
+        w = self.weights[usable]
+        if not np.sum(w) > 0.0:
+            return float("inf")
+        with np.errstate(over="ignore", invalid="ignore"):
+            return innovation_nis(nu[usable], w / np.sum(w), extra_cov)
 
 
 class RegularisedParticleFilter(ParticleFilterBase):
