@@ -2,6 +2,7 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export OPENBLAS_NUM_THREADS := 1
 
 .PHONY: setup demo test bench clean
 

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 SCRIPTS = Path(__file__).resolve().parent
 STUDIES = {"leo_radar": ["--filters", "ekf,ukf"]}
 

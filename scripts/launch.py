@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 
 from orbit_sim.config import ScenarioError, available_scenarios  # noqa: E402
 from orbit_sim.launcher import prepare_run, run_multiprocess, run_single_process  # noqa: E402

@@ -24,6 +24,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
 
 

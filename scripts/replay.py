@@ -21,6 +21,7 @@ from pathlib import Path
 import yaml
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 
 from orbit_sim.config import ScenarioError, apply_overrides  # noqa: E402
 from orbit_sim.launcher import prepare_run, run_multiprocess, run_single_process  # noqa: E402

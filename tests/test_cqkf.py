@@ -3,11 +3,13 @@ import numpy as np
 import pytest
 from scipy.special import gamma
 
+from radar_sensor.isl import RelativePositionModel
 from tracker_filters.cqkf import CubatureQuadratureKF, weighted_measurement_mean
 from tracker_filters.cubature import cubature_quadrature_points, radial_rule
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
 from tracker_filters.models import wrapped_residual
+from tracker_filters.relative_dynamics import CWBiasDynamics
 
 
 def random_gaussian(n, seed):
@@ -189,6 +191,26 @@ def test_equals_the_kalman_filter_on_a_linear_model(order):
         assert s1.nis == pytest.approx(s2.nis, rel=1e-8)
         assert np.allclose(cqkf.x, kf.x, rtol=1e-10, atol=1e-9)
         assert np.allclose(cqkf.P, kf.P, rtol=1e-8, atol=1e-10)
+
+
+def test_equals_the_kalman_filter_on_the_9_state_cw_bias_model():
+    dynamics = CWBiasDynamics(2 * np.pi / 5952.8, sigma_accel=1e-3, sigma_bias=1e-6)
+    model = RelativePositionModel()
+    R = 1e-3 * np.eye(3)
+    x0 = np.array([100.0, 200.0, -50.0, 0.1, -0.2, 0.05, 0.0, 0.0, 0.0])
+    P0 = np.diag([4.0] * 3 + [1e-2] * 3 + [1e-8] * 3)
+    cqkf, kf = CubatureQuadratureKF(dynamics, order=2), KalmanFilter(dynamics)
+    for f in (cqkf, kf):
+        f.initialise(x0, P0, 0.0)
+    rng = np.random.default_rng(12)
+    truth = x0 + rng.normal(size=9) * np.sqrt(np.diag(P0))
+    for k in range(1, 31):
+        truth = dynamics.propagate(truth, 1.0)
+        z = model.h(truth) + rng.normal(size=3) * np.sqrt(np.diag(R))
+        s1, s2 = cqkf.process(float(k), z, R, model), kf.process(float(k), z, R, model)
+        assert s1.nis == pytest.approx(s2.nis, rel=1e-7)
+    assert np.allclose(cqkf.x, kf.x, rtol=1e-9, atol=1e-9)
+    assert np.allclose(cqkf.P, kf.P, rtol=1e-6, atol=1e-14)
 
 
 def test_circular_mean_of_angles_straddling_pi():

@@ -20,7 +20,7 @@ def numerical_jacobian(model, x: np.ndarray, eps: float = 1e-4) -> np.ndarray:
 
 def test_models_satisfy_the_protocol():
     assert isinstance(RangeAzElModel(), MeasurementModel)
-    assert isinstance(RelativePositionModel(9), MeasurementModel)
+    assert isinstance(RelativePositionModel(), MeasurementModel)
 
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
@@ -87,7 +87,7 @@ def test_batch_h_equals_row_by_row(convention):
 
 
 def test_relative_position_model():
-    m = RelativePositionModel(9)
+    m = RelativePositionModel()
     X = np.random.default_rng(6).normal(size=(4, 9))
     assert np.allclose(m.h(X), X[:, 0:3])
     assert np.allclose(m.h(X[1]), X[1, 0:3])

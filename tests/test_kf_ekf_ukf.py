@@ -27,18 +27,19 @@ R_RADAR = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
 def test_orbit_transition_matrix_matches_finite_differences_of_propagate(dt):
     dyn = OrbitJ2Dynamics(sigma_accel=0.0)
     Phi = dyn.transition_matrix(CHAMP, dt)
-    steps = np.array([10.0, 10.0, 10.0, 0.01, 0.01, 0.01])
+    steps = np.array([100.0, 100.0, 100.0, 1.0, 1.0, 1.0])
     Phi_fd = np.column_stack([(dyn.propagate(CHAMP + s * e, dt) - dyn.propagate(CHAMP - s * e, dt)) / (2 * s)
                               for s, e in zip(steps, np.eye(6))])
     # The gravity-gradient part of each 3x3 block (Phi minus the force-free [[I, dt I], [0, I]]): the
-    # midpoint-frozen G is first-order exact for d r / d v and d v / d r, and leaves ~h |dG/dt| / 6 |G|
-    # (3e-3 at h = 10 s) of the tiny gradient part of d r / d r and d v / d v (orbit_dynamics docstring).
+    # midpoint-frozen G leaves a second-order ~(h |dG/dt| / |G|)^2 (~2e-4 at h = 10 s) of it in d r / d v
+    # and d v / d r, and a first-order ~h |dG/dt| / 6 |G| (3e-3) in d r / d r and d v / d v.
     free = np.eye(6)
     free[0:3, 3:6] = dt * np.eye(3)
-    tolerance = {(0, 0): 1e-2, (0, 3): 1e-5, (3, 0): 1e-4, (3, 3): 1e-2}
+    tolerance = {(0, 0): 1e-2, (0, 3): 1e-3, (3, 0): 1e-3, (3, 3): 1e-2}
     for (r, c), tol in tolerance.items():
         error = np.abs(Phi - Phi_fd)[r:r + 3, c:c + 3].max()
-        assert error <= tol * np.abs(Phi_fd - free)[r:r + 3, c:c + 3].max(), (r, c)
+        fd_noise = 1e-8  # rounding of 7e6 m positions over the 1 m/s velocity steps
+        assert error <= tol * np.abs(Phi_fd - free)[r:r + 3, c:c + 3].max() + fd_noise, (r, c)
     assert np.abs(Phi - Phi_fd).max() < 2e-5 * np.abs(Phi_fd).max()
 
 
@@ -203,7 +204,7 @@ def test_bad_and_out_of_order_measurements_leave_the_filter_untouched(name):
     x, P, t = f.x.copy(), f.P.copy(), f.t
     for bad_t, bad_z, bad_R in [(times[2], np.array([1.0, np.nan, 0.0]), R),
                                 (times[2], np.array([np.inf, 0.0, 0.0]), R),
-                                (times[2], zs[2], R * np.inf),
+                                (times[2], zs[2], np.diag([np.inf, 1.0, 1.0])),
                                 (np.nan, zs[2], R),
                                 (times[0], zs[0], R)]:
         result = f.process(bad_t, bad_z, bad_R, meas)

@@ -32,13 +32,13 @@ def run_against_kf(cls, n_particles, seed, times, R=R, P0=P0):
 
 @pytest.mark.parametrize("cls, mean_tol", [(SIRParticleFilter, 0.15), (RegularisedParticleFilter, 0.1)])
 def test_linear_gaussian_moments_match_the_kalman_filter(cls, mean_tol):
-    """Mean within mean_tol posterior sigma, covariance within 15 %: Monte Carlo error of N = 20 000
-    (measured over 20 seeds at N = 5 000: worst mean error 17 (SIR) / 8 (pf) sigma/sqrt(N), cov 18 % / 13 %)."""
+    """Mean within mean_tol posterior sigma, variances within 12 %: Monte Carlo error at N = 20 000
+    (measured over 12 seeds: worst mean error 0.085 (SIR) / 0.054 (pf) sigma, worst variance 5.6 %)."""
     times = [1.0, 2.0, 3.0, 5.0, 6.0, 7.0, 8.0, 10.0]
     pf, kf = run_against_kf(cls, 20_000, seed=4, times=times)
     sd = np.sqrt(np.diag(kf.P))
     assert np.all(np.abs(pf.x - kf.x) < mean_tol * sd)
-    assert np.allclose(np.diag(pf.P), np.diag(kf.P), rtol=0.15)
+    assert np.allclose(np.diag(pf.P), np.diag(kf.P), rtol=0.12)
     corr_pf = pf.P[0, 2] / np.sqrt(pf.P[0, 0] * pf.P[2, 2])
     corr_kf = kf.P[0, 2] / np.sqrt(kf.P[0, 0] * kf.P[2, 2])
     assert corr_pf == pytest.approx(corr_kf, abs=0.05)

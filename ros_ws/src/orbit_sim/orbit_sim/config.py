@@ -83,15 +83,21 @@ def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:
     return cfg
 
 
+def override_strings(mapping: dict) -> list[str]:
+    """{key.path: value} -> ["key.path=value", ...] (values as flow-style YAML)."""
+    return [f"{k}={yaml.safe_dump(v, default_flow_style=True, width=10**6).strip().removesuffix(chr(10) + '...')}"
+            for k, v in mapping.items()]
+
+
 def select_variant(cfg: dict, variant: str | None) -> dict:
-    """Apply the named entry of the scenario's ``variants`` section (a mapping of key.path: value)."""
-    if not variant:
-        return cfg
+    """Apply the named entries (comma-separated, in order) of the scenario's ``variants`` section, each a
+    mapping of key.path: value."""
     variants = cfg.get("variants") or {}
-    if variant not in variants:
-        raise ScenarioError(f"unknown variant '{variant}'; allowed: {', '.join(sorted(variants)) or 'none'}")
-    return apply_overrides(cfg, [f"{k}={yaml.safe_dump(v, default_flow_style=True).strip()}"
-                                 for k, v in variants[variant].items()])
+    for name in [v.strip() for v in (variant or "").split(",") if v.strip()]:
+        if name not in variants:
+            raise ScenarioError(f"unknown variant '{name}'; allowed: {', '.join(sorted(variants)) or 'none'}")
+        cfg = apply_overrides(cfg, override_strings(variants[name]))
+    return cfg
 
 
 class Section:

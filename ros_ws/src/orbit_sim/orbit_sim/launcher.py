@@ -46,6 +46,9 @@ def local_dds_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["ROS_DOMAIN_ID"] = str(domain_id)
+    # One BLAS thread per process: the graph's processes already share the cores, and threaded BLAS on
+    # 6x6 matrices costs milliseconds per call under load.
+    env["OPENBLAS_NUM_THREADS"] = "1"
     return env
 
 
@@ -54,6 +57,7 @@ def validate(cfg: dict, filters: list[str], source: str) -> None:
     from orbit_sim.truth import build_truth
     from radar_sensor.sensor import build_sensor
     from tracker_filters.builders import build_filter_stack
+    from tracker_filters.scoring import scoring_options
 
     top = Section(cfg, "")
     top.mark(*TOP_LEVEL_KEYS)
@@ -64,6 +68,7 @@ def validate(cfg: dict, filters: list[str], source: str) -> None:
         build_sensor(cfg, name)
     for name in filters:
         build_filter_stack(cfg, name)
+    scoring_options(cfg)
 
 
 def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,
@@ -72,6 +77,8 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
     """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``."""
     if cfg is None:
         cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
+    if seed is not None:
+        cfg = {**cfg, "seed": int(seed)}
     names = resolve_filters(cfg, filters)
     validate(cfg, names, source)
     graph = build_graph(cfg, names, record, source)
@@ -80,7 +87,7 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
         raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
     out.mkdir(parents=True, exist_ok=True)
     run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
-           "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0) if seed is None else seed)}
+           "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0))}
     run.update(extra or {})
     config_path = out / "run_config.yaml"
     config_path.write_text(yaml.safe_dump(run, sort_keys=False))

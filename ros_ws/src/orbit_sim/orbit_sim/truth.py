@@ -2,18 +2,27 @@
 
 The whole trajectory is integrated up front with Cowell's method (``cowell.propagate``, solve_ivp at tight
 tolerances) and sampled on the run's step grid; the truth node then only publishes rows.
+
+Models (``truth.model``):
+- ``cowell_j2`` / ``cowell_twobody``: one spacecraft, ECI state [x y z vx vy vz] (frame "eci").
+- ``formation_j2`` / ``formation_twobody``: chief and deputy each propagated in ECI; the published state is
+  the deputy relative to the chief in the chief's LVLH frame (x radial, y along-track, z orbit normal),
+  velocity as seen in the rotating frame (frame "lvlh").
+- ``hill_cw``: the relative state from the exact solution of the Hill/Clohessy-Wiltshire equations.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
-from orbit_sim import cowell, kepler
-from orbit_sim.config import Section
+from orbit_sim import cowell, gravity, hill, kepler, relative
+from orbit_sim.config import ScenarioError, Section
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
-TRUTH_MODELS = ("cowell_j2", "cowell_twobody")
+TRUTH_MODELS = ("cowell_j2", "cowell_twobody", "formation_j2", "formation_twobody", "hill_cw")
 ORBIT_LABELS = ("x", "y", "z", "vx", "vy", "vz")
 
 
@@ -75,26 +84,114 @@ def build_time(cfg: dict) -> TimeGrid:
     return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1)
 
 
+def _semi_major_axis(sec: Section, mu: float) -> float:
+    """``a`` [m], or ``period_s`` converted with Kepler's third law (exactly one of them)."""
+    if ("a" in sec.data) == ("period_s" in sec.data):
+        raise ScenarioError(f"'{sec.path}' needs exactly one of 'a' (m) or 'period_s' (s)")
+    if "a" in sec.data:
+        sec.mark("period_s")
+        return sec.positive("a")
+    sec.mark("a")
+    return float((mu * (sec.positive("period_s") / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
+
+
 def orbit_state(sec: Section, mu: float) -> np.ndarray:
-    """ECI state at the epoch from Keplerian elements (angles in degrees, a in metres)."""
-    a = sec.positive("a")
-    e = sec.get("e", float, check=lambda v: 0.0 <= v < 1.0, expect="in [0, 1)")
-    angles = [np.radians(sec.get(k, float)) for k in ("i_deg", "raan_deg", "argp_deg", "M_deg")]
+    """ECI state at the epoch from Keplerian elements (angles in degrees; ``a`` in metres or ``period_s``)."""
+    a = _semi_major_axis(sec, mu)
+    e = sec.get("e", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1)")
+    angles = [np.radians(sec.get(k, float, 0.0)) for k in ("i_deg", "raan_deg", "argp_deg", "M_deg")]
     sec.finish()
     return kepler.kepler_to_cartesian(a, e, *angles, mu=mu)
 
 
+@dataclass(frozen=True)
+class ReferenceOrbit:
+    """The chief's orbit as the linear relative-motion models see it."""
+
+    a: float  # semi-major axis [m]
+    inclination: float  # [rad]
+    n: float  # mean motion [rad/s]
+
+
+def reference_orbit(cfg: dict) -> ReferenceOrbit:
+    """Semi-major axis, inclination and mean motion of ``truth.chief`` (formation scenarios)."""
+    earth = build_earth(cfg)
+    chief = (cfg.get("truth") or {}).get("chief")
+    if not isinstance(chief, dict):
+        raise ScenarioError("relative-motion models need the chief's orbit in 'truth.chief'")
+    a = _semi_major_axis(Section(chief, "truth.chief"), earth.mu)
+    return ReferenceOrbit(a, np.radians(float(chief.get("i_deg", 0.0))), float(np.sqrt(earth.mu / a**3)))
+
+
+def _relative_initial_state(sec: Section, n: float) -> np.ndarray:
+    """Initial relative state, internal LVLH axes, from ``truth.deputy``.
+
+    Either ``position``/``velocity`` given in the axes of ``convention`` ("radial_along_normal" = internal,
+    "along_radial" = paper 001), or ``pco: {size, phase_deg}``: a projected circular orbit of diameter
+    ``size`` in the along-track/cross-track plane, bounded under CW (x = size/4 sin, y = size/2 cos,
+    z = size/2 sin of n t + phase).
+    """
+    if "pco" in sec.data:
+        pco = sec.section("pco")
+        rho, phase = pco.positive("size") / 2.0, np.radians(pco.get("phase_deg", float, 0.0))
+        pco.finish()
+        sec.mark("position", "velocity", "convention")
+        s, c = np.sin(phase), np.cos(phase)
+        return np.array([rho / 2 * s, rho * c, rho * s, rho / 2 * n * c, -2 * rho / 2 * n * s, rho * n * c])
+    convention = sec.choice("convention", relative.CONVENTIONS, "radial_along_normal")
+    vec = sec.get("position", list) + sec.get("velocity", list, [0.0, 0.0, 0.0])
+    if len(vec) != 6:
+        raise ScenarioError(f"'{sec.path}.position' and '.velocity' must have 3 components each")
+    return relative.from_convention(np.array(vec, dtype=float), convention)
+
+
+def _formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> np.ndarray:
+    """Relative LVLH states on the grid (nonlinear two-body (+ J2) of both spacecraft, or exact CW)."""
+    chief0 = orbit_state(sec.section("chief", default_empty=False), earth.mu)
+    n = float(np.sqrt(earth.mu / np.linalg.norm(chief0[:3]) ** 3))
+    dep = sec.section("deputy", default_empty=False)
+    correct = dep.get("drift_free", bool, False)
+    rel0 = _relative_initial_state(dep, n)
+    dep.finish()
+    times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
+    if model == "hill_cw":
+        states = hill.cw_propagate(rel0, times, n)
+    else:
+        j2 = earth.j2 if model == "formation_j2" else 0.0
+        if correct:
+            rel0 = relative.drift_free(chief0, rel0, earth.mu, j2, earth.re)
+        a0 = gravity.acceleration(chief0[:3], earth.mu, j2, earth.re)
+        deputy0 = relative.lvlh_to_eci(chief0, rel0, a0)
+        chief = cowell.propagate(chief0, times, mu=earth.mu, j2=j2, re=earth.re)
+        deputy = cowell.propagate(deputy0, times, mu=earth.mu, j2=j2, re=earth.re)
+        accel = gravity.acceleration(chief[:, :3], earth.mu, j2, earth.re)
+        states = relative.eci_to_lvlh(chief, deputy, accel)
+    return states[1:] if grid.start_ns > 0 else states
+
+
 def build_truth(cfg: dict) -> Truth:
-    """Integrate the scenario's truth and sample it on the step grid."""
+    """Integrate the scenario's truth and sample it on the step grid (cached per truth configuration)."""
+    key = json.dumps({k: cfg.get(k) for k in ("earth", "time", "truth")}, sort_keys=True, default=str)
+    return _build_truth(key)
+
+
+@lru_cache(maxsize=4)
+def _build_truth(key: str) -> Truth:
+    cfg = json.loads(key)
     earth = build_earth(cfg)
     grid = build_time(cfg)
     sec = Section(cfg.get("truth"), "truth")
     model = sec.choice("model", TRUTH_MODELS)
-    x0 = orbit_state(sec.section("orbit", default_empty=False), earth.mu)
+    if model.startswith("cowell"):
+        x0 = orbit_state(sec.section("orbit", default_empty=False), earth.mu)
+        j2 = earth.j2 if model == "cowell_j2" else 0.0
+        times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
+        states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
+        states = states[1:] if grid.start_ns > 0 else states
+        frame = "eci"
+    else:
+        states = _formation_truth(sec, model, earth, grid)
+        frame = "lvlh"
     sec.finish()
-    j2 = earth.j2 if model == "cowell_j2" else 0.0
-    times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
-    states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
-    if grid.start_ns > 0:
-        states = states[1:]
-    return Truth(grid, states, ORBIT_LABELS, "eci")
+    states.setflags(write=False)
+    return Truth(grid, states, ORBIT_LABELS, frame)

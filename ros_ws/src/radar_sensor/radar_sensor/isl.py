@@ -70,23 +70,21 @@ class RangeAzElModel:
 
 
 class RelativePositionModel:
-    """Linear z = [x y z] = H x, H = [I3 0] (paper 004 eq. 28), for a state of ``state_dim`` components."""
+    """Linear z = [x y z] = H x, H = [I3 0] (paper 004 eq. 28), for a state of any length >= 3.
+
+    The same object serves the sensor (6-state truth) and 6- or 9-state filters: H takes its width from x.
+    """
 
     labels = ("x", "y", "z")
     angle_indices: tuple[int, ...] = ()
-
-    def __init__(self, state_dim: int = 6) -> None:
-        self.H = np.zeros((3, state_dim))
-        self.H[:, 0:3] = np.eye(3)
-        self.H.setflags(write=False)
 
     def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Relative position of one state (n,) -> (3,) or a batch (m, n) -> (m, 3)."""
         return np.array(np.asarray(x, dtype=float)[..., 0:3])
 
     def jacobian(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
-        """H (3, state_dim), read-only."""
-        return self.H
+        """H = [I3 0], shape (3, len(x))."""
+        return np.eye(3, np.shape(x)[-1])
 
     def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
         """Plain difference z - z_pred."""

@@ -12,12 +12,13 @@ import numpy as np
 
 from orbit_sim.config import ScenarioError, Section
 from orbit_sim.truth import Earth, build_earth
+from radar_sensor.isl import RangeAzElModel, RelativePositionModel
 from radar_sensor.radar import GroundRadarModel
 
 if TYPE_CHECKING:
     from tracker_filters.models import MeasurementModel
 
-SENSOR_TYPES = ("ground_radar",)
+SENSOR_TYPES = ("ground_radar", "isl_radio", "relative_position")
 
 
 @dataclass
@@ -91,4 +92,20 @@ def _ground_radar(sec: Section, name: str, earth: Earth, every: int) -> Sensor:
                   lambda x, t: float(model.elevation(x, t)) >= mask)
 
 
-_BUILDERS = {"ground_radar": _ground_radar}
+def _isl_radio(sec: Section, name: str, earth: Earth, every: int) -> Sensor:
+    """Inter-satellite radio: range, azimuth, elevation of the deputy seen from the chief (paper 001 eqs.
+    6-8 with convention "along_radial", paper 004 eqs. 29-32 with "radial_along_normal")."""
+    model = RangeAzElModel(sec.choice("convention", ("radial_along_normal", "along_radial")))
+    sigmas = [sec.positive("sigma_range"), sec.positive("sigma_azimuth"), sec.positive("sigma_elevation")]
+    return Sensor(name, "isl_radio", model, np.diag(np.square(sigmas)), sec.probability("p_detect", 1.0), every,
+                  sec.get("frame_id", str, "lvlh"), lambda x, t: True)
+
+
+def _relative_position(sec: Section, name: str, earth: Earth, every: int) -> Sensor:
+    """Relative position in the chief's LVLH frame (paper 004 eq. 28)."""
+    sigma = sec.positive("sigma_position")
+    return Sensor(name, "relative_position", RelativePositionModel(), sigma**2 * np.eye(3),
+                  sec.probability("p_detect", 1.0), every, sec.get("frame_id", str, "lvlh"), lambda x, t: True)
+
+
+_BUILDERS = {"ground_radar": _ground_radar, "isl_radio": _isl_radio, "relative_position": _relative_position}

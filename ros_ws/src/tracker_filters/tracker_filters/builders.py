@@ -10,20 +10,24 @@ A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``
 """
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from orbit_sim import relative
 from orbit_sim.config import ScenarioError, Section
 from orbit_sim.graph import filter_config, sensor_names
-from orbit_sim.truth import build_earth
+from orbit_sim.truth import build_earth, build_truth, reference_orbit
 from radar_sensor.sensor import Sensor, build_sensor
 from tracker_filters import registry
 from tracker_filters.filter_base import Filter
+from tracker_filters.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from tracker_filters.models import DynamicsModel
 from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
+from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
 
@@ -43,17 +47,54 @@ def _orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
     return OrbitJ2Dynamics(sec.non_negative("sigma_accel"), mu=earth.mu, j2=earth.j2, re=earth.re)
 
 
-DYNAMICS: dict[str, Callable[[Section, dict], DynamicsModel]] = {"orbit_j2": _orbit_j2}
+def _sigma_accel(sec: Section) -> float | list[float]:
+    """``sigma_accel`` [m/s^2]: one value, or one per LVLH axis (internal axes: radial, along, normal)."""
+    value = sec.get("sigma_accel", (float, list))
+    values = np.atleast_1d(np.asarray(value, dtype=float))
+    if values.shape not in ((1,), (3,)) or np.any(values < 0):
+        raise ScenarioError(f"'{sec.path}.sigma_accel' must be >= 0, one value or three, got {value!r}")
+    return value
+
+
+def _cw(sec: Section, cfg: dict) -> DynamicsModel:
+    return CWDynamics(reference_orbit(cfg).n, _sigma_accel(sec),
+                      sec.choice("discretisation", ("exact", "euler"), "exact"))
+
+
+def _cw_bias(sec: Section, cfg: dict) -> DynamicsModel:
+    return CWBiasDynamics(reference_orbit(cfg).n, _sigma_accel(sec), sec.non_negative("sigma_bias"))
+
+
+def _ss(sec: Section, cfg: dict) -> DynamicsModel:
+    ref, earth = reference_orbit(cfg), build_earth(cfg)
+    return SchweighartSedwickDynamics(ref.a, ref.inclination, _sigma_accel(sec), earth.mu, earth.j2, earth.re)
+
+
+DYNAMICS: dict[str, Callable[[Section, dict], DynamicsModel]] = {
+    "orbit_j2": _orbit_j2, "cw": _cw, "cw_bias": _cw_bias, "ss": _ss}
+
+
+def _given_q(sec: Section, dynamics: DynamicsModel) -> DynamicsModel:
+    """Optional ``q_diagonal`` (per-step discrete Q at ``q_reference_dt``, in ``q_convention`` axes)."""
+    q = sec.get("q_diagonal", list, None)
+    convention = sec.choice("q_convention", relative.CONVENTIONS, "radial_along_normal")
+    reference_dt = sec.positive("q_reference_dt", 1.0)
+    if q is None:
+        return dynamics
+    if len(q) != len(dynamics.labels) or any(float(v) < 0 for v in q):
+        raise ScenarioError(f"'{sec.path}.q_diagonal' must hold {len(dynamics.labels)} values >= 0, got {q}")
+    M = np.kron(np.eye(len(q) // 3), relative.convention_matrix(convention).T)  # convention -> internal
+    return GivenProcessNoise(dynamics, M @ np.diag(np.asarray(q, dtype=float)) @ M.T, reference_dt)
 
 
 def build_dynamics(sec: Section, cfg: dict) -> DynamicsModel:
     model = sec.choice("model", sorted(DYNAMICS))
-    dynamics = DYNAMICS[model](sec, cfg)
+    dynamics = _given_q(sec, DYNAMICS[model](sec, cfg))
     sec.finish()
     return dynamics
 
 
-def _first_scan(sec: Section) -> Initialiser:
+def _first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     velocity_sigma = sec.positive("velocity_sigma")
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -61,12 +102,47 @@ def _first_scan(sec: Section) -> Initialiser:
     return initialise
 
 
-INITIALISERS: dict[str, Callable[[Section], Initialiser]] = {"first_scan": _first_scan}
+def _padded(values: np.ndarray, sec: Section, key: str, n: int) -> np.ndarray:
+    """6 relative-state values, extended with ``key`` (e.g. the bias) for longer states (CW+bias: 9)."""
+    extra = sec.get(key, list, [0.0] * (n - len(values)))  # read even for 6 states: shared defaults
+    if n == len(values):
+        return values
+    if len(values) + len(extra) != n:
+        raise ScenarioError(f"'{sec.path}.{key}' must have {n - len(values)} values for a {n}-state filter")
+    return np.concatenate([values, np.asarray(extra, dtype=float)])
 
 
-def build_initialiser(sec: Section) -> Initialiser:
+def _given(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+    """Initial estimate and standard deviations stated by the paper, in ``convention`` axes."""
+    n = len(dynamics.labels)
+    convention = sec.choice("convention", relative.CONVENTIONS, "radial_along_normal")
+    mean, sigma = np.asarray(sec.get("mean", list), float), np.asarray(sec.get("sigma", list), float)
+    if mean.shape != (6,) or sigma.shape != (6,) or np.any(sigma <= 0):
+        raise ScenarioError(f"'{sec.path}.mean' and '.sigma' must have 6 values (sigma > 0)")
+    x0 = _padded(relative.from_convention(mean, convention), sec, "bias_mean", n)
+    s0 = _padded(np.abs(relative.from_convention(sigma, convention)), sec, "bias_sigma", n)
+    return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
+
+
+def _truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+    """Paper 004: initial estimate = true initial state with a relative error (2 %), diagonal P0."""
+    n = len(dynamics.labels)
+    fraction = sec.get("error_fraction", float, check=lambda v: v >= 0, expect=">= 0")
+    sp, sv = sec.positive("sigma_position"), sec.positive("sigma_velocity")
+    sb = sec.positive("sigma_bias", 1e-6)  # CW+bias only
+    x_true = build_truth(cfg).states[0]
+    x0 = _padded(x_true * (1.0 + fraction), sec, "bias_mean", n)
+    s0 = np.array([sp] * 3 + [sv] * 3 + [sb] * (n - 6))
+    return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
+
+
+INITIALISERS: dict[str, Callable[[Section, dict, DynamicsModel], Initialiser]] = {
+    "first_scan": _first_scan, "given": _given, "truth_scaled": _truth_scaled}
+
+
+def build_initialiser(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     method = sec.choice("method", sorted(INITIALISERS))
-    init = INITIALISERS[method](sec)
+    init = INITIALISERS[method](sec, cfg, dynamics)
     sec.finish()
     return init
 
@@ -77,9 +153,12 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     kind = sec.choice("type", sorted(registry.FILTERS))
     inputs = sec.get("sensors", list, sensor_names(cfg))
     dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
-    init = build_initialiser(sec.section("init", default_empty=False))
-    params = sec.get("params", dict, {})
+    init = build_initialiser(sec.section("init", default_empty=False), cfg, dynamics)
+    params = dict(sec.get("params", dict, {}))
     sec.finish()
+    if "seed" in registry.filter_parameters(kind) and "seed" not in params:
+        # random filters (particle filters) draw from the run's seed, distinct per filter name
+        params["seed"] = [int(cfg.get("seed", 0)), zlib.crc32(name.encode())]
     try:
         flt = registry.make_filter(kind, dynamics, **params)
     except (TypeError, ValueError) as err:

@@ -7,16 +7,21 @@ from __future__ import annotations
 
 import inspect
 
+from tracker_filters.cqkf import CubatureQuadratureKF
 from tracker_filters.ekf import ExtendedKalmanFilter
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.models import DynamicsModel
+from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
 from tracker_filters.ukf import UnscentedKalmanFilter
 
 FILTERS: dict[str, type] = {
     "kf": KalmanFilter,
     "ekf": ExtendedKalmanFilter,
     "ukf": UnscentedKalmanFilter,
+    "cqkf": CubatureQuadratureKF,
+    "sir": SIRParticleFilter,
+    "pf": RegularisedParticleFilter,
 }
 
 

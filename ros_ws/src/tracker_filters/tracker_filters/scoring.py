@@ -13,8 +13,22 @@ import numpy as np
 import yaml
 
 from orbit_sim.bag import BagReader
+from orbit_sim.config import Section
 from orbit_sim.graph import TRUTH_TOPIC
 from tracker_filters import metrics
+
+METRICS = ("leo", "formation")
+
+
+def scoring_options(cfg: dict) -> dict:
+    """The scenario's ``scoring`` section, checked: metric family and its options."""
+    sec = Section(cfg.get("scoring"), "scoring")
+    opts = {"metric": sec.choice("metric", METRICS, "leo"),
+            "skip_s": sec.non_negative("skip_s", 0.0),
+            "position_threshold": sec.positive("position_threshold", 0.5),
+            "velocity_threshold": sec.positive("velocity_threshold", 0.02)}
+    sec.finish()
+    return opts
 
 
 @dataclass
@@ -110,8 +124,8 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
     Returns {"scenario", "runs", "filters": {name: metrics}} (and the plot series when ``with_series``).
     """
     scenario, tracks, runs = collect(bag_dirs)
-    kind = (runs[0].scenario.get("scoring") or {}).get("metric", "leo" if scenario == "leo_radar" else "formation")
-    if kind == "leo":
+    opts = scoring_options(runs[0].scenario)
+    if opts["metric"] == "leo":
         radar: dict[str, metrics.RadarSamples] = {}
         for name in tracks:
             samples = [radar_samples(d, name) for d in runs if d.estimates.get(name)]
@@ -124,8 +138,10 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
         scored = metrics.score_leo(tracks, radar)
         series = metrics.leo_series(tracks) if with_series else None
     else:
-        scored = metrics.score_formation(tracks)
-        series = None
+        scored = metrics.score_formation(tracks, skip_s=opts["skip_s"],
+                                         position_threshold=opts["position_threshold"],
+                                         velocity_threshold=opts["velocity_threshold"])
+        series = metrics.formation_series(tracks) if with_series else None
     result = {"scenario": scenario, "runs": len(runs), "filters": scored}
     return (result, series) if with_series else result
 
@@ -147,6 +163,11 @@ def print_summary(scored: dict) -> str:
             f, m = block["radar"]["filter"], block["radar"]["measurement"]
             parts.append("radar filter/raw: " + ", ".join(f"{k} {f[k]:.4g}/{m[k]:.4g}" for k in f))
         if "mae" in block:
+            settle = block.get("settling_time_s")
+            parts.append(f"settled after {'never' if settle is None else f'{settle:.0f} s'}")
             parts.append("MAE " + ", ".join(f"{k} {v:.3g}" for k, v in block["mae"].items()))
+            inside = block.get("within_3sigma") or {}
+            if inside:
+                parts.append(f"within 3 sigma {min(inside.values()):.0%}..{max(inside.values()):.0%}")
         lines.append(f"  {name}: " + "; ".join(parts))
     return "\n".join(lines)
