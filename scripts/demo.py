@@ -22,7 +22,11 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 SCRIPTS = Path(__file__).resolve().parent
-STUDIES = {"leo_radar": ["--filters", "ekf,ukf"]}
+STUDIES = {
+    "leo_radar": ["--filters", "ekf,ukf"],
+    "formation_pf": ["--filters", "pf,sir"],
+    "formation_cqkf": ["--filters", "ss,cw,cwb"],
+}
 
 
 def run_study(name: str, args: list[str], out: Path, runs: int, domain: int) -> Path:

@@ -100,6 +100,22 @@ def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | Non
                                 tuple(sensor.model.angle_indices))
 
 
+def formation_series(tracks_by_filter: dict[str, list[metrics.Track]]) -> dict:
+    """Per filter: t (s from the first stamp), RMS error over runs and mean 1-sigma per state component."""
+    t0 = min(float(tr.t[0]) for tracks in tracks_by_filter.values() for tr in tracks)
+    series = {}
+    for name, tracks in tracks_by_filter.items():
+        comps = [c for c in tracks[0].labels if c in metrics.POSITION + metrics.VELOCITY]
+        t, _ = metrics.rmse_over_runs(tracks, comps[:1])
+        rmse, sigma = {}, {}
+        for c in comps:
+            i = tracks[0].labels.index(c)
+            rmse[c] = metrics.rmse_over_runs(tracks, [c])[1]
+            sigma[c] = np.nanmean(metrics.on_grid(tracks, [np.sqrt(tr.P[:, i, i]) for tr in tracks])[1], axis=0)
+        series[name] = {"t": t - t0, "rmse": rmse, "sigma": sigma}
+    return series
+
+
 def _scenario_name(runs: list[BagData]) -> str:
     names = {d.scenario.get("scenario") for d in runs}
     if len(names) != 1:
@@ -141,7 +157,7 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
         scored = metrics.score_formation(tracks, skip_s=opts["skip_s"],
                                          position_threshold=opts["position_threshold"],
                                          velocity_threshold=opts["velocity_threshold"])
-        series = metrics.formation_series(tracks) if with_series else None
+        series = formation_series(tracks) if with_series else None
     result = {"scenario": scenario, "runs": len(runs), "filters": scored}
     return (result, series) if with_series else result
 
