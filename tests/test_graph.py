@@ -97,3 +97,18 @@ def test_score_script_reads_bags(multiprocess_run: Path, tmp_path: Path) -> None
     assert set(scored["filters"]) == {"ekf", "ukf"}
     assert (tmp_path / "rep" / "report.md").is_file()
     assert list((tmp_path / "rep").glob("*.png"))
+
+
+def test_pass_through_north_gives_no_innovation_spike(tmp_path: Path) -> None:
+    """The leo_radar pass crosses azimuth 0/2pi at t ~ 4446 s: wrapped innovations keep the NIS bounded."""
+    out = tmp_path / "north"
+    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "58", "--no-score",
+                 "--filters", "ekf,ukf", "--set", "time.start=4426.0", "--set", "time.duration=40")
+    assert res.returncode == 0, res.stderr[-3000:]
+    bag = read_bag(out / "bag")
+    az = np.array([m.azimuth for _, m in bag["/radar/measurement"]])
+    assert az.max() > 6.0 and az.min() < 0.3  # the pass really crosses north
+    for name in ("ekf", "ukf"):
+        nis = np.array([m.nis for _, m in bag[f"/{name}/estimate"]][20:])  # after the first 2 s
+        assert np.all(np.isfinite(nis))
+        assert nis.max() < 40.0  # chi-square(3) exceeds 40 with probability ~1e-8; a 2 pi jump gives ~1e5

@@ -19,7 +19,7 @@ from orbit_sim.config import ScenarioError, Section, apply_overrides, load_scena
 from orbit_sim.graph import Graph, build_graph, resolve_filters
 
 TOP_LEVEL_KEYS = ("scenario", "description", "seed", "earth", "time", "truth", "sensors", "filter_defaults",
-                  "filters", "default_filters", "variants", "scoring")
+                  "filters", "default_filters", "variants", "scoring", "sweeps")
 MAX_DOMAIN_ID = 101
 
 
