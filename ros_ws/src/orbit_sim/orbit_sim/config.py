@@ -13,7 +13,16 @@ from typing import Any, Callable, Iterable
 
 import yaml
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "config" / "scenarios"
+def _scenario_dir() -> Path:
+    """config/scenarios of the source tree, or of the installed package share (colcon workspace)."""
+    source = Path(__file__).resolve().parent.parent / "config" / "scenarios"
+    if source.is_dir():
+        return source
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory("orbit_sim")) / "config" / "scenarios"
+
+
+SCENARIO_DIR = _scenario_dir()
 
 
 class ScenarioError(ValueError):

@@ -54,7 +54,7 @@ class GroundRadarModel:
         self._station_enu = self._M @ self.station_ecef
         self._T_cache: tuple[float, np.ndarray] = (float("nan"), np.eye(3))
         base = ("range", "azimuth", "elevation")
-        self.labels: Sequence[str] = base + ("range_rate",) if self.with_range_rate else base
+        self.labels: Sequence[str] = (base + ("range_rate",)) if self.with_range_rate else base
         self.angle_indices: Sequence[int] = (1, 2)
 
     def eci_to_enu_rotation(self, t: float) -> np.ndarray:

@@ -4,9 +4,9 @@ A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``
 
     type: ukf                 # any name in tracker_filters.registry.FILTERS
     sensors: [radar]          # measurement topics it consumes
-    dynamics: {model: orbit_j2, sigma_accel: 5.0e-3}
-    init: {method: first_scan, velocity_sigma: 1000.0}
-    params: {alpha: 1.0e-3}   # constructor parameters of the filter type
+    dynamics: {model: orbit_j2, sigma_accel: 0.5}
+    init: {method: first_scan, velocity_sigma: 8000.0}
+    params: {alpha: 1.0}      # constructor parameters of the filter type
 """
 from __future__ import annotations
 
@@ -48,7 +48,8 @@ def _orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
 
 
 def _sigma_accel(sec: Section) -> float | list[float]:
-    """``sigma_accel`` [m/s^2]: one value, or one per LVLH axis (internal axes: radial, along, normal)."""
+    """``sigma_accel`` [m/s^1.5, square root of the white-acceleration spectral density]: one value, or one
+    per LVLH axis (internal axes: radial, along, normal)."""
     value = sec.get("sigma_accel", (float, list))
     values = np.atleast_1d(np.asarray(value, dtype=float))
     if values.shape not in ((1,), (3,)) or np.any(values < 0):

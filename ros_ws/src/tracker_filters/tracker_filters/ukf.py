@@ -28,14 +28,22 @@ class UnscentedKalmanFilter(Filter):
         super().__init__(dynamics)
         self.points = ScaledSigmaPoints(len(dynamics.labels), alpha, beta, kappa)
 
+    def _sigma_points(self) -> np.ndarray:
+        """Sigma points of (x, P); a P that Cholesky rejects is repaired (and reported) first."""
+        try:
+            return self.points.generate(self.x, self.P)
+        except np.linalg.LinAlgError:
+            self.P = self._repaired(self.P, "before drawing sigma points")
+            return self.points.generate(self.x, self.P)
+
     def _predict(self, dt: float) -> None:
-        X = self.dynamics.propagate(self.points.generate(self.x, self.P), dt)
+        X = self.dynamics.propagate(self._sigma_points(), dt)
         x = self.points.mean(X)
         self.P = self.points.covariance(X - x) + self.dynamics.process_noise(self.x, dt)
         self.x = x
 
     def _update(self, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> float:
-        X = self.points.generate(self.x, self.P)
+        X = self._sigma_points()
         Y = model.h(X, self.t)
         y = self.points.mean(Y, model.residual)
         DY = model.residual(Y, y)
