@@ -43,7 +43,8 @@ def test_leo_radar_validates_and_its_variant_changes_the_angles() -> None:
 def test_any_registered_filter_type_can_be_named_on_the_command_line() -> None:
     cfg = load_scenario("leo_radar")
     assert filter_config(cfg, "kf")["type"] == "kf"
-    assert filter_config(cfg, "ukf")["params"]["alpha"] == pytest.approx(1e-3)
+    assert filter_config(cfg, "ukf")["params"]["alpha"] == pytest.approx(1.0)
+    assert filter_config(cfg, "ekf")["dynamics"] == {"model": "orbit_j2", "sigma_accel": 2.0}  # merged
     assert filter_config(cfg, "ukf")["dynamics"]["model"] == "orbit_j2"  # from filter_defaults
 
 
