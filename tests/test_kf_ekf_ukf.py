@@ -10,8 +10,7 @@ from radar_sensor.radar import GroundRadarModel
 from tracker_filters.ekf import ExtendedKalmanFilter
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
-from orbit_sim.gravity import acceleration_jacobian
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics, gravity_gradient
+from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.registry import FILTERS, make_filter
 from tracker_filters.sigma_points import ScaledSigmaPoints
 from tracker_filters.ukf import UnscentedKalmanFilter
@@ -42,15 +41,6 @@ def test_orbit_transition_matrix_matches_finite_differences_of_propagate(dt):
         fd_noise = 1e-8  # rounding of 7e6 m positions over the 1 m/s velocity steps
         assert error <= tol * np.abs(Phi_fd - free)[r:r + 3, c:c + 3].max() + fd_noise, (r, c)
     assert np.abs(Phi - Phi_fd).max() < 2e-5 * np.abs(Phi_fd).max()
-
-
-def test_scalar_gravity_gradient_equals_orbit_sim_jacobian():
-    rng = np.random.default_rng(4)
-    for r in [CHAMP[0:3], np.array([0.0, 0.0, 7e6]), np.array([7e6, 0.0, 0.0])] + list(rng.normal(size=(5, 3)) * 5e6):
-        for j2 in (1.082626925638815e-3, 0.0):
-            expected = acceleration_jacobian(r, 3.986004418e14, j2, 6378137.0)
-            got = gravity_gradient(*r.tolist(), 3.986004418e14, j2, 6378137.0)
-            np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-14 * np.abs(expected).max())
 
 
 def test_orbit_propagate_single_and_batch_agree_and_process_noise_is_white_acceleration():

@@ -8,6 +8,8 @@ f_z = 15 z^2/r^7 - 9/r^5 gives the compact form used for the value and its Jacob
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .constants import J2_EARTH, MU_EARTH, R_EARTH
@@ -34,28 +36,36 @@ def acceleration(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
     return r * (k * f - mu * inv_r3)
 
 
+def gravity_gradient(x: float, y: float, z: float, mu: float, j2: float, re: float) -> np.ndarray:
+    """d a / d r (3, 3) of the two-body + J2 acceleration (paper eq. 6) at one position, in Python floats
+    (a few us: the EKF calls it every step).
+
+    With k = mu J2 Re^2 / 2, a_i = r_i f_i, f_x = f_y = k (15 z^2/r^7 - 3/r^5) - mu/r^3 and
+    f_z = k (15 z^2/r^7 - 9/r^5) - mu/r^3:  G_ij = f_i delta_ij + r_i d f_i / d r_j. Symmetric.
+    """
+    k = 0.5 * mu * j2 * re * re
+    r2 = x * x + y * y + z * z
+    ir2 = 1.0 / r2
+    ir3 = ir2 / math.sqrt(r2)
+    ir5 = ir3 * ir2
+    ir7 = ir5 * ir2
+    zz = z * z
+    f_xy = k * (15.0 * zz * ir7 - 3.0 * ir5) - mu * ir3
+    f_z = f_xy - 6.0 * k * ir5
+    # d f_i / d r = g_i r + (30 k z / r^7) e_z
+    g_xy = 3.0 * mu * ir5 + k * (15.0 - 105.0 * zz * ir2) * ir7
+    g_z = g_xy + 30.0 * k * ir7
+    xz = x * g_z * z
+    yz = y * g_z * z
+    return np.array([[f_xy + g_xy * x * x, g_xy * x * y, xz],
+                     [g_xy * x * y, f_xy + g_xy * y * y, yz],
+                     [xz, yz, f_z + g_z * zz + 30.0 * k * ir7 * zz]])
+
+
 def acceleration_jacobian(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
                           re: float = R_EARTH) -> np.ndarray:
-    """Analytic d a / d r at a single position r (3,), shape (3, 3).
-
-    Two-body part: -mu (I / r^3 - 3 r r^T / r^5).
-    J2 part: k (diag(f) + r (grad f_i)^T) with
-    grad f_i = -105 z^2 r / r^9 + 5 c_i r / r^7 + 30 z e_z / r^7.
-    """
-    r = np.asarray(r, dtype=float)
-    rn2 = float(r @ r)
-    rn = np.sqrt(rn2)
-    inv_r3 = 1.0 / (rn2 * rn)
-    inv_r5 = inv_r3 / rn2
-    inv_r7 = inv_r5 / rn2
-    inv_r9 = inv_r7 / rn2
-    z = r[2]
-    k = mu * 0.5 * j2 * re * re
-    two_body = -mu * (np.eye(3) * inv_r3 - 3.0 * np.outer(r, r) * inv_r5)
-    f = 15.0 * z * z * inv_r7 - _C * inv_r5
-    grad_f = np.outer(5.0 * _C * inv_r7 - 105.0 * z * z * inv_r9, r)
-    grad_f[:, 2] += 30.0 * z * inv_r7
-    return two_body + k * (np.diag(f) + r[:, None] * grad_f)
+    """Analytic d a / d r at a single position r (3,), shape (3, 3) (see ``gravity_gradient``)."""
+    return gravity_gradient(float(r[0]), float(r[1]), float(r[2]), mu, j2, re)
 
 
 def state_derivative(t: float, y: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
