@@ -35,7 +35,8 @@ PASS_START = 4330.0
 """s after the epoch: inside the ~420 s pass of CHAMP over the station (scenario leo_radar)."""
 DT = 0.1
 R = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
-SIGMA_ACCEL = 1e-3
+SIGMA_ACCEL = 1.0
+"""m/s^1.5; the per-step cost does not depend on it."""
 
 
 def simulate(steps: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, GroundRadarModel]:

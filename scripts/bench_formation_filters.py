@@ -5,20 +5,24 @@ Models: ``tracker_filters.relative_dynamics`` (CW 6-state, CW + bias 9-state) an
 (range/azimuth/elevation on the relative state), 1 s steps along a noise-free CW truth at 1 km, paper 001's
 measurement accuracy (2 cm, 0.01°). One step = ``Filter.process`` (predict + update + the base-class guards).
 Targets: PF with N = 10 000 ≤ 5 ms, CQKF n' = 2 on the 9-state model ≤ 300 µs (medians after a warm-up;
-the machine's other load inflates them, so the CPU time of this process is printed too).
+the machine's other load inflates them, so the CPU time of this process is printed too). OpenBLAS runs
+single-threaded, as in the graph (orbit_sim.launcher).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
-import numpy as np
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the graph runs
 
-from radar_sensor.isl import RangeAzElModel
-from tracker_filters.cqkf import CubatureQuadratureKF
-from tracker_filters.filter_base import Filter
-from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
-from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics
+import numpy as np  # noqa: E402
+
+from radar_sensor.isl import RangeAzElModel  # noqa: E402
+from tracker_filters.cqkf import CubatureQuadratureKF  # noqa: E402
+from tracker_filters.filter_base import Filter  # noqa: E402
+from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter  # noqa: E402
+from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
 
 N_MEAN_MOTION = 2.0 * np.pi / 7200.0
 R = np.diag([0.02 ** 2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])

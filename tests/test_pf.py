@@ -1,10 +1,14 @@
 """Particle filters: agreement with the Kalman filter on linear-Gaussian problems, degeneracy, recovery."""
 import numpy as np
 import pytest
+from scipy.special import logsumexp
 
+from radar_sensor.isl import RangeAzElModel
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
+from tracker_filters.models import wrap_angle, wrapped_residual
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
+from tracker_filters.relative_dynamics import CWDynamics
 
 FILTERS = (SIRParticleFilter, RegularisedParticleFilter)
 DYN = ConstantVelocity(0.5, ndim=2)
@@ -194,3 +198,137 @@ def test_invalid_parameters_raise(cls, params):
 def test_invalid_pf_parameters_raise(params):
     with pytest.raises(ValueError):
         RegularisedParticleFilter(DYN, **params)
+
+
+# --- paper 001's measurement model: exact weights, nonlinear posterior, azimuth wrap, consistency ---
+
+PAPER_R = np.diag([0.02 ** 2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
+CW = CWDynamics(2.0 * np.pi / 7200.0, sigma_accel=1e-4)
+RAE = RangeAzElModel("along_radial")
+
+
+class RecordingRng:
+    """A Generator that remembers its last standard-normal draw."""
+
+    def __init__(self, rng):
+        self.rng, self.last = rng, None
+
+    def standard_normal(self, *args, **kwargs):
+        self.last = self.rng.standard_normal(*args, **kwargs)
+        return self.last
+
+    def __getattr__(self, name):
+        return getattr(self.rng, name)
+
+
+@pytest.mark.parametrize("iterations, expect_passes", [(0, False), (3, True)])
+def test_pf_log_weights_equal_the_direct_importance_ratio(iterations, expect_passes):
+    """The factorised weights of the "pf" (3-row quadratic forms) equal log p(z|x) + log N(x; c, S) −
+    log N(x; m', Σ) computed directly, with and without Gauss–Newton passes (50 m cloud, 2 cm range)."""
+    f = RegularisedParticleFilter(CW, n_particles=4000, seed=7, threshold=1e-9, iterations=iterations)
+    x0 = np.array([500.0, 400.0, -200.0, 0.0, 0.0, 0.0])
+    f.initialise(x0, np.diag([50.0 ** 2] * 3 + [1.0] * 3), 1.0)
+    f._rng = RecordingRng(f._rng)
+    before, x_bar, C = f.particles.copy(), f._cloud_mean.copy(), f._cloud_cov.copy()
+    z = RAE.h(x0 + [20.0, -30.0, 10.0, 0.0, 0.0, 0.0])
+    assert f.process(1.0, z, PAPER_R, RAE).accepted  # same time: no prediction, Q_pend = 0
+    assert (f.diagnostics()["gn_passes"] > 0) == expect_passes and not f.diagnostics()["resampled"]
+    a = np.sqrt(1.0 - f._h2)
+    centres = a * before + (1.0 - a) * x_bar
+    S = f._h2 * C
+    d = f.particles - centres
+    nu = RAE.residual(z, RAE.h(f.particles))
+    direct = (-0.5 * np.einsum("ij,ij->i", nu, np.linalg.solve(PAPER_R, nu.T).T)
+              - 0.5 * np.einsum("ij,ij->i", d, np.linalg.solve(S, d.T).T)
+              + 0.5 * np.sum(f._rng.last ** 2, axis=0))
+    direct -= logsumexp(direct)
+    assert np.all(np.isfinite(direct)) and np.ptp(direct) > 10.0
+    np.testing.assert_allclose(f._logw, direct, rtol=1e-9, atol=1e-6)
+
+
+def test_pf_matches_a_brute_force_posterior_on_a_curved_likelihood():
+    """One update of a 50 m cloud with range/azimuth/elevation (2 m, 1°): the curvature asks for Gauss–Newton
+    passes. Reference: 10⁶ prior samples weighted by the likelihood (N_eff ≈ 1 200; a second reference seed
+    differs by 0.07 σ, 10 %). Measured over 6 seeds of the "pf": mean within 0.11 σ, variances within 13 %.
+    The exact-weight test above is the sharp check; this one guards the whole update."""
+    x0 = np.array([500.0, 400.0, -200.0, 0.0, 0.0, 0.0])
+    P0 = np.diag([50.0 ** 2] * 3 + [1.0] * 3)
+    P0[0, 3] = P0[3, 0] = 30.0
+    R_wide = np.diag([2.0 ** 2, np.radians(1.0) ** 2, np.radians(1.0) ** 2])
+    rng = np.random.default_rng(5)
+    z = RAE.h(x0 + rng.normal(size=6) * np.sqrt(np.diag(P0))) + rng.normal(size=3) * np.sqrt(np.diag(R_wide))
+    ref = SIRParticleFilter(CW, n_particles=1_000_000, seed=1, threshold=1e-9)
+    pf = RegularisedParticleFilter(CW, n_particles=20_000, seed=0)
+    for f in (ref, pf):
+        f.initialise(x0, P0, 1.0)
+        assert f.process(1.0, z, R_wide, RAE).accepted
+    assert ref.diagnostics()["n_eff"] > 500 and pf.diagnostics()["gn_passes"] >= 1
+    sd = np.sqrt(np.diag(ref.P))
+    assert np.all(np.abs(pf.x - ref.x) < 0.2 * sd)
+    np.testing.assert_allclose(np.diag(pf.P), np.diag(ref.P), rtol=0.2)
+
+
+@pytest.mark.parametrize("cls, R_meas", [(RegularisedParticleFilter, PAPER_R),
+                                         (SIRParticleFilter, np.diag([0.5 ** 2, 1e-3 ** 2, 1e-3 ** 2]))])
+def test_azimuth_through_zero_gives_no_spike(cls, R_meas):
+    """The deputy crosses the along-track axis (azimuth 2π → 0) at t = 20 s, the cloud straddling the wrap:
+    no warning, bounded NIS and error at the crossing (an unwrapped 2π residual would vanish every weight)."""
+    truth = np.array([20.0, 500.0, 5.0, -1.0, 0.0, 0.0])  # internal: radial 20 m -> 0 at t ≈ 20 s
+    P0 = np.diag([0.3 ** 2] * 3 + [0.01 ** 2] * 3)
+    rng = np.random.default_rng(3)
+    f = cls(CW, n_particles=4000, seed=1)
+    f.initialise(truth + rng.normal(size=6) * np.sqrt(np.diag(P0)), P0, 0.0)
+    azimuths, errors, nis = [], [], []
+    for k in range(1, 41):
+        truth = CW.propagate(truth, 1.0)
+        z = RAE.h(truth) + rng.normal(size=3) * np.sqrt(np.diag(R_meas))
+        z[1] = np.mod(z[1], 2.0 * np.pi)
+        step = f.process(float(k), z, R_meas, RAE)
+        assert step.accepted and step.warnings == [], step.warnings
+        azimuths.append(z[1])
+        errors.append(np.linalg.norm(f.x[:3] - truth[:3]))
+        nis.append(step.nis)
+        if k == 20:
+            straddle = np.ptp(RAE.h(f.particles)[:, 1])
+    assert max(azimuths[:15]) < 0.1 and min(azimuths[25:]) > 6.0  # it did cross 0 going down
+    assert straddle > 6.0  # the cloud itself was split across 0 / 2π at the crossing
+    assert max(errors[10:]) < 3.0 * np.median(errors[10:]) + 0.05
+    assert max(nis) < 40.0
+
+
+def test_pf_is_consistent_on_paper_001_when_the_truth_follows_its_model():
+    """formation_pf's filter (scenario config: CW, the paper's Q, P0, R), truth driven by the same Q:
+    average NEES over 8 runs × 40 steps (after 20 s) close to the 6 dof (measured 6.2 at N = 2 000)."""
+    from orbit_sim.config import load_scenario
+    from orbit_sim.relative import from_convention
+    from tracker_filters.builders import build_filter_stack
+
+    cfg = load_scenario("formation_pf", ["filters.pf.params.n_particles=2000"])
+    nees = []
+    for run in range(8):
+        stack = build_filter_stack(cfg, "pf")
+        f, sensor, rng = stack.filter, stack.sensors["radio"], np.random.default_rng(run)
+        x = from_convention(np.array([400.0, 500.0, 200.0, 0.0, 0.0, 0.0]), "along_radial")
+        f.initialise(*stack.initialise(sensor.observe(x, 0.0, 0, rng), sensor.R, sensor, 0.0), 0.0)
+        L_q = np.linalg.cholesky(f.dynamics.process_noise(x, 1.0))
+        for k in range(1, 61):
+            x = f.dynamics.propagate(x, 1.0) + L_q @ rng.standard_normal(6)
+            assert f.process(float(k), sensor.observe(x, float(k), k, rng), sensor.R, sensor.model).accepted
+            if k > 20:
+                e = f.x - x
+                nees.append(e @ np.linalg.solve(f.P, e))
+    assert 4.5 < np.mean(nees) < 8.0
+
+
+def test_wrap_angle_range_and_equivalence():
+    a = np.array([np.pi, -np.pi, 3 * np.pi, -3 * np.pi, 0.0, 1e-300, -1e-300, 7.0, -7.0, 1e6])
+    w = wrap_angle(a)
+    assert np.all((w > -np.pi) & (w <= np.pi))
+    np.testing.assert_array_equal(w[:4], np.pi)
+    assert w[5] == 1e-300 and w[6] == -1e-300
+    b = np.random.default_rng(0).uniform(-50.0, 50.0, 100_000)
+    wb = wrap_angle(b)
+    assert np.all((wb > -np.pi) & (wb <= np.pi))
+    np.testing.assert_allclose(np.exp(1j * wb), np.exp(1j * b), atol=1e-13)
+    np.testing.assert_allclose(wrapped_residual(np.zeros((2, 3)), np.full((2, 3), 2 * np.pi - 0.1), [1, 2]),
+                               [[-2 * np.pi + 0.1, 0.1, 0.1]] * 2, atol=1e-14)

