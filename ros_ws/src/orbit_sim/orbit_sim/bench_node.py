@@ -158,15 +158,15 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events") -> int:
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
     executor = make_executor(executor_kind)
+    names = {id(node): node.get_name() for node in nodes}
     for node in nodes:
         executor.add_node(node)
     try:
         while not stop.signal and not all(n.finished for n in nodes):
             executor.spin_once(timeout_sec=0.05)
-    except Exception as err:  # a callback raised: report it with the node's name and stop cleanly
-        nodes[0].get_logger().error(f"node callback raised: {err!r}")
+    except Exception as err:  # a callback raised (rclpy logged which node): stop cleanly, report it
         for node in nodes:
-            node.failed = node.failed or repr(err)
+            node.failed = node.failed or f"a callback raised {err!r}"
     finally:
         for node in nodes:
             close = getattr(node, "close", None)
@@ -177,7 +177,7 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events") -> int:
         executor.shutdown(timeout_sec=1.0)
     failed = [n for n in nodes if n.failed]
     for node in failed:
-        print(f"[{node.get_name()}] failed: {node.failed}", file=sys.stderr)
+        print(f"[{names[id(node)]}] failed: {node.failed}", file=sys.stderr)
     if stop.signal:
         return 128 + stop.signal
     return 1 if failed else 0
