@@ -34,7 +34,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the
 import numpy as np  # noqa: E402
 
 from tracker_filters import metrics  # noqa: E402
-from tracker_filters.scoring import load_bag, track_of  # noqa: E402
+from tracker_filters.scoring import load_bags, track_of  # noqa: E402
 
 MONTECARLO = Path(__file__).resolve().parent / "montecarlo.py"
 CONFIGS = ("default", "range_0p5m", "j2_truth", "euler_phi")
@@ -50,15 +50,6 @@ def run_montecarlo(config: str, args: argparse.Namespace) -> None:
         cmd += ["--set", o]
     print("$ " + " ".join(cmd[1:]), file=sys.stderr)
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-
-
-def diagnostic_series(msgs: list, name: str) -> np.ndarray:
-    """One diagnostic value per estimate (NaN where the estimate does not carry it), in step order."""
-    out = []
-    for m in sorted(msgs, key=lambda m: m.step):
-        d = dict(zip(m.diagnostic_names, m.diagnostic_values))
-        out.append(d.get(name, np.nan))
-    return np.array(out)
 
 
 def filter_figures(tracks: list[metrics.Track], diags: list[dict[str, np.ndarray]], scored: dict,
@@ -94,14 +85,12 @@ def filter_figures(tracks: list[metrics.Track], diags: list[dict[str, np.ndarray
 def tabulate(run_dir: Path, settle_s: float) -> dict[str, dict]:
     scored = json.loads((run_dir / "score.json").read_text())
     bags = sorted(p.parent for p in run_dir.glob("run_*/bag/metadata.yaml"))
-    runs = [load_bag(b) for b in bags]
+    runs = load_bags(bags)
     opts = runs[0].scenario["scoring"]
     out = {}
     for name in runs[0].run["filters"]:
         tracks = [track_of(d, name) for d in runs]
-        diags = [{k: diagnostic_series(d.estimates[name], k) for k in ("n_eff", "resampled", "gn_passes")}
-                 for d in runs]
-        diags = [{k: v for k, v in d.items() if not np.all(np.isnan(v))} for d in diags]
+        diags = [d.estimates[name].diagnostics for d in runs]
         out[name] = filter_figures(tracks, diags, scored["filters"][name], settle_s,
                                    opts["position_threshold"], opts["velocity_threshold"])
     return out

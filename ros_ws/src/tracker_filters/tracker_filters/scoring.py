@@ -6,6 +6,7 @@ Estimates are matched to truth and measurements by lock-step index (``step``), n
 """
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import yaml
 
 from orbit_sim.bag import BagReader
 from orbit_sim.config import Section
-from orbit_sim.graph import TRUTH_TOPIC
+from orbit_sim.graph import CLOCK_TOPIC, TRUTH_TOPIC
 from tracker_filters import metrics
 
 METRICS = ("leo", "formation")
@@ -32,18 +33,46 @@ def scoring_options(cfg: dict) -> dict:
 
 
 @dataclass
+class Estimates:
+    """One filter's estimates of one run, in step order."""
+
+    steps: np.ndarray  # (K,)
+    t: np.ndarray  # (K,) s
+    x: np.ndarray  # (K, n)
+    P: np.ndarray  # (K, n, n)
+    labels: list[str]
+    diagnostics: dict[str, np.ndarray]  # name -> (K,), NaN where an estimate does not carry it
+
+    @classmethod
+    def from_messages(cls, msgs: list) -> "Estimates":
+        msgs = sorted(msgs, key=lambda m: m.step)
+        n = len(msgs[0].labels)
+        names = sorted({k for m in msgs for k in m.diagnostic_names})
+        diag = {k: np.array([dict(zip(m.diagnostic_names, m.diagnostic_values)).get(k, np.nan) for m in msgs])
+                for k in names}
+        return cls(np.array([m.step for m in msgs]), np.array([_seconds(m.header.stamp) for m in msgs]),
+                   np.array([m.state for m in msgs], dtype=float),
+                   np.array([m.covariance for m in msgs], dtype=float).reshape(len(msgs), n, n),
+                   list(msgs[0].labels), diag)
+
+
+@dataclass
 class BagData:
-    """The decoded content of one run's bag."""
+    """The decoded content of one run's bag (plain arrays: picklable, so bags load in parallel)."""
 
     run: dict
     truth: dict[int, tuple[float, np.ndarray]] = field(default_factory=dict)  # step -> (t, state)
     truth_labels: list[str] = field(default_factory=list)
     measurements: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)  # sensor -> step -> z
-    estimates: dict[str, list] = field(default_factory=dict)  # filter -> [StateEstimate msgs]
+    estimates: dict[str, Estimates] = field(default_factory=dict)
 
     @property
     def scenario(self) -> dict:
         return self.run["scenario"]
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def load_bag(bag_dir: Path | str) -> BagData:
@@ -54,29 +83,35 @@ def load_bag(bag_dir: Path | str) -> BagData:
         raise FileNotFoundError(f"{bag_dir} has no run_config.yaml: not a bag recorded by this bench")
     data = BagData(yaml.safe_load(config.read_text()))
     from radar_sensor.messages import from_message
-    for topic, _t_log, msg in BagReader(bag_dir).decoded():
+    reader = BagReader(bag_dir)
+    estimates: dict[str, list] = {}
+    for topic, _t_log, msg in reader.decoded([t for t in reader.topics() if t != CLOCK_TOPIC]):
         if topic == TRUTH_TOPIC:
-            data.truth[msg.step] = (msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-                                    np.asarray(msg.state, dtype=float))
+            data.truth[msg.step] = (_seconds(msg.header.stamp), np.asarray(msg.state, dtype=float))
             data.truth_labels = list(msg.labels)
         elif topic.endswith("/measurement"):
             data.measurements.setdefault(topic.split("/")[1], {})[msg.step] = from_message(msg)[1]
         elif topic.endswith("/estimate"):
-            data.estimates.setdefault(msg.filter_name, []).append(msg)
+            estimates.setdefault(msg.filter_name, []).append(msg)
+    data.estimates = {name: Estimates.from_messages(msgs) for name, msgs in estimates.items()}
     return data
+
+
+def load_bags(bag_dirs: list[Path | str], jobs: int = 2) -> list[BagData]:
+    """Load several bags, in ``jobs`` worker processes when there are many."""
+    if len(bag_dirs) <= 2 or jobs <= 1:
+        return [load_bag(b) for b in bag_dirs]
+    with ProcessPoolExecutor(jobs) as pool:
+        return list(pool.map(load_bag, bag_dirs, chunksize=4))
 
 
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
     """Estimates of one filter aligned with the truth of the same steps (truth reordered to the labels)."""
-    msgs = sorted(data.estimates[filter_name], key=lambda m: m.step)
-    labels = list(msgs[0].labels)
-    index = [data.truth_labels.index(lab) for lab in labels if lab in data.truth_labels]
+    est = data.estimates[filter_name]
+    index = [data.truth_labels.index(lab) for lab in est.labels if lab in data.truth_labels]
     n = len(index)
-    t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in msgs])
-    x = np.array([np.asarray(m.state)[:n] for m in msgs])
-    P = np.array([np.asarray(m.covariance).reshape(len(labels), len(labels))[:n, :n] for m in msgs])
-    x_true = np.array([data.truth[m.step][1][index] for m in msgs])
-    return metrics.Track(t, x, P, x_true, labels[:n])
+    x_true = np.array([data.truth[int(k)][1][index] for k in est.steps])
+    return metrics.Track(est.t, est.x[:, :n], est.P[:, :n, :n], x_true, est.labels[:n])
 
 
 def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | None:
@@ -86,16 +121,13 @@ def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | Non
     sensor_name = next(iter(stack.sensors))
     sensor = stack.sensors[sensor_name]
     meas = data.measurements.get(sensor_name, {})
-    z_est, z_meas, z_true = [], [], []
-    for m in sorted(data.estimates[filter_name], key=lambda m: m.step):
-        if m.step not in meas:
-            continue
-        t = m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
-        z_est.append(sensor.model.h(np.asarray(m.state), t))
-        z_meas.append(meas[m.step])
-        z_true.append(sensor.model.h(data.truth[m.step][1], t))
-    if not z_est:
+    est = data.estimates[filter_name]
+    rows = [i for i, k in enumerate(est.steps) if int(k) in meas]
+    if not rows:
         return None
+    z_est = [sensor.model.h(est.x[i], est.t[i]) for i in rows]
+    z_meas = [meas[int(est.steps[i])] for i in rows]
+    z_true = [sensor.model.h(data.truth[int(est.steps[i])][1], est.t[i]) for i in rows]
     return metrics.RadarSamples(np.array(z_est), np.array(z_meas), np.array(z_true),
                                 tuple(sensor.model.angle_indices))
 
@@ -124,12 +156,12 @@ def _scenario_name(runs: list[BagData]) -> str:
 
 
 def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
-    runs = [load_bag(b) for b in bag_dirs]
+    runs = load_bags(bag_dirs)
     scenario = _scenario_name(runs)
     tracks: dict[str, list[metrics.Track]] = {}
     for data in runs:
         for name in data.run["filters"]:
-            if data.estimates.get(name):
+            if name in data.estimates:
                 tracks.setdefault(name, []).append(track_of(data, name))
     return scenario, tracks, runs
 
@@ -144,7 +176,7 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
     if opts["metric"] == "leo":
         radar: dict[str, metrics.RadarSamples] = {}
         for name in tracks:
-            samples = [radar_samples(d, name) for d in runs if d.estimates.get(name)]
+            samples = [radar_samples(d, name) for d in runs if name in d.estimates]
             samples = [s for s in samples if s is not None]
             if samples:
                 radar[name] = metrics.RadarSamples(np.vstack([s.z_est for s in samples]),
