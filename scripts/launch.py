@@ -72,10 +72,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{sim / max(t['stepping_s'], 1e-9):.0f}x real time); bag {plan.bag_dir}", file=sys.stderr)
     if code != 0 or args.no_score:
         return code
-    from tracker_filters.scoring import print_summary, score_bags
-    scored = score_bags([plan.bag_dir])
-    (plan.out / "score.json").write_text(json.dumps(scored, indent=1))
-    print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
+    from tracker_filters.scoring import score_run
+    print(score_run(plan.out, args.json))
     return 0
 
 

@@ -12,7 +12,6 @@ Examples:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -57,10 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     code = run_single_process(plan, domain) if args.single_process else run_multiprocess(plan, domain)
     if code != 0:
         return code
-    from tracker_filters.scoring import print_summary, score_bags
-    scored = score_bags([plan.bag_dir])
-    (plan.out / "score.json").write_text(json.dumps(scored, indent=1))
-    print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
+    from tracker_filters.scoring import score_run
+    print(score_run(plan.out, args.json))
     return 0
 
 

@@ -6,6 +6,7 @@ Estimates are matched to truth and measurements by lock-step index (``step``), n
 """
 from __future__ import annotations
 
+import json
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -192,6 +193,13 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
         series = formation_series(tracks) if with_series else None
     result = {"scenario": scenario, "runs": len(runs), "filters": scored}
     return (result, series) if with_series else result
+
+
+def score_run(out_dir: Path, as_json: bool = False) -> str:
+    """Score the bag of one run directory (OUT/bag), save OUT/score.json, return the text to print."""
+    scored = score_bags([Path(out_dir) / "bag"])
+    (Path(out_dir) / "score.json").write_text(json.dumps(scored, indent=1))
+    return json.dumps(scored, indent=1) if as_json else print_summary(scored)
 
 
 def print_summary(scored: dict) -> str:
