@@ -23,7 +23,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 
 from orbit_sim.config import ScenarioError, available_scenarios  # noqa: E402
-from orbit_sim.launcher import prepare_run, run_multiprocess, run_single_process  # noqa: E402
+from orbit_sim.launcher import prepare_run, run_graph  # noqa: E402
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -37,7 +37,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--variant", help="apply one of the scenario's named variants")
     p.add_argument("--single-process", action="store_true", help="run every node in this one process")
     p.add_argument("--domain-id", type=int, default=None,
-                   help="ROS_DOMAIN_ID of this run (default: derived from the process id, 1..100)")
+                   help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
     p.add_argument("--executor", choices=["events", "single"], default="events",
                    help="rclpy executor (events = rclpy.experimental.EventsExecutor, the fastest)")
     p.add_argument("--no-score", action="store_true", help="do not score the bag after the run")
@@ -48,7 +48,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out = Path(args.out or f"runs/{Path(args.scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
-    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
     filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
     try:
         plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
@@ -56,13 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(f"[launch] {plan.run['scenario']['scenario']}: nodes {[n.name for n in plan.graph.nodes]}, "
-          f"ROS_DOMAIN_ID={domain}, out {plan.out}", file=sys.stderr)
     started = time.monotonic()
-    if args.single_process:
-        code = run_single_process(plan, domain, args.executor)
-    else:
-        code = run_multiprocess(plan, domain)
+    code = run_graph(plan, args.domain_id, args.single_process, args.executor)
     wall = time.monotonic() - started
     timing = plan.out / "timing.json"
     if timing.exists():

@@ -40,19 +40,22 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="scenario override, repeatable")
     p.add_argument("--variant", help="one of the scenario's named variants")
     p.add_argument("--multiprocess", action="store_true", help="one process per node in every run")
-    p.add_argument("--domain-base", type=int, default=20, help="job j uses ROS_DOMAIN_ID domain-base + j")
+    p.add_argument("--domain-base", type=int, default=None,
+                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run takes a free domain)")
     p.add_argument("--json", action="store_true", help="print the aggregated scores as JSON")
     args = p.parse_args(argv)
     if args.runs < 1 or args.jobs < 1:
         p.error("--runs and --jobs must be >= 1")
-    if args.domain_base + args.jobs - 1 > 101:
+    if args.domain_base is not None and args.domain_base + args.jobs - 1 > 101:
         p.error("--domain-base + --jobs - 1 must be <= 101 (ROS_DOMAIN_ID range)")
     return args
 
 
-def launch_command(args: argparse.Namespace, i: int, domain: int) -> list[str]:
+def launch_command(args: argparse.Namespace, i: int, domain: int | None) -> list[str]:
     cmd = [sys.executable, str(LAUNCH), args.scenario, "--seed", str(args.seed0 + i), "--out",
-           str(args.out / f"run_{i:03d}"), "--domain-id", str(domain), "--no-score"]
+           str(args.out / f"run_{i:03d}"), "--no-score"]
+    if domain is not None:
+        cmd += ["--domain-id", str(domain)]
     if args.filters:
         cmd += ["--filters", args.filters]
     if args.variant:
@@ -81,7 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     args.out = args.out or Path(f"runs/mc-{Path(args.scenario).stem}")
     args.out.mkdir(parents=True, exist_ok=True)
     validate_first(args)
-    free_domains = list(range(args.domain_base, args.domain_base + args.jobs))
+    free_domains = (list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None
+                    else [None] * args.jobs)
     failures: list[str] = []
     started = time.monotonic()
 

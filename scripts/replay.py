@@ -23,7 +23,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 
 from orbit_sim.config import ScenarioError, apply_overrides  # noqa: E402
-from orbit_sim.launcher import prepare_run, run_multiprocess, run_single_process  # noqa: E402
+from orbit_sim.launcher import prepare_run, run_graph  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,7 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario override for the replay (filters only: the data are fixed), repeatable")
     p.add_argument("--single-process", action="store_true", help="run every node in this one process")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default from the process id)")
+    p.add_argument("--domain-id", type=int, default=None,
+                   help="ROS_DOMAIN_ID (default: the first one no other bench run holds)")
     p.add_argument("--json", action="store_true", help="print the score as JSON")
     args = p.parse_args(argv)
     config = args.bag / "run_config.yaml"
@@ -43,7 +44,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     recorded = yaml.safe_load(config.read_text())
     out = args.out or Path(f"runs/replay-{time.strftime('%Y%m%d-%H%M%S')}")
-    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
     try:
         cfg = apply_overrides(recorded["scenario"], args.overrides)
         plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"), source="player",
@@ -51,9 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['filters']} (ROS_DOMAIN_ID={domain})",
-          file=sys.stderr)
-    code = run_single_process(plan, domain) if args.single_process else run_multiprocess(plan, domain)
+    print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['filters']}", file=sys.stderr)
+    code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code
     from tracker_filters.scoring import score_run

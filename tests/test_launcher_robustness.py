@@ -106,3 +106,32 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
     r0 = [m.range for _, m in read_bag(out / "run_000" / "bag")["/radar/measurement"]][:5]
     r1 = [m.range for _, m in read_bag(out / "run_001" / "bag")["/radar/measurement"]][:5]
     assert r0 != r1
+
+
+def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
+    from orbit_sim.domains import reserve
+    held = reserve(75)
+    try:
+        res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", "75", timeout=60)
+    finally:
+        held.release()
+    assert res.returncode == 2
+    assert "ROS_DOMAIN_ID 75 is in use by another bench run" in res.stderr
+
+
+def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path) -> None:
+    out = tmp_path / "orphan"
+    proc = _launch_background(out, 76)
+    _wait_for_stepping(out, proc)
+    proc.kill()
+    proc.wait()
+    pattern = f"--config {out.resolve()}/run_config.yaml"
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        alive = subprocess.run(["pgrep", "-f", "--", pattern], capture_output=True, text=True).stdout.split()
+        if not alive:
+            break
+        time.sleep(0.5)
+    assert not alive, "nodes kept running after their launcher died"
+    steps = [m.step for _, m in read_bag(out / "bag")["/truth/state"]]
+    assert steps == list(range(len(steps))) and steps

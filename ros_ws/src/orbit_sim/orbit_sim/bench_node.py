@@ -12,8 +12,10 @@ the run's filters, seed and recording flag) and finds its own topics in :mod:`or
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
+import time
 from typing import Callable, Iterable
 
 import rclpy
@@ -152,8 +154,9 @@ class _StopFlag:
         self.signal = signum
 
 
-def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events") -> int:
-    """Spin until every node finished or SIGINT/SIGTERM; close nodes; return an exit code."""
+def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None) -> int:
+    """Spin until every node finished, SIGINT/SIGTERM, or (when ``parent_pid`` is given) the parent process
+    went away; close nodes; return an exit code."""
     stop = _StopFlag()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
@@ -161,9 +164,16 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events") -> int:
     names = {id(node): node.get_name() for node in nodes}
     for node in nodes:
         executor.add_node(node)
+    next_parent_check = time.monotonic() + 1.0
     try:
         while not stop.signal and not all(n.finished for n in nodes):
             executor.spin_once(timeout_sec=0.05)
+            if parent_pid is not None and time.monotonic() > next_parent_check:
+                next_parent_check = time.monotonic() + 1.0
+                if os.getppid() != parent_pid:  # orphaned: the launcher was killed
+                    for node in nodes:
+                        node.failed = node.failed or "the launcher went away; stopping"
+                    break
     except Exception as err:  # a callback raised (rclpy logged which node): stop cleanly, report it
         for node in nodes:
             node.failed = node.failed or f"a callback raised {err!r}"
@@ -201,6 +211,6 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
         print(f"[{args.name}] error: {err}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    code = spin_nodes([node], args.executor)
+    code = spin_nodes([node], args.executor, parent_pid=os.getppid())
     rclpy.try_shutdown()
     return code

@@ -16,6 +16,7 @@ from pathlib import Path
 import yaml
 
 from orbit_sim.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from orbit_sim.domains import DomainInUse, reserve
 from orbit_sim.graph import Graph, build_graph, resolve_filters
 
 TOP_LEVEL_KEYS = ("scenario", "description", "seed", "earth", "time", "truth", "sensors", "filter_defaults",
@@ -161,6 +162,24 @@ def _stop_all(procs: dict) -> None:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
+              tag: str = "launch") -> int:
+    """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it."""
+    try:
+        reservation = reserve(domain_id)
+    except DomainInUse as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"[{tag}] {plan.run['scenario'].get('scenario')}: nodes {[n.name for n in plan.graph.nodes]}, "
+          f"ROS_DOMAIN_ID={reservation.domain}, out {plan.out}", file=sys.stderr)
+    try:
+        if single_process:
+            return run_single_process(plan, reservation.domain, executor)
+        return run_multiprocess(plan, reservation.domain)
+    finally:
+        reservation.release()
 
 
 def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events") -> int:
