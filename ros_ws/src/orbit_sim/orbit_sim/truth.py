@@ -113,13 +113,24 @@ class ReferenceOrbit:
     n: float  # mean motion [rad/s]
 
 
-def reference_orbit(cfg: dict) -> ReferenceOrbit:
-    """Semi-major axis, inclination and mean motion of ``truth.chief`` (formation scenarios)."""
+def reference_orbit(cfg: dict, mean_radius: bool = False) -> ReferenceOrbit:
+    """Radius, inclination and mean motion of ``truth.chief`` as the linear models see it (formations).
+
+    Default: the stated semi-major axis. With ``mean_radius`` the radius is the chief's orbit-averaged |r|
+    under the truth's gravity (two-body + J2 for ``formation_j2``): the reference radius the
+    Schweighart-Sedwick model is derived for, which differs from the osculating a by kilometres under J2.
+    """
     earth = build_earth(cfg)
     chief = (cfg.get("truth") or {}).get("chief")
     if not isinstance(chief, dict):
         raise ScenarioError("relative-motion models need the chief's orbit in 'truth.chief'")
     a = _semi_major_axis(Section(chief, "truth.chief"), earth.mu)
+    if mean_radius:
+        x0 = orbit_state(Section(chief, "truth.chief"), earth.mu)
+        j2 = earth.j2 if (cfg.get("truth") or {}).get("model") == "formation_j2" else 0.0
+        times = np.linspace(0.0, 2.0 * np.pi * np.sqrt(a**3 / earth.mu), 721)
+        radii = np.linalg.norm(cowell.propagate(x0, times, earth.mu, j2, earth.re)[:, :3], axis=1)
+        a = float(np.mean(radii[:-1]))
     return ReferenceOrbit(a, np.radians(float(chief.get("i_deg", 0.0))), float(np.sqrt(earth.mu / a**3)))
 
 

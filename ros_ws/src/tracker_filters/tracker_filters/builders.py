@@ -57,17 +57,22 @@ def _sigma_accel(sec: Section) -> float | list[float]:
     return value
 
 
+def _reference(sec: Section, cfg: dict):
+    """The chief's reference orbit: ``reference: stated`` (the scenario's a) or ``mean`` (orbit-averaged)."""
+    return reference_orbit(cfg, sec.choice("reference", ("stated", "mean"), "stated") == "mean")
+
+
 def _cw(sec: Section, cfg: dict) -> DynamicsModel:
-    return CWDynamics(reference_orbit(cfg).n, _sigma_accel(sec),
+    return CWDynamics(_reference(sec, cfg).n, _sigma_accel(sec),
                       sec.choice("discretisation", ("exact", "euler"), "exact"))
 
 
 def _cw_bias(sec: Section, cfg: dict) -> DynamicsModel:
-    return CWBiasDynamics(reference_orbit(cfg).n, _sigma_accel(sec), sec.non_negative("sigma_bias"))
+    return CWBiasDynamics(_reference(sec, cfg).n, _sigma_accel(sec), sec.non_negative("sigma_bias"))
 
 
 def _ss(sec: Section, cfg: dict) -> DynamicsModel:
-    ref, earth = reference_orbit(cfg), build_earth(cfg)
+    ref, earth = _reference(sec, cfg), build_earth(cfg)
     return SchweighartSedwickDynamics(ref.a, ref.inclination, _sigma_accel(sec), earth.mu, earth.j2, earth.re)
 
 
