@@ -43,8 +43,10 @@ def test_leo_radar_validates_and_its_variant_changes_the_angles() -> None:
 def test_any_registered_filter_type_can_be_named_on_the_command_line() -> None:
     cfg = load_scenario("leo_radar")
     assert filter_config(cfg, "kf")["type"] == "kf"
-    assert filter_config(cfg, "ukf")["params"]["alpha"] == pytest.approx(1.0)
-    assert filter_config(cfg, "ekf")["dynamics"] == {"model": "orbit_j2", "sigma_accel": 2.0}  # merged
+    assert filter_config(cfg, "ukf")["params"]["alpha"] == cfg["filters"]["ukf"]["params"]["alpha"]
+    ekf = filter_config(cfg, "ekf")["dynamics"]  # the filter's own value over filter_defaults'
+    assert ekf["sigma_accel"] == cfg["filters"]["ekf"]["dynamics"]["sigma_accel"]
+    assert ekf["sigma_accel"] != cfg["filter_defaults"]["dynamics"]["sigma_accel"]
     assert filter_config(cfg, "ukf")["dynamics"]["model"] == "orbit_j2"  # from filter_defaults
 
 

@@ -7,11 +7,12 @@ from scipy.stats import chi2
 from orbit_sim.frames import ecef_to_eci, enu_rotation
 from orbit_sim.kepler import kepler_to_cartesian
 from radar_sensor.radar import GroundRadarModel
-from tracker_filters.ekf import ExtendedKalmanFilter
+from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF, second_order_moments
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
 from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.registry import FILTERS, make_filter
+from tracker_filters.relinearisation import PassBatch
 from tracker_filters.sigma_points import ScaledSigmaPoints
 from tracker_filters.ukf import UnscentedKalmanFilter
 
@@ -193,6 +194,140 @@ def test_a_mistuned_filter_fails_the_nees_check():
     assert np.mean(nees) > 50.0
 
 
+# ------------------------------------------------------------------------------ second-order EKF
+
+class PositionMeasurementWithHessian(PositionMeasurement):
+    """The linear position measurement with its (zero) Hessians, for the second-order EKF."""
+
+    def hessian(self, x, t):
+        return np.zeros((len(self.labels), len(x), len(x)))
+
+
+def test_second_order_ekf_equals_ekf_on_a_linear_model():
+    dyn, _, R, P0, times, _, zs = linear_problem(seed=4)
+    meas = PositionMeasurementWithHessian(3)
+    ekf, ekf2 = ExtendedKalmanFilter(dyn), SecondOrderEKF(dyn)
+    for f in (ekf, ekf2):
+        f.initialise(np.zeros(6), P0, 0.0)
+    for t, z in zip(times, zs):
+        assert ekf2.process(t, z, R, meas).nis == pytest.approx(ekf.process(t, z, R, meas).nis, rel=1e-12)
+    np.testing.assert_allclose(ekf2.x, ekf.x, rtol=1e-12)
+    np.testing.assert_allclose(ekf2.P, ekf.P, rtol=1e-12)
+
+
+def test_second_order_ekf_needs_a_hessian():
+    dyn, meas, R, P0, times, _, zs = linear_problem(seed=4, steps=2)
+    f = SecondOrderEKF(dyn)
+    f.initialise(np.zeros(6), P0, 0.0)
+    with pytest.raises(TypeError, match="ekf2: the measurement model PositionMeasurement has no hessian"):
+        f.process(times[0], zs[0], R, meas)
+
+
+def test_second_order_moments_are_the_radar_measurement_moments_after_a_first_scan():
+    """With the ~25 km cross-range spread of a 1 deg scan at 1500 km, the range's mean sits hundreds of
+    metres beyond h(mean) (the shell's sag) and its spread is ~10 sigma_r: the second-order terms give both
+    (Monte Carlo, 200 000 samples), the first-order ones neither."""
+    model = GroundRadarModel(*STATION)
+    t = 4400.0
+    x = state_at_look_angles(model, t, 1.5e6, 2.0, 0.3, np.array([0.0, 7e3, 0.0]))
+    J = model.position_jacobian(model.h(x, t), t)
+    P = np.zeros((6, 6))
+    P[0:3, 0:3] = J @ R_RADAR @ J.T
+    P[3:6, 3:6] = np.eye(3)
+    samples = np.random.default_rng(0).multivariate_normal(x, P, size=200_000)
+    Z = model.h(samples, t)
+    z0 = model.h(x, t)
+    mc_mean = z0 + np.mean(model.residual(Z, z0), axis=0)
+    D = model.residual(Z, mc_mean)
+    mc_cov = D.T @ D / len(D)
+    H = model.jacobian(x, t)
+    bias, B = second_order_moments(model.hessian(x, t), P)
+    assert bias[0] > 300.0 and np.sqrt(B[0, 0]) > 300.0                  # >> sigma_r = 31.6 m
+    assert abs(mc_mean[0] - (z0[0] + bias[0])) < 3.0                       # MC error ~1 m
+    assert abs(mc_mean[0] - z0[0]) > 100 * abs(mc_mean[0] - (z0[0] + bias[0]))
+    S = H @ P @ H.T + B
+    np.testing.assert_allclose(np.diag(S), np.diag(mc_cov), rtol=0.01)
+    sd = np.sqrt(np.diag(mc_cov))
+    # correlations: MC noise ~0.002; the third-order terms a second-order filter ignores add ~0.01
+    np.testing.assert_allclose(S / np.outer(sd, sd), mc_cov / np.outer(sd, sd), atol=0.02)
+    assert mc_cov[0, 0] > 50 * (H @ P @ H.T)[0, 0]
+
+
+# --------------------------------------------------------------------- batch re-linearisation
+
+@pytest.mark.parametrize("name", ["ekf", "ekf2", "ukf"])
+def test_relinearised_filters_equal_the_kf_on_a_linear_deterministic_model(name, monkeypatch):
+    """Gauss-Newton on a linear problem is the Kalman filter: re-solving changes nothing."""
+    dyn, _, R, P0, times, _, zs = linear_problem(seed=5, steps=60)
+    dyn = ConstantVelocity(sigma_accel=0.0)
+    meas = PositionMeasurementWithHessian(3)
+    solves = []
+    solve = PassBatch.solve
+    monkeypatch.setattr(PassBatch, "solve", lambda self, guess: solves.append(len(self)) or solve(self, guess))
+    kf, f = KalmanFilter(dyn), make_filter(name, dyn, relinearise=1.5, relinearise_from=2)
+    for g in (kf, f):
+        g.initialise(np.ones(6), P0, 0.0)
+    for t, z in zip(times, zs):
+        kf.process(t, z, R, meas)
+        assert f.process(t, z, R, meas).accepted
+        np.testing.assert_allclose(f.x, kf.x, rtol=1e-7, atol=1e-7)
+        np.testing.assert_allclose(f.P, kf.P, rtol=1e-6, atol=1e-9)
+    assert solves == [2, 3, 5, 8, 12, 18, 27, 41]
+
+
+def radar_scans(seconds: float, seed: int):
+    """The first ``seconds`` of the leo_radar pass: (model, times, truth, scans, first-scan prior)."""
+    from orbit_sim.cowell import propagate
+    from tracker_filters.initialisation import initial_state_from_scan
+    model = GroundRadarModel(*STATION, theta0=np.radians(40.0))
+    times = 4321.0 + 0.1 * np.arange(round(seconds / 0.1) + 1)
+    truth = propagate(propagate(CHAMP, np.array([0.0, times[0]]))[-1], times)
+    rng = np.random.default_rng(seed)
+    z = np.array([model.h(x, t) for x, t in zip(truth, times)]) + rng.normal(size=(len(times), 3)) * 0.017
+    z[:, 0] = [model.h(x, t)[0] for x, t in zip(truth, times)] + rng.normal(size=len(times)) * np.sqrt(1000.0)
+    z[:, 1] = np.mod(z[:, 1], 2 * np.pi)
+    x0, P0 = initial_state_from_scan(z[0], R_RADAR, model, times[0], 8000.0)
+    return model, times, truth, z, x0, P0
+
+
+def test_batch_solution_is_the_least_squares_minimum_and_beats_the_recursive_estimate():
+    from scipy.optimize import least_squares
+    model, times, _, z, x0, P0 = radar_scans(4.0, seed=3)
+    dyn = OrbitJ2Dynamics(sigma_accel=0.0)
+    ekf = ExtendedKalmanFilter(dyn)
+    ekf.initialise(x0, P0, times[0])
+    batch = PassBatch(dyn, x0, P0, times[0])
+    for t, zk in zip(times[1:], z[1:]):
+        ekf.process(t, zk, R_RADAR, model)
+        batch.add(t, zk, R_RADAR, model)
+    guess = dyn.propagate(ekf.x, times[0] - times[-1])
+    x, P, passes = batch.solve(guess)
+    assert passes >= 2
+
+    def residuals(x_start):
+        out, state, t_prev = [batch.W0 @ (x_start - x0)], x_start, times[0]
+        for s in batch.scans:
+            state, t_prev = dyn.propagate(state, s.t - t_prev), s.t
+            out.append(s.W @ model.residual(s.z, model.h(state, s.t)))
+        return np.concatenate(out)
+
+    ref = least_squares(residuals, guess, x_scale=np.sqrt(np.diag(P0)), xtol=1e-12, ftol=1e-12)
+    x_ref = dyn.propagate(ref.x, times[-1] - times[0])
+    e = x - x_ref
+    assert e @ np.linalg.solve(P, e) < 1e-4
+    assert batch.linearise(dyn.propagate(x, times[0] - times[-1])).cost < batch.linearise(guess).cost
+
+
+def test_relinearise_needs_a_deterministic_model_and_a_growth_factor():
+    with pytest.raises(ValueError, match="ukf: relinearise needs a deterministic process model"):
+        make_filter("ukf", OrbitJ2Dynamics(sigma_accel=0.5), relinearise=1.5)
+    with pytest.raises(ValueError, match=r"ekf2: relinearise must be 0 \(off\) or a growth factor > 1, got 1"):
+        make_filter("ekf2", OrbitJ2Dynamics(sigma_accel=0.0), relinearise=1.0)
+    with pytest.raises(ValueError, match="relinearise_from must be a positive number of scans"):
+        make_filter("ekf", OrbitJ2Dynamics(sigma_accel=0.0), relinearise=2.0, relinearise_from=0)
+    assert make_filter("ekf", OrbitJ2Dynamics(sigma_accel=0.5)).relinearise == 0.0  # off: Q allowed
+
+
 # ---------------------------------------------------------------------------- guarded processing
 
 @pytest.mark.parametrize("name", ["kf", "ekf", "ukf"])
@@ -263,7 +398,7 @@ def crossing_run(name: str, model: GroundRadarModel, az0: float) -> tuple[np.nda
     return np.array(nis), float(np.sqrt(e @ np.linalg.solve(f.P[0:3, 0:3], e)))
 
 
-@pytest.mark.parametrize("name", ["ekf", "ukf"])
+@pytest.mark.parametrize("name", ["ekf", "ekf2", "ukf"])
 def test_azimuth_crossing_north_gives_no_innovation_spike(name):
     """A target crossing north (azimuth 2 pi -> 0) mid-run behaves as one crossing east does."""
     model = GroundRadarModel(*STATION)
@@ -292,5 +427,8 @@ def test_registry_builds_filters_and_names_errors():
         make_filter("ukf", dyn, gamma=1.0)
     with pytest.raises(ValueError, match=r"^ukf: alpha must be in \(0, 1\], got -1$"):
         make_filter("ukf", dyn, alpha=-1)
-    with pytest.raises(ValueError, match=r"ekf: unknown parameter\(s\) alpha; allowed: none"):
+    with pytest.raises(ValueError, match=r"ekf: unknown parameter\(s\) alpha; allowed: relinearise, relin"):
         make_filter("ekf", dyn, alpha=0.5)
+    with pytest.raises(ValueError, match=r"kf: unknown parameter\(s\) alpha; allowed: none"):
+        make_filter("kf", dyn, alpha=0.5)
+    assert isinstance(make_filter("ekf2", dyn), SecondOrderEKF)

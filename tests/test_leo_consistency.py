@@ -1,116 +1,103 @@
-"""leo_radar without ROS: the EKF and UKF track CHAMP over the scenario's radar pass (SCENARIOS.md section 1).
+"""leo_radar without ROS: the scenario's default EKF and UKF track CHAMP over the first 200 s of the pass.
 
-Truth: Cowell two-body + J2 (orbit_sim.cowell.propagate) at 10 Hz over the ~420 s pass of the CHAMP orbit
-above the scenario's station (EISCAT Svalbard, Earth rotation angle 40 deg at the epoch; see
-tests/test_passes.py). Radar: sigma_r = sqrt(1000) m, sigma_az = sigma_el = 0.017 rad, P_D = 0.95 (a missed
-scan is simply absent). Both filters start from the first scan: unscented-transform position, zero-mean
-velocity with 8 km/s per axis.
+Everything comes from the scenario file (truth, radar, filters), as in the graph: Cowell two-body + J2 truth
+at 10 Hz, sigma_r = sqrt(1000) m, sigma_az = sigma_el = 0.017 rad, P_D = 0.95, first-scan initialisation.
+The defaults are the second-order EKF ("ekf") and the UKF with alpha = 1 ("ukf"), both with the true process
+noise (zero) and Gauss-Newton re-solves of all scans since the first (tracker_filters/relinearisation.py).
 
-Measured with this simulation (16 seeds; converged window = t >= 150 s after the first scan, where the
-99 % band of a 16-run ANEES is [4.0, 8.5]):
-- UKF, alpha = 1: sigma_accel 0.3 -> ANEES 9.0 (overconfident), 0.5 -> 5.6 (converged RMSE 841 m),
-  1.0 -> 3.3 (pessimistic). alpha = 1e-3 (sigma_accel 0.3) -> 17.7 and 1247 m against 9.0 and 974 m.
-- EKF: sigma_accel 1 -> 10.6, 2 -> 4.2 (converged RMSE 1254 m), 3 -> 3.3.
-Why: with 1 deg angle noise the first scan leaves a ~25 km cross-range spread, over which the range shell
-curves by ~0.4 km >> sigma_r. The first-order EKF cannot represent that and is badly overconfident during
-the first ~100 s; only a large process noise lets it recover. The UKF with alpha = 1 (sigma points at
-+-sqrt(6) sigma) captures most of the curvature; a small alpha shrinks the points to a linearisation.
-Before ~100 s neither filter is NEES-consistent, and no single sigma_accel suits both filters.
-This file runs 4 of those seeds with the tuning below.
+What is asserted, per 50 s window after the first: the NEES averaged over runs and over the window lies in
+the 95 % band of a single step's N-run average, chi2(6 N) / N (time averaging only narrows a consistent
+filter's spread). Measured in process over 20 runs (whole pass, band [4.6, 7.6]): windows 2-9 at 7.2, 7.2,
+6.8, 6.0, 6.1, 6.4, 6.2, 6.4 for both. The first 50 s are not asserted: there the posterior is far from
+Gaussian and no Gaussian estimator we measured is consistent (first-window ANEES: UKF 19, EKF2 32; the
+batch MAP itself 76 at 5 s, 23 at 10 s), see the scenario file. The paper's recursive filters
+(``ekf_paper``, ``ukf_paper``) fail the same windows by orders of magnitude, which the last test checks.
 """
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from orbit_sim.cowell import propagate
-from orbit_sim.kepler import kepler_to_cartesian
-from radar_sensor.radar import GroundRadarModel
-from tracker_filters.initialisation import initial_state_from_scan
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
-from tracker_filters.registry import make_filter
+from orbit_sim.config import load_scenario
+from orbit_sim.truth import build_truth
+from radar_sensor.sensor import build_sensor
+from tracker_filters.builders import build_filter_stack
 
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
-STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
-THETA0 = np.radians(40.0)
-PASS = (4321.0, 4740.0)
-"""s after the epoch: inside the pass (rise 4320.8 s, set 4740.7 s above the 5 deg mask)."""
-DT = 0.1
-R = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
-P_DETECT = 0.95
-VELOCITY_SIGMA = 8000.0
-TUNING = {"ekf": (2.0, {}), "ukf": (0.5, {"alpha": 1.0})}
-"""Per filter: sigma_accel [m/s^1.5] of the white-acceleration Q, and the filter's parameters."""
-SEEDS = range(4)
-CONVERGED_AFTER = 150.0
-"""s after the first scan: start of the window the converged metrics average over."""
+DURATION = 200.0
+"""s of the pass simulated (windows 50-100, 100-150, 150-200 s after the first scan)."""
+SEEDS = range(5)
+WINDOWS = ((50.0, 100.0), (100.0, 150.0), (150.0, 200.0))
 
 
 @pytest.fixture(scope="module")
-def pass_truth():
-    model = GroundRadarModel(*STATION, theta0=THETA0)
-    start = propagate(CHAMP, np.array([0.0, PASS[0]]))[-1]
-    times = PASS[0] + DT * np.arange(round((PASS[1] - PASS[0]) / DT) + 1)
-    truth = propagate(start, times)
-    z_true = np.array([model.h(x, t) for x, t in zip(truth, times)])
-    assert np.all(z_true[:, 2] > np.radians(5.0))  # the whole window is above the elevation mask
-    return model, times, truth, z_true
+def scenario():
+    cfg = load_scenario("leo_radar", [f"time.duration={DURATION}"])
+    truth = build_truth(cfg)
+    return cfg, truth.grid.times(), np.asarray(truth.states), build_sensor(cfg, "radar")
 
 
-def track(name: str, seed: int, pass_truth) -> dict[str, np.ndarray]:
-    """One Monte Carlo run: noisy detections, first-scan initialisation, then one process() per scan."""
-    model, times, truth, z_true = pass_truth
+def track(cfg, times, truth, sensor, name: str, seed: int) -> dict[str, np.ndarray]:
+    """One run: the sensor's detections of the truth, first-scan initialisation, one process() per scan."""
+    stack = build_filter_stack(cfg, name)
+    flt = stack.filter
     rng = np.random.default_rng(seed)
-    detected = np.flatnonzero(rng.random(len(times)) < P_DETECT)
-    z = z_true[detected] + rng.normal(size=(len(detected), 3)) * np.sqrt(np.diag(R))
-    z[:, 1] = np.mod(z[:, 1], 2 * np.pi)
-    sigma_accel, params = TUNING[name]
-    filt = make_filter(name, OrbitJ2Dynamics(sigma_accel), **params)
-    k0 = detected[0]
-    filt.initialise(*initial_state_from_scan(z[0], R, model, times[k0], VELOCITY_SIGMA), times[k0])
-    xs, Ps = [filt.x], [filt.P]
-    for k, zk in zip(detected[1:], z[1:]):
-        result = filt.process(times[k], zk, R, model)
-        assert result.accepted, result.reason
-        xs.append(filt.x)
-        Ps.append(filt.P)
-    err = np.array(xs) - truth[detected]
-    raw = np.array([model.position_from_measurement(zk, times[k]) for k, zk in zip(detected, z)])
-    return {
-        "t": times[detected] - times[k0],
-        "nees": np.einsum("ki,ki->k", err, np.linalg.solve(np.array(Ps), err[:, :, None])[:, :, 0]),
-        "position_error": np.linalg.norm(err[:, 0:3], axis=1),
-        "raw_error": np.linalg.norm(raw - truth[detected, 0:3], axis=1),
-    }
+    t_out, nees, err, raw = [], [], [], []
+    for k, (t, x) in enumerate(zip(times, truth)):
+        z = sensor.observe(x, t, k, rng)
+        if z is None:
+            continue
+        if flt.initialised:
+            result = flt.process(t, z, sensor.R, sensor.model)
+            assert result.accepted, result.reason
+        else:
+            flt.initialise(*stack.initialise(z, sensor.R, sensor, t), t)
+        e = flt.x - x
+        t_out.append(t)
+        nees.append(e @ np.linalg.solve(flt.P, e))
+        err.append(np.linalg.norm(e[0:3]))
+        raw.append(np.linalg.norm(sensor.model.position_from_measurement(z, t) - x[0:3]))
+    t_out = np.array(t_out)
+    return {"t": t_out - t_out[0], "nees": np.array(nees), "error": np.array(err), "raw": np.array(raw)}
 
 
-@pytest.fixture(scope="module", params=sorted(TUNING))
-def runs(request, pass_truth):
-    return request.param, [track(request.param, seed, pass_truth) for seed in SEEDS]
+@pytest.fixture(scope="module")
+def runs(scenario):
+    return {name: [track(*scenario, name, seed) for seed in SEEDS] for name in ("ekf", "ukf")}
 
 
-def test_no_divergence(runs):
-    name, results = runs
+def window_anees(results: list[dict], lo: float, hi: float) -> float:
+    return float(np.mean([np.mean(r["nees"][(r["t"] >= lo) & (r["t"] < hi)]) for r in results]))
+
+
+@pytest.mark.parametrize("name", ["ekf", "ukf"])
+def test_nees_is_inside_the_chi_square_band_in_every_window_after_the_first(runs, name):
+    n = len(SEEDS)
+    band = chi2.ppf([0.025, 0.975], 6 * n) / n
+    for lo, hi in WINDOWS:
+        anees = window_anees(runs[name], lo, hi)
+        assert band[0] < anees < band[1], f"{name}: {lo:.0f}-{hi:.0f} s ANEES {anees:.2f} outside {band}"
+
+
+@pytest.mark.parametrize("name", ["ekf", "ukf"])
+def test_no_divergence_and_rmse_well_below_the_raw_radar_error(runs, name):
+    results = runs[name]
     for r in results:
-        assert np.all(np.isfinite(r["nees"])), name
-        assert r["position_error"][r["t"] >= CONVERGED_AFTER].max() < 5e3, name
-        assert r["position_error"][-1] < 2.5e3, name
+        assert np.all(np.isfinite(r["nees"]))
+        assert r["error"][r["t"] >= 100.0].max() < 3e3, name
+    late = [r["t"] >= 150.0 for r in results]
+    rmse = np.sqrt(np.mean(np.concatenate([r["error"][w] ** 2 for r, w in zip(results, late)])))
+    raw = np.sqrt(np.mean(np.concatenate([r["raw"][w] ** 2 for r, w in zip(results, late)])))
+    assert rmse < 0.05 * raw and rmse < 1.2e3, f"{name}: RMSE {rmse:.0f} m vs raw radar {raw:.0f} m"
 
 
-def test_converged_nees_is_inside_the_chi_square_band(runs):
-    """Time average of the ensemble NEES over the converged window, against the per-step 99 % band of
-    chi2(6 N) / N: averaging over time only narrows the spread of a consistent filter's ANEES."""
-    name, results = runs
-    n = len(results)
-    anees = np.mean([np.mean(r["nees"][r["t"] >= CONVERGED_AFTER]) for r in results])
-    lo, hi = chi2.ppf([0.005, 0.995], 6 * n) / n
-    assert lo < anees < hi, f"{name}: time-averaged ANEES {anees:.2f} outside [{lo:.2f}, {hi:.2f}]"
+def test_ukf_is_no_worse_than_the_ekf(runs):
+    def rmse(results):
+        return np.sqrt(np.mean(np.concatenate([r["error"][r["t"] >= 50.0] ** 2 for r in results])))
+    assert rmse(runs["ukf"]) <= 1.01 * rmse(runs["ekf"])
+    assert window_anees(runs["ukf"], 0.0, 50.0) <= window_anees(runs["ekf"], 0.0, 50.0)
 
 
-def test_converged_rmse_is_well_below_the_raw_radar_error(runs):
-    name, results = runs
-    window = [r["t"] >= CONVERGED_AFTER for r in results]
-    rmse = np.sqrt(np.mean(np.concatenate([r["position_error"][w] ** 2 for r, w in zip(results, window)])))
-    raw = np.sqrt(np.mean(np.concatenate([r["raw_error"][w] ** 2 for r, w in zip(results, window)])))
-    assert rmse < 0.1 * raw, f"{name}: converged RMSE {rmse:.0f} m vs raw radar {raw:.0f} m"
-    assert rmse < 2e3, name
+def test_the_papers_recursive_ekf_is_not_consistent(scenario):
+    """The check can fail: the paper's first-order EKF (no re-solves) is overconfident by orders of
+    magnitude after its first 50 s (graph, 40 runs: ANEES in the thousands at 50-100 s)."""
+    results = [track(*scenario, "ekf_paper", seed) for seed in SEEDS[:2]]
+    assert window_anees(results, 50.0, 100.0) > 50.0

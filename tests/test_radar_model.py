@@ -61,6 +61,32 @@ def test_jacobian_matches_central_differences(model):
         np.testing.assert_allclose(H / scale, H_fd / scale, atol=1e-7)
 
 
+def test_hessian_matches_central_differences_of_the_jacobian(model):
+    for t, rng_m, az, el, v in geometries():
+        x = target_state(model, t, rng_m, az, el, v)
+        Hs = model.hessian(x, t)
+        assert Hs.shape == (len(model.labels), 6, 6)
+        np.testing.assert_allclose(Hs, Hs.transpose(0, 2, 1), rtol=0, atol=1e-20)
+        steps = np.array([10.0, 10.0, 10.0, 0.1, 0.1, 0.1])
+        fd = np.stack([(model.jacobian(x + s * e, t) - model.jacobian(x - s * e, t)) / (2 * s)
+                       for s, e in zip(steps, np.eye(6))], axis=2)  # fd[i, j, k] = d H_ij / d x_k
+        scale = np.abs(fd).max(axis=(1, 2), keepdims=True)
+        np.testing.assert_allclose(Hs / scale, fd / scale, atol=1e-7)
+        # range, azimuth and elevation do not depend on the velocity
+        assert not Hs[0:3, 3:6, :].any() and not Hs[0:3, :, 3:6].any()
+
+
+def test_range_hessian_is_the_curvature_of_the_range_shell(model):
+    """Along a cross-range direction the range grows by d^2 / (2 range): the second-order term's meaning."""
+    t, rng_m = 4400.0, 1.5e6
+    x = target_state(model, t, rng_m, 0.7, 0.3, np.zeros(3))
+    los = x[0:3] - ecef_to_eci(model.station_ecef, t, model.theta0)
+    cross = np.cross(los, [0.0, 0.0, 1.0])
+    d = 25e3 * np.concatenate((cross / np.linalg.norm(cross), np.zeros(3)))
+    assert 0.5 * d @ model.hessian(x, t)[0] @ d == pytest.approx(25e3 ** 2 / (2 * rng_m), rel=1e-12)
+    assert model.h(x + d, t)[0] - rng_m == pytest.approx(25e3 ** 2 / (2 * rng_m), rel=1e-3)
+
+
 def test_range_rate_is_the_time_derivative_of_range_on_the_rotating_earth():
     model = GroundRadarModel(*STATION, theta0=THETA0, with_range_rate=True)
     x0 = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),

@@ -17,6 +17,14 @@ a sign error: d atan(y/x)/dy = +x/(x^2 + y^2)).
 
 Range rate (optional 4th component) is the rate of |u| seen from the Earth-fixed station:
     w = T (v_eci - omega x r_eci),   range_rate = u . w / |u|.
+
+Hessians (``hessian``, for second-order filters, e.g. ekf2.SecondOrderEKF). Since (u, w) is an affine map
+J = [[T, 0], [-T [omega x], T]] of the state, each component's Hessian is J^T (d^2 h / d(u, w)^2) J, with,
+for rho = |u|, n_u = u / rho, q = u_E^2 + u_N^2 and g = d range_rate / d u = (w - range_rate n_u) / rho:
+    range       (I - n_u n_u^T) / rho
+    azimuth     [[-2 u_E u_N, u_E^2 - u_N^2], [u_E^2 - u_N^2, 2 u_E u_N]] / q^2 in the (E, N) block
+    elevation   see ``_elevation_hessian``
+    range_rate  uu: -(n_u g^T + g n_u^T) / rho - range_rate (I - n_u n_u^T) / rho^2,  uw: (I - n_u n_u^T) / rho
 """
 from __future__ import annotations
 
@@ -138,6 +146,50 @@ class GroundRadarModel:
             H[3, 3:6] = d_w @ T
         return H
 
+    def hessian(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Analytic second derivatives d^2 h_i / d x^2 at a single state x (n,), shape (d, n, n).
+
+        Only the position block is non-zero for range, azimuth and elevation; the range rate also couples
+        position and velocity (module docstring). Singular at the zenith, like the Jacobian. The ENU
+        Hessians are formed in Python floats (a second-order EKF calls this every step).
+        """
+        x = np.asarray(x, dtype=float)
+        T = self.eci_to_enu_rotation(t)
+        u = T @ x[0:3] - self._station_enu
+        e, n, up = u.tolist()
+        q = e * e + n * n
+        rng2 = q + up * up
+        rng = math.sqrt(rng2)
+        a = 1.0 / (q * q)
+        en2, diff = 2.0 * e * n * a, (e * e - n * n) * a
+        polar = np.array([
+            _shell(e, n, up, rng, rng2),
+            [[-en2, diff, 0.0], [diff, en2, 0.0], [0.0, 0.0, 0.0]],
+            _elevation_hessian(e, n, up, q, rng2),
+        ])
+        Hs = np.zeros((len(self.labels), x.shape[0], x.shape[0]))
+        Hs[0:3, 0:3, 0:3] = T.T @ polar @ T
+        if self.with_range_rate:
+            Hs[3, 0:6, 0:6] = self._range_rate_hessian(x, T, u, rng, polar[0])
+        return Hs
+
+    def _range_rate_hessian(self, x: np.ndarray, T: np.ndarray, u: np.ndarray, rng: float,
+                            shell: np.ndarray) -> np.ndarray:
+        """d^2 range_rate / d [r, v]^2 (6, 6) = J^T (d^2 range_rate / d (u, w)^2) J (module docstring)."""
+        w = T @ (x[3:6] - _OMEGA_SKEW @ x[0:3])
+        nu = u / rng
+        rdot = float(nu @ w)
+        g = (w - rdot * nu) / rng
+        H_uw = np.zeros((6, 6))
+        H_uw[0:3, 0:3] = -(np.outer(nu, g) + np.outer(g, nu)) / rng - rdot * shell / rng
+        H_uw[0:3, 3:6] = shell
+        H_uw[3:6, 0:3] = shell
+        J = np.zeros((6, 6))
+        J[0:3, 0:3] = T
+        J[3:6, 0:3] = -T @ _OMEGA_SKEW
+        J[3:6, 3:6] = T
+        return J.T @ H_uw @ J
+
     def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
         """z - z_pred with azimuth and elevation wrapped to (-pi, pi]; broadcasts over batches."""
         return wrapped_residual(z, z_pred, self.angle_indices)
@@ -159,3 +211,26 @@ class GroundRadarModel:
                         [ce * ca, -rng * ce * sa, -rng * se * ca],
                         [se, 0.0, rng * ce]])
         return self.eci_to_enu_rotation(t).T @ d_u
+
+
+def _shell(e: float, n: float, up: float, rng: float, rng2: float) -> list[list[float]]:
+    """d^2 range / d u^2 = (I - u u^T / rng^2) / rng (3x3, ENU): the curvature of the range shell."""
+    ir, ir3 = 1.0 / rng, 1.0 / (rng * rng2)
+    en, eu, nu = -e * n * ir3, -e * up * ir3, -n * up * ir3
+    return [[ir - e * e * ir3, en, eu], [en, ir - n * n * ir3, nu], [eu, nu, ir - up * up * ir3]]
+
+
+def _elevation_hessian(e: float, n: float, up: float, q: float, rng2: float) -> list[list[float]]:
+    """d^2 elevation / d u^2 (3x3, ENU) for el = atan2(up, h), h = sqrt(q), q = e^2 + n^2, rng2 = q + up^2.
+
+    With c = up / (rng2 h) (so d el / d e = -e c) and k = up (2 / (rng2^2 h) + 1 / (rng2 h^3)):
+    d2/de2 = -c + k e^2, d2/dn2 = -c + k n^2, d2/de dn = k e n, d2/de dup = -e (q - up^2) / (rng2^2 h),
+    likewise for n, and d2/dup2 = -2 up h / rng2^2.
+    """
+    h = math.sqrt(q)
+    c = up / (rng2 * h)
+    k = up * (2.0 / (rng2 * rng2 * h) + 1.0 / (rng2 * q * h))
+    m = (q - up * up) / (rng2 * rng2 * h)
+    return [[k * e * e - c, k * e * n, -e * m],
+            [k * e * n, k * n * n - c, -n * m],
+            [-e * m, -n * m, -2.0 * up * h / (rng2 * rng2)]]

@@ -92,10 +92,13 @@ class OrbitJ2Dynamics:
     def process_noise(self, x: np.ndarray, dt: float) -> np.ndarray:
         """3-axis white-acceleration Q for a step of dt seconds (replaces the paper's eq. 18).
 
-        The last Q is cached (the filters step at a fixed rate) and returned read-only.
+        The last Q is cached (the filters step at a fixed rate) and returned read-only. Steps computed as
+        differences of absolute times differ in their last bits; a dt within 1e-9 (relative) of the cached
+        one reuses it (Q changes by ~1e-9 relative, far below anything Q is known to).
         """
         key = (dt, self.sigma_accel)
-        if key != self._q_cache[0]:
+        (cached_dt, cached_sigma), _ = self._q_cache
+        if not (abs(dt - cached_dt) <= 1e-9 * abs(dt) and cached_sigma == self.sigma_accel):
             Q = white_acceleration_q(self.sigma_accel ** 2, dt, 3)
             Q.flags.writeable = False
             self._q_cache = (key, Q)

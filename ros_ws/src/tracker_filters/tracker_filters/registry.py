@@ -8,7 +8,7 @@ from __future__ import annotations
 import inspect
 
 from tracker_filters.cqkf import CubatureQuadratureKF
-from tracker_filters.ekf import ExtendedKalmanFilter
+from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.models import DynamicsModel
@@ -18,6 +18,7 @@ from tracker_filters.ukf import UnscentedKalmanFilter
 FILTERS: dict[str, type] = {
     "kf": KalmanFilter,
     "ekf": ExtendedKalmanFilter,
+    "ekf2": SecondOrderEKF,
     "ukf": UnscentedKalmanFilter,
     "cqkf": CubatureQuadratureKF,
     "sir": SIRParticleFilter,

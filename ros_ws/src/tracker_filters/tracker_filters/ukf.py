@@ -7,6 +7,9 @@ Update: sigma points are redrawn from the predicted (x, P), which includes Q, an
 cross-covariance P_xy and the gain K = P_xy P_yy^-1 (eqs. 30-32), x += K (z - y), P -= K P_yy K^T
 (eqs. 33-34). Redrawing is what makes the filter exactly a Kalman filter on linear models; reusing the
 propagated points (as eq. 28 literally reads) would leave Q out of P_xy. P_yy is factorised by Cholesky.
+
+``relinearise`` (a growth factor > 1; 0 = off, the paper's filter): Gauss-Newton re-solves of all scans since
+the first on a geometric schedule (relinearisation.py), for deterministic process models.
 """
 from __future__ import annotations
 
@@ -15,18 +18,20 @@ import numpy as np
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import gain_and_nis
 from tracker_filters.models import DynamicsModel, MeasurementModel
+from tracker_filters.relinearisation import Relinearising
 from tracker_filters.sigma_points import ScaledSigmaPoints
 
 
-class UnscentedKalmanFilter(Filter):
+class UnscentedKalmanFilter(Relinearising, Filter):
     """UKF with L = n, scaled sigma points (alpha, beta = 2, kappa = 0 by default)."""
 
     name = "ukf"
 
     def __init__(self, dynamics: DynamicsModel, alpha: float = 1.0, beta: float = 2.0,
-                 kappa: float = 0.0) -> None:
+                 kappa: float = 0.0, relinearise: float = 0.0, relinearise_from: int = 100) -> None:
         super().__init__(dynamics)
         self.points = ScaledSigmaPoints(len(dynamics.labels), alpha, beta, kappa)
+        self._setup_relinearisation(relinearise, relinearise_from)
 
     def _sigma_points(self) -> np.ndarray:
         """Sigma points of (x, P); a P that Cholesky rejects is repaired (and reported) first."""
