@@ -8,7 +8,7 @@ from tracker_filters.cqkf import CubatureQuadratureKF, weighted_measurement_mean
 from tracker_filters.cubature import cubature_quadrature_points, radial_rule
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
-from tracker_filters.models import wrapped_residual
+from orbit_sim.angles import wrapped_residual
 from tracker_filters.relative_dynamics import CWBiasDynamics
 
 

@@ -6,7 +6,7 @@ from scipy.special import logsumexp
 from radar_sensor.isl import RangeAzElModel
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
-from tracker_filters.models import wrap_angle, wrapped_residual
+from orbit_sim.angles import wrap_angle, wrapped_residual
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
 from tracker_filters.relative_dynamics import CWDynamics
 

@@ -46,6 +46,10 @@ class NodeSpec:
     publishes: dict[str, str] = field(default_factory=dict)  # topic -> type (data topics only)
     subscribes: dict[str, str] = field(default_factory=dict)
     inputs: list[str] = field(default_factory=list)  # sensors a filter consumes
+    check: str = ""
+    """"module:function" that builds the node's core objects from (cfg, name) and raises ScenarioError naming
+    a bad key. Named, not imported, so that orbit_sim needs no other package of the bench (the launcher
+    finds them at run time, as ``ros2 launch`` finds executables)."""
 
 
 @dataclass
@@ -113,11 +117,13 @@ def build_graph(cfg: dict, filters: list[str], record: bool = True, source: str 
         sensor_topics[sname] = SENSOR_MESSAGE_TYPES[stype]
     if source == "truth":
         nodes.append(NodeSpec("truth", "truth", "orbit_sim.truth_node",
-                              publishes={TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE}))
+                              publishes={TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE},
+                              check="orbit_sim.truth:check_config"))
         for sname, mtype in sensor_topics.items():
             nodes.append(NodeSpec(sname, "sensor", "radar_sensor.sensor_node",
                                   publishes={measurement_topic(sname): mtype},
-                                  subscribes={TRUTH_TOPIC: TRUTH_TYPE}))
+                                  subscribes={TRUTH_TOPIC: TRUTH_TYPE},
+                                  check="radar_sensor.sensor:check_config"))
     elif source == "player":
         pub = {TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE}
         pub.update({measurement_topic(s): t for s, t in sensor_topics.items()})
@@ -134,7 +140,7 @@ def build_graph(cfg: dict, filters: list[str], record: bool = True, source: str 
         nodes.append(NodeSpec(fname, "filter", "tracker_filters.filter_node",
                               publishes={estimate_topic(fname): ESTIMATE_TYPE},
                               subscribes={measurement_topic(s): sensor_topics[s] for s in inputs},
-                              inputs=list(inputs)))
+                              inputs=list(inputs), check="tracker_filters.builders:check_config"))
     if record:
         recorder = NodeSpec("recorder", "recorder", "orbit_sim.recorder_node")
         for spec in list(nodes):

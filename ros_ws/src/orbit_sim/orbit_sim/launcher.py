@@ -5,6 +5,7 @@ every filter are built once in the launcher, so a bad key stops the run with a m
 """
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import subprocess
@@ -54,22 +55,16 @@ def local_dds_env(domain_id: int) -> dict[str, str]:
 
 
 def validate(cfg: dict, filters: list[str], source: str) -> None:
-    """Build every object of the run once; raises ScenarioError naming the first bad key or value."""
-    from orbit_sim.truth import build_truth
-    from radar_sensor.sensor import build_sensor
-    from tracker_filters.builders import build_filter_stack
-    from tracker_filters.scoring import scoring_options
+    """Build every object of the run once; raises ScenarioError naming the first bad key or value.
 
+    Each node's core objects are built by the function its NodeSpec names (``check``)."""
     top = Section(cfg, "")
     top.mark(*TOP_LEVEL_KEYS)
     top.finish()
-    if source == "truth":
-        build_truth(cfg)
-    for name in (cfg.get("sensors") or {}):
-        build_sensor(cfg, name)
-    for name in filters:
-        build_filter_stack(cfg, name)
-    scoring_options(cfg)
+    for spec in build_graph(cfg, filters, record=False, source=source).nodes:
+        if spec.check:
+            module, function = spec.check.split(":")
+            getattr(importlib.import_module(module), function)(cfg, spec.name)
 
 
 def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,

@@ -206,3 +206,8 @@ def _build_truth(key: str) -> Truth:
     sec.finish()
     states.setflags(write=False)
     return Truth(grid, states, ORBIT_LABELS, frame)
+
+
+def check_config(cfg: dict, name: str) -> None:
+    """Launcher check of the truth node ``name`` (graph.NodeSpec.check): builds the truth once."""
+    build_truth(cfg)

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from orbit_sim.angles import wrapped_residual
 from orbit_sim.relative import convention_matrix
-from tracker_filters.models import wrapped_residual
 
 TWO_PI = 2.0 * np.pi
 

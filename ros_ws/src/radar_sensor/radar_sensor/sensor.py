@@ -109,3 +109,8 @@ def _relative_position(sec: Section, name: str, earth: Earth, every: int) -> Sen
 
 
 _BUILDERS = {"ground_radar": _ground_radar, "isl_radio": _isl_radio, "relative_position": _relative_position}
+
+
+def check_config(cfg: dict, name: str) -> None:
+    """Launcher check of the sensor node ``name`` (graph.NodeSpec.check)."""
+    build_sensor(cfg, name)

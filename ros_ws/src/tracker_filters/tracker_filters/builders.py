@@ -28,6 +28,7 @@ from tracker_filters.initialisation import initial_state_from_scan
 from tracker_filters.models import DynamicsModel
 from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
+from tracker_filters.scoring import scoring_options
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
 
@@ -171,3 +172,9 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
     return FilterStack(name, flt, {s: build_sensor(cfg, s) for s in inputs}, init)
+
+
+def check_config(cfg: dict, name: str) -> None:
+    """Launcher check of the filter node ``name`` (graph.NodeSpec.check): its stack and the scoring section."""
+    build_filter_stack(cfg, name)
+    scoring_options(cfg)

@@ -5,7 +5,7 @@ from typing import Sequence
 
 import numpy as np
 
-from tracker_filters.models import wrapped_residual
+from orbit_sim.angles import wrapped_residual
 
 _AXES = ("x", "y", "z")
 

@@ -25,7 +25,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.stats import chi2
 
-from tracker_filters.models import wrapped_residual
+from orbit_sim.angles import wrapped_residual
 
 Components = Sequence[str | int]
 POSITION = ("x", "y", "z")
