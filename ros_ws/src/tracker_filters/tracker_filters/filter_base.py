@@ -6,6 +6,7 @@ and leaves the filter untouched; a covariance that loses positive-definiteness i
 """
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -65,13 +66,16 @@ class Filter(ABC):
         """Predict to time t and update with measurement z (covariance R) through ``model``.
 
         Rejects, without touching the estimate, a measurement that is not finite or is older than the
-        current estimate time.
+        current estimate time. The time is converted to a Python float first: a numpy scalar time would
+        turn every scalar operation of the predict (dt, RK4 in Python floats) into a numpy one, ~7 us more
+        per 0.1 s orbit step.
         """
         if not self.initialised:
             raise RuntimeError(f"{self.name}: process() called before initialise()")
+        t = float(t)
         z = np.asarray(z, dtype=float)
         R = np.asarray(R, dtype=float)
-        if not (np.isfinite(t) and np.isfinite(z.sum()) and np.isfinite(R.sum())):  # one reduction each
+        if not (math.isfinite(t) and math.isfinite(z.sum()) and math.isfinite(R.sum())):  # one reduction each
             return StepResult(False, f"non-finite measurement at t={t}: z={z.tolist()}")
         if t < self.t:
             return StepResult(False, f"out-of-order measurement: t={t} s is before the estimate time {self.t} s")
@@ -88,6 +92,7 @@ class Filter(ABC):
 
     def predict(self, t: float) -> None:
         """Propagate the estimate to time t (no-op when t equals the current time)."""
+        t = float(t)
         dt = t - self.t
         if dt != 0.0:
             self._predict(dt)
