@@ -25,7 +25,8 @@ import yaml
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
-MODES = {"multi-process": [], "single-process": ["--single-process"]}
+MODES = {"multi-process": [], "single-process": ["--single-process"],
+         "single-process-unpinned": ["--single-process", "--no-pin"]}
 
 
 def one_run(scenario: str, mode: str, filters: str, domain: int, extra: list[str]) -> dict:

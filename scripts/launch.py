@@ -35,7 +35,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set sensors.radar.sigma_range=10 (repeatable)")
     p.add_argument("--variant", help="apply one of the scenario's named variants")
-    p.add_argument("--single-process", action="store_true", help="run every node in this one process")
+    p.add_argument("--single-process", action="store_true",
+                   help="run every node in this one process, pinned to one CPU (the fastest mode)")
+    p.add_argument("--no-pin", action="store_true",
+                   help="with --single-process: let the process's threads use every CPU (slower, see "
+                        "orbit_sim.launcher.pin_to_one_cpu)")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
     p.add_argument("--executor", choices=["events", "single"], default="events",
@@ -56,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     started = time.monotonic()
-    code = run_graph(plan, args.domain_id, args.single_process, args.executor)
+    code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin)
     wall = time.monotonic() - started
     timing = plan.out / "timing.json"
     if timing.exists():

@@ -33,6 +33,8 @@ DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPol
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 FLUSH_TIMEOUT_S = 10.0
+ACK_FLUSH_S = 0.01
+"""A held-back acknowledgement is sent within this wall time (``BenchNode.ack``)."""
 
 
 def load_run_config(path: str) -> dict:
@@ -74,6 +76,7 @@ class BenchNode(Node):
         self._ack_pub = None
         if self.spec.kind in ("sensor", "filter"):
             self._ack_pub = self.create_publisher(StepAck, ACK_TOPIC, DATA_QOS)
+            self._setup_acks()
         if self.spec.kind not in ("truth", "player"):
             self.create_subscription(UInt64, DONE_TOPIC, self._on_done, LATCHED_QOS)
         self.setup()
@@ -99,9 +102,36 @@ class BenchNode(Node):
         return self.create_subscription(msg_type, topic, callback, DATA_QOS, raw=raw)
 
     def ack(self, step: int, count: int) -> None:
-        msg = StepAck()
-        msg.node, msg.step, msg.count = self.get_name(), int(step), int(count)
-        self._ack_pub.publish(msg)
+        """Acknowledge step ``step`` with the node's cumulative message ``count`` (orbit_sim.lockstep).
+
+        With a pacing window W > 0 an acknowledgement is sent once the step or the count has advanced by
+        max(1, W // 4) since the last one sent, and otherwise within ACK_FLUSH_S by a timer: the source
+        never waits on a held-back one for long, and the graph carries a quarter of the ack traffic per
+        window (measured on leo_radar: 3 acks per step cost ~15 % of a single-process run)."""
+        if self._ack_every == 1 or (step - self._ack_sent[0] >= self._ack_every
+                                    or count - self._ack_sent[1] >= self._ack_every):
+            self._send_ack(step, count)
+        else:
+            self._ack_unsent = (step, count)
+
+    def _setup_acks(self) -> None:
+        window = int((self.cfg.get("time") or {}).get("pacing_window", 0))
+        self._ack_every = max(1, window // 4)
+        self._ack_sent: tuple[int, int] = (-1, 0)
+        self._ack_unsent: tuple[int, int] | None = None
+        self._ack_msg = StepAck()
+        self._ack_msg.node = self.get_name()
+        if self._ack_every > 1:
+            self.create_timer(ACK_FLUSH_S, self._flush_ack)
+
+    def _flush_ack(self) -> None:
+        if self._ack_unsent is not None:
+            self._send_ack(*self._ack_unsent)
+
+    def _send_ack(self, step: int, count: int) -> None:
+        self._ack_msg.step, self._ack_msg.count = int(step), int(count)
+        self._ack_pub.publish(self._ack_msg)
+        self._ack_sent, self._ack_unsent = (int(step), int(count)), None
 
     def fail(self, message: str) -> None:
         """Stop this node with an error (reported by the launcher)."""

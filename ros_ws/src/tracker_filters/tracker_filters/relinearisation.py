@@ -219,12 +219,12 @@ class PassBatch:
             self._stacked = (len(self.scans), times, groups)
         return times, groups
 
-    def solve(self, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """Gauss-Newton from ``guess`` (a state at t0): (state (n,), covariance (n, n)) at the last scan and
-        the number of linearisations. Never returns a solution of higher cost than the guess."""
+    def minimise(self, guess: np.ndarray) -> tuple[Linearisation, np.ndarray, int]:
+        """Gauss-Newton from ``guess`` (a state at t0): the linearisation of lowest cost, the final step
+        (below STEP_TOLERANCE, not applied to it) and the number of linearisations."""
         best = self.linearise(guess)
         passes = 1
-        last_step = np.zeros_like(guess)
+        last_step = np.zeros_like(best.x0)
         for _ in range(MAX_ITERATIONS):
             step = cholesky_solve(cholesky_lower(best.info), best.gradient)
             if float(step @ best.gradient) <= STEP_TOLERANCE:
@@ -239,6 +239,12 @@ class PassBatch:
             else:
                 break  # no decrease along the Gauss-Newton direction: best is a minimum to working accuracy
             best = trial
+        return best, last_step, passes
+
+    def solve(self, guess: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Gauss-Newton from ``guess`` (a state at t0): (state (n,), covariance (n, n)) at the last scan and
+        the number of linearisations. Never returns a solution of higher cost than the guess."""
+        best, last_step, passes = self.minimise(guess)
         covariance = best.phi_last @ cholesky_solve(cholesky_lower(best.info), best.phi_last.T)
         return best.x_last + best.phi_last @ last_step, 0.5 * (covariance + covariance.T), passes
 
