@@ -66,13 +66,14 @@ def one_run(job: dict) -> dict:
                 stack.filter.initialise(*stack.initialise(z, sensor.R, sensor, t), t)
         if batch is None:
             first = next(iter(stacks.values())).filter
-            batch, t0 = PassBatch(first.dynamics, first.x, first.P, t), t
+            batch, t0, post = PassBatch(first.dynamics, first.x, first.P, t), t, None
             continue
         batch.add(t, z, sensor.R, sensor.model)
         if len(out["ess"]) < len(times) and t - t0 >= times[len(out["ess"])]:
             for name, stack in stacks.items():
                 out[name].append(nees(stack.filter.x, stack.filter.P, x))
-            guess = batch.m0
+            # Gauss-Newton starts from the previous time's posterior mean, else the first filter's estimate
+            guess = post.mean0 if out["ess"] else first.dynamics.propagate(first.x, t0 - t)
             x_map, P_map, _ = batch.solve(guess)
             out[LAPLACE].append(nees(x_map, P_map, x))
             post = adaptive_posterior(batch, guess, job["samples"], job["iterations"], sampler_rng)

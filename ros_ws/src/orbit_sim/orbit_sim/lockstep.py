@@ -7,6 +7,10 @@ step k - 1 - ``window`` and no filter is more than ``window`` measurements behin
 strict lock-step; a small window lets the processes of the graph work in parallel. Nothing is ever
 dropped: the window only bounds how far the source runs ahead. When the source publishes the measurements
 itself (bag replay, ``sensor_acks=False``) it counts them with :meth:`Pacer.on_published`.
+
+Acknowledgements are cumulative, so a node may hold some back: with W > 0 each node sends one once its step
+or count has advanced by W // 4, and any held-back one within 10 ms (orbit_sim.bench_node.BenchNode.ack).
+The source then sees the consumers at most W // 4 behind their true progress and never stalls for long.
 """
 from __future__ import annotations
 

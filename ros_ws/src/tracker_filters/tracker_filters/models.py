@@ -5,6 +5,12 @@ filter (predictor + updater) are separate objects. Filters only talk to models t
 
 Array convention: a single state is shape (n,); a batch of states (sigma points, particles) is shape
 (m, n), one state per row. Every method that takes ``x`` accepts both and returns the matching shape.
+
+Optional methods, used when a model has them (looked up with ``getattr``/``hasattr``), never required:
+  measurement ``hessian(x, t)`` (d, n, n)              second-order EKF (ekf.SecondOrderEKF)
+  measurement ``derivatives(x, t)`` -> (h, H, Hessians)  the same in one pass (radar.GroundRadarModel)
+  measurement ``h_series`` / ``jacobian_series(X, times)`` scans at different times, vectorised
+  dynamics ``trajectory(x0, t0, times)`` -> (states, Phis)  (relinearisation.PassBatch fast path)
 """
 from __future__ import annotations
 

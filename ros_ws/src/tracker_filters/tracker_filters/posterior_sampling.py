@@ -13,8 +13,8 @@ propagated samples of x0.
 Sampler. Importance sampling from a multivariate Student-t proposal (``dof`` degrees of freedom, scale
 ``scale`` times a covariance C), weights w_i ~ exp(-J(x0_i) / 2) / q(x0_i), normalised. The proposal
 starts at the Gauss-Newton MAP with the Laplace covariance Lambda^-1 and is moved to the weighted mean and
-covariance of x0 after each iteration (population Monte Carlo, Cappe, Guillin, Marin & Robert 2004); the
-last iteration's weights give the moments. Its effective sample size 1 / sum w_i^2 tells how well the
+covariance of x0 after each iteration with enough effective samples (population Monte Carlo, Cappe,
+Guillin, Marin & Robert 2004); the last iteration's weights give the moments. Its effective sample size 1 / sum w_i^2 tells how well the
 proposal covers the posterior: the moments are trustworthy when it is in the hundreds or more.
 
 Cost: every iteration propagates ``n_samples`` states through every scan with ``dynamics.propagate`` on
@@ -29,6 +29,10 @@ import numpy as np
 
 from tracker_filters.kf import cholesky_lower, cholesky_solve
 from tracker_filters.relinearisation import PassBatch
+
+MIN_ADAPT_ESS = 10
+"""The proposal moves to an iteration's weighted moments only if its effective sample size is at least this
+many per state dimension; otherwise the next iteration draws again from the same proposal."""
 
 
 @dataclass
@@ -94,6 +98,8 @@ def adaptive_posterior(batch: PassBatch, guess: np.ndarray, n_samples: int, iter
     cov0 = cholesky_solve(cholesky_lower(best.info), np.eye(len(mean0)))
     for _ in range(iterations):
         X0, X, w = importance_sample(batch, mean0, cov0, n_samples, rng, dof, scale)
-        mean0, cov0 = weighted_moments(X0, w)
+        ess = float(1.0 / np.sum(w * w))
+        if ess >= MIN_ADAPT_ESS * len(mean0):  # fewer effective samples cannot estimate a covariance
+            mean0, cov0 = weighted_moments(X0, w)
     mean, cov = weighted_moments(X, w)
-    return Posterior(mean, cov, float(1.0 / np.sum(w * w)), mean0, cov0)
+    return Posterior(mean, cov, ess, *weighted_moments(X0, w))
