@@ -5,11 +5,12 @@ import json
 import time
 from pathlib import Path
 
+from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
-from orbit_sim.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, ns_to_stamp
+from orbit_sim.bench_node import DATA_QOS, FLUSH_TIMEOUT_S, LATCHED_QOS, BenchNode, ns_to_stamp
 from orbit_sim.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC
 from orbit_sim.lockstep import Pacer
 
@@ -83,6 +84,9 @@ class SourceNode(BenchNode):
         self._done_sent = True
         stepping = time.monotonic() - self._started
         self.done_pub.publish(UInt64(data=self.steps - 1))
+        # every node must hear "done" before this node (the only publisher of it) goes away
+        if not self.done_pub.wait_for_all_acked(Duration(seconds=FLUSH_TIMEOUT_S)):
+            self.get_logger().warning(f"{DONE_TOPIC}: not every node acknowledged it in time")
         timing = {"startup_s": round(self._started - self._created, 3), "stepping_s": round(stepping, 3),
                   "steps": self.steps}
         self.get_logger().info(f"{self.steps} steps in {stepping:.2f} s "
