@@ -35,7 +35,7 @@ def propagate(state0: np.ndarray, times: np.ndarray, mu: float = MU_EARTH, j2: f
     return sol.y.T
 
 
-def _derivative(x: Num, y: Num, z: Num, vx: Num, vy: Num, vz: Num, mu: float, k: float) -> tuple:
+def state_rate(x: Num, y: Num, z: Num, vx: Num, vy: Num, vz: Num, mu: float, k: float) -> tuple:
     """Component-wise twin of gravity.state_derivative (k = mu J2 Re^2 / 2).
 
     Works unchanged on Python floats (one state) and on numpy arrays (one entry per state).
@@ -52,10 +52,10 @@ def _derivative(x: Num, y: Num, z: Num, vx: Num, vy: Num, vz: Num, mu: float, k:
 def _rk4_steps(s: tuple, h: float, n: int, mu: float, k: float) -> tuple:
     """n classical RK4 steps of size h on the components s = (x, y, z, vx, vy, vz)."""
     for _ in range(n):
-        a = _derivative(*s, mu, k)
-        b = _derivative(*(si + 0.5 * h * ai for si, ai in zip(s, a)), mu, k)
-        c = _derivative(*(si + 0.5 * h * bi for si, bi in zip(s, b)), mu, k)
-        d = _derivative(*(si + h * ci for si, ci in zip(s, c)), mu, k)
+        a = state_rate(*s, mu, k)
+        b = state_rate(*(si + 0.5 * h * ai for si, ai in zip(s, a)), mu, k)
+        c = state_rate(*(si + 0.5 * h * bi for si, bi in zip(s, b)), mu, k)
+        d = state_rate(*(si + h * ci for si, ci in zip(s, c)), mu, k)
         w = h / 6.0
         s = tuple(si + w * (ai + 2.0 * (bi + ci) + di) for si, ai, bi, ci, di in zip(s, a, b, c, d))
     return s

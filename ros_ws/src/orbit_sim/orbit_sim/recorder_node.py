@@ -46,28 +46,12 @@ class RecorderNode(BenchNode):
         self._drain_started = time.monotonic()
         self.create_timer(0.1, self._check_drained)
 
-    def on_ready(self) -> None:
-        self.create_timer(1.0, self._check_orphaned)
-
-    def _check_orphaned(self) -> None:
-        """Without "done", close the bag once every publisher has gone and nothing came for a while (the
-        source stopped without telling us); the launcher then reports the run."""
-        if self.finished or self._drain_started is not None or not any(self.counts.values()):
-            return
-        if time.monotonic() - self._last_rx > 2 * IDLE_AFTER_DONE_S and self._others_gone():
-            self.get_logger().warning("every publisher is gone and no 'done' came: closing the bag")
-            self.close()
-            self.finished = True
-
-    def _others_gone(self) -> bool:
-        return all(self.count_publishers(t) == 0 for t in self.counts)
-
     def _check_drained(self) -> None:
         if self.finished:
             return
         now = time.monotonic()
         idle = now - self._last_rx
-        others_gone = self._others_gone()
+        others_gone = all(self.count_publishers(t) == 0 for t in self.counts)
         if (idle > IDLE_AFTER_DONE_S and others_gone) or idle > 2 * IDLE_AFTER_DONE_S \
                 or now - self._drain_started > MAX_DRAIN_S:
             self.close()
