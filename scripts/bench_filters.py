@@ -25,9 +25,9 @@ import numpy as np
 
 from orbit_sim.cowell import propagate
 from orbit_sim.kepler import kepler_to_cartesian
-from radar_sensor.radar import GroundRadarModel
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
-from tracker_filters.registry import FILTERS, make_filter
+from bench_models.radar import GroundRadarModel
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from tracker_filters.registry import filter_names, make_filter
 
 TARGETS_US = {"ekf": 100.0, "ukf": 300.0}
 """Median per-step budgets [us] (the product brief's targets)."""
@@ -88,7 +88,7 @@ def parse_params(items: list[str]) -> dict[str, dict[str, float]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--filters", nargs="+", default=["ekf", "ekf2", "ukf"], choices=sorted(FILTERS),
+    parser.add_argument("--filters", nargs="+", default=["ekf", "ekf2", "ukf"], choices=filter_names(),
                         help="filters to time (default: ekf ekf2 ukf)")
     parser.add_argument("--steps", type=int, default=1000, help="measurement steps per repeat (default 1000)")
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the table shows the best (default 3)")

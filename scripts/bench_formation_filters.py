@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
 """Time per step of the formation filters, in-process (no ROS): particle filters and the CQKF.
 
-Models: ``tracker_filters.relative_dynamics`` (CW 6-state, CW + bias 9-state) and ``radar_sensor.isl``
+Models: ``bench_models.relative_dynamics`` (CW 6-state, CW + bias 9-state) and ``bench_models.isl``
 (range/azimuth/elevation on the relative state), 1 s steps along a noise-free CW truth at 1 km, paper 001's
 measurement accuracy (2 cm, 0.01°). One step = ``Filter.process`` (predict + update + the base-class guards).
 Targets: PF with N = 10 000 ≤ 5 ms, CQKF n' = 2 on the 9-state model ≤ 300 µs (medians after a warm-up;
 the machine's other load inflates them, so the CPU time of this process is printed too). OpenBLAS runs
-single-threaded, as in the graph (orbit_sim.launcher).
+single-threaded, as in the graph (bench_engine.launcher).
 """
 from __future__ import annotations
 
@@ -18,11 +18,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the
 
 import numpy as np  # noqa: E402
 
-from radar_sensor.isl import RangeAzElModel  # noqa: E402
+from bench_models.isl import RangeAzElModel  # noqa: E402
 from tracker_filters.cqkf import CubatureQuadratureKF  # noqa: E402
 from tracker_filters.filter_base import Filter  # noqa: E402
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter  # noqa: E402
-from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
+from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
 
 N_MEAN_MOTION = 2.0 * np.pi / 7200.0
 R = np.diag([0.02 ** 2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
@@ -80,8 +80,8 @@ def main() -> None:
         ok = "-" if target is None else ("yes" if wall <= target else "NO")
         print(f"{name:<6} {dyn_name:<10} {size:<18} {_fmt(wall):>12} {_fmt(cpu):>11} {_fmt(p90):>10} "
               f"{target_text:>9}  {ok}")
-    print("models: tracker_filters.relative_dynamics CWDynamics / CWBiasDynamics, "
-          "radar_sensor.isl.RangeAzElModel")
+    print("models: bench_models.relative_dynamics CWDynamics / CWBiasDynamics, "
+          "bench_models.isl.RangeAzElModel")
 
 
 def _fmt(seconds: float) -> str:

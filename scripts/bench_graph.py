@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
 MODES = {"multi-process": [], "single-process": ["--single-process"],
          "single-process-unpinned": ["--single-process", "--no-pin"]}

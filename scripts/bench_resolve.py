@@ -15,10 +15,10 @@ import argparse
 import os
 import time
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as in the graph (orbit_sim.launcher)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as in the graph (bench_engine.launcher)
 import numpy as np  # noqa: E402
 
-from orbit_sim.config import load_scenario  # noqa: E402
+from bench_engine.config import load_scenario  # noqa: E402
 from orbit_sim.truth import build_truth  # noqa: E402
 from radar_sensor.sensor import build_sensor  # noqa: E402
 from tracker_filters.builders import build_filter_stack  # noqa: E402

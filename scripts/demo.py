@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 SCRIPTS = Path(__file__).resolve().parent
 STUDIES = {
     "leo_radar": ["--filters", "ekf,ukf"],
@@ -50,8 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per study (default 1)")
     p.add_argument("--studies", default=",".join(STUDIES), help=f"comma-separated subset of {list(STUDIES)}")
     args = p.parse_args(argv)
-    from tracker_filters.report import write_report
-    from tracker_filters.scoring import print_summary, score_bags
+    from bench_eval.report import write_report
+    from bench_eval.scoring import print_summary, score_bags
     scored_all, series_all = {}, {}
     for i, name in enumerate(args.studies.split(",")):
         if name not in STUDIES:

@@ -29,12 +29,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the graph runs: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the graph runs: see bench_engine.launcher
 
 import numpy as np  # noqa: E402
 
 from tracker_filters import metrics  # noqa: E402
-from tracker_filters.scoring import load_bags, track_of  # noqa: E402
+from bench_eval.scoring import load_bags, track_of  # noqa: E402
 
 MONTECARLO = Path(__file__).resolve().parent / "montecarlo.py"
 CONFIGS = ("default", "range_0p5m", "j2_truth", "euler_phi")

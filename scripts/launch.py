@@ -20,10 +20,10 @@ import time
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
-from orbit_sim.config import ScenarioError, available_scenarios  # noqa: E402
-from orbit_sim.launcher import prepare_run, run_graph  # noqa: E402
+from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
+from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -39,7 +39,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="run every node in this one process, pinned to one CPU (the fastest mode)")
     p.add_argument("--no-pin", action="store_true",
                    help="with --single-process: let the process's threads use every CPU (slower, see "
-                        "orbit_sim.launcher.pin_to_one_cpu)")
+                        "bench_engine.launcher.pin_to_one_cpu)")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
     p.add_argument("--executor", choices=["events", "single"], default="events",
@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{sim / max(t['stepping_s'], 1e-9):.0f}x real time); bag {plan.bag_dir}", file=sys.stderr)
     if code != 0 or args.no_score:
         return code
-    from tracker_filters.scoring import score_run
+    from bench_eval.scoring import score_run
     print(score_run(plan.out, args.json))
     return 0
 

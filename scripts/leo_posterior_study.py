@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from orbit_sim.config import ScenarioError, load_scenario  # noqa: E402
+from bench_engine.config import ScenarioError, load_scenario  # noqa: E402
 from orbit_sim.truth import build_truth  # noqa: E402
 from radar_sensor.sensor import build_sensor  # noqa: E402
 from tracker_filters.builders import build_filter_stack  # noqa: E402

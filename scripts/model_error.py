@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orbit_sim.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
-from orbit_sim.graph import filter_config, resolve_filters
+from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from bench_engine.graph import filter_config, resolve_filters
 from orbit_sim.truth import build_truth
 
 INTERVALS_S = (1.0, 10.0)

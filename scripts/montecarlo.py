@@ -24,7 +24,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
 
 
@@ -69,8 +69,8 @@ def launch_command(args: argparse.Namespace, i: int, domain: int | None) -> list
 
 def validate_first(args: argparse.Namespace) -> None:
     """Fail before starting N runs when the scenario or an override is wrong."""
-    from orbit_sim.config import ScenarioError
-    from orbit_sim.launcher import prepare_run
+    from bench_engine.config import ScenarioError
+    from bench_engine.launcher import prepare_run
     try:
         filters = args.filters.split(",") if args.filters else None
         prepare_run(args.scenario, args.out / "validate", filters, args.seed0, args.overrides, args.variant)
@@ -110,8 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     if not bags:
         print("error: no run produced a bag", file=sys.stderr)
         return 1
-    from tracker_filters.report import write_report
-    from tracker_filters.scoring import print_summary, score_bags
+    from bench_eval.report import write_report
+    from bench_eval.scoring import print_summary, score_bags
     scored, series = score_bags(bags, with_series=True)
     scored["runs_per_minute"] = round(60 * args.runs / wall, 2)
     (args.out / "score.json").write_text(json.dumps(scored, indent=1))

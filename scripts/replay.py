@@ -20,10 +20,10 @@ from pathlib import Path
 import yaml
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
-from orbit_sim.config import ScenarioError, apply_overrides  # noqa: E402
-from orbit_sim.launcher import prepare_run, run_graph  # noqa: E402
+from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
+from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code
-    from tracker_filters.scoring import score_run
+    from bench_eval.scoring import score_run
     print(score_run(plan.out, args.json))
     return 0
 

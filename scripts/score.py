@@ -26,8 +26,8 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f"error: not a bag directory (no metadata.yaml): {', '.join(missing)}", file=sys.stderr)
         return 2
-    from tracker_filters.report import write_report
-    from tracker_filters.scoring import print_summary, score_bags
+    from bench_eval.report import write_report
+    from bench_eval.scoring import print_summary, score_bags
     scored, series = score_bags(args.bags, with_series=True)
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
     if args.plots:

@@ -56,13 +56,19 @@ if ! stamp_ok msgs "$msg_hash" || ! "$PY" -c "import bench_msgs.msg" 2>/dev/null
   stamp_set msgs "$msg_hash"
 fi
 
-# The project's ament_python packages are used in place (no copy): a .pth puts their sources on the path.
-site=$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
-pth_text=""
-for pkg in orbit_sim radar_sensor tracker_filters star_tracker; do
-  [ -d "ros_ws/src/$pkg" ] && pth_text+="$ROOT/ros_ws/src/$pkg"$'\n'
-done
-if [ "$(cat "$site/zz_tracking_bench.pth" 2>/dev/null)" != "${pth_text%$'\n'}" ]; then
-  printf '%s' "${pth_text%$'\n'}" > "$site/zz_tracking_bench.pth"
+# The project's ament_python packages are installed editable (sources used in place), so that their entry
+# points (the components they register with bench_engine.plugins) are in the venv's package metadata.
+pkgs=(bench_engine orbit_sim bench_models radar_sensor tracker_filters star_tracker bench_eval bench_studies)
+present=()
+for pkg in "${pkgs[@]}"; do [ -f "ros_ws/src/$pkg/setup.py" ] && present+=("ros_ws/src/$pkg"); done
+pkg_hash=$( (printf '%s\n' "${present[@]}"; cat "${present[@]/%//setup.py}") | sha256sum | cut -c1-16)
+if ! stamp_ok packages "$pkg_hash"; then
+  echo "[setup] installing the bench's packages (editable)"
+  rm -f "$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")/zz_tracking_bench.pth"
+  for dir in "${present[@]}"; do
+    "$PY" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$dir" > /dev/null \
+      || { echo "[setup] pip install -e $dir failed" >&2; exit 1; }
+  done
+  stamp_set packages "$pkg_hash"
 fi
 echo "[setup] ready: $VENV"

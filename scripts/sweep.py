@@ -25,7 +25,7 @@ variants, filters, models) before the first run starts; an error names the offen
 
 Run i of every cell uses seed SEED0 + i (the same measurement noise realisations in every cell) and writes
 OUT/CELL/run_NNN/bag; up to --jobs runs go in parallel, each on its own ROS_DOMAIN_ID, all nodes of a run in
-one process. Each cell is scored with tracker_filters.scoring.score_bags as soon as its runs are done.
+one process. Each cell is scored with bench_eval.scoring.score_bags as soon as its runs are done.
 Outputs: OUT/sweep.json (cells, scores with per-run values, model errors), OUT/table.md (paper-style tables
 with the paper's numbers, Monte Carlo standard errors, significance of the model ordering, consistency,
 model error) and its PNG plots.
@@ -53,9 +53,9 @@ from pathlib import Path
 from typing import Any
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see orbit_sim.launcher
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
-from orbit_sim.config import (ScenarioError, apply_overrides, load_scenario, override_strings,  # noqa: E402
+from bench_engine.config import (ScenarioError, apply_overrides, load_scenario, override_strings,  # noqa: E402
                               select_variant)
 
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
@@ -230,7 +230,7 @@ def distinct_truths(grid: Grid) -> list[tuple[str, dict]]:
 
 def validate(grid: Grid, seed0: int) -> None:
     """Build every cell's run (truth, sensors, filters, models) once; raises ScenarioError naming the cell."""
-    from orbit_sim.launcher import prepare_run
+    from bench_engine.launcher import prepare_run
     with tempfile.TemporaryDirectory() as tmp:
         for cell in grid.cells:
             try:
@@ -244,7 +244,7 @@ def crosstalk(bag: Path, steps: int) -> bool:
     ROS domain (e.g. a run started elsewhere without --domain-id) published into this run's topics."""
     import yaml
 
-    from orbit_sim.graph import TRUTH_TOPIC
+    from bench_engine.graph import TRUTH_TOPIC
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
     return counts.get(TRUTH_TOPIC) != steps
@@ -266,8 +266,8 @@ def launch_command(args: argparse.Namespace, cell: Cell, i: int, domain: int) ->
 
 def cell_record(grid: Grid, cell: Cell) -> dict:
     """The JSON description of a cell (its score is added when it has run)."""
-    from orbit_sim.graph import filter_config, resolve_filters
-    from tracker_filters.report import paper004_case
+    from bench_engine.graph import filter_config, resolve_filters
+    from bench_eval.report import paper004_case
     filters = {}
     for name in resolve_filters(cell.cfg, None):
         dyn = filter_config(cell.cfg, name).get("dynamics") or {}
@@ -282,7 +282,7 @@ def reusable(args: argparse.Namespace, grid: Grid) -> set[tuple[str, int]]:
     was made with another configuration or holds foreign messages, or if OUT holds runs without --resume."""
     import yaml
 
-    from orbit_sim.truth import build_time
+    from bench_engine.timegrid import build_time
     done = set()
     for cell in grid.cells:
         for i in range(args.runs):
@@ -322,7 +322,7 @@ class Runner:
 
     def run_one(self, cell: Cell, i: int) -> tuple[Cell, int, int]:
         """Run i of a cell; a run another graph published into is set aside (RUN.crosstalkK) and run again."""
-        from orbit_sim.truth import build_time
+        from bench_engine.timegrid import build_time
         domain = self.free_domains.pop()
         path = run_dir(self.args, cell, i)
         try:
@@ -341,7 +341,7 @@ class Runner:
             self.free_domains.append(domain)
 
     def score(self, cell: Cell) -> None:
-        from tracker_filters.scoring import score_bags
+        from bench_eval.scoring import score_bags
         bags = [run_dir(self.args, cell, i) / "bag" for i in range(self.args.runs)]
         bags = [b for b in bags if (b / "metadata.yaml").is_file()]
         if not bags:
@@ -403,8 +403,8 @@ def write_outputs(args: argparse.Namespace, argv: list[str] | None, grid: Grid, 
     """Write OUT/sweep.json and OUT/table.md (with its plots and the grid's model-error table); returns the
     JSON content."""
     import model_error
-    from tracker_filters.metrics import json_ready
-    from tracker_filters.report import write_sweep_report
+    from bench_eval.metrics import json_ready
+    from bench_eval.report import write_sweep_report
     sweep = json_ready({
         "scenario": grid.scenario, "grid": grid.name, "description": grid.description, "columns": grid.columns,
         "runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs, "wall_s": round(wall, 1),

@@ -10,7 +10,7 @@ from graph_helpers import SHORT_PASS, read_bag, script
 from rclpy.serialization import deserialize_message, serialize_message
 
 from bench_msgs.msg import RangeAzEl
-from orbit_sim.bag import BagReader, BagWriter
+from bench_engine.bag import BagReader, BagWriter
 
 NAN_STEP, INF_STEP, LATE_STEP = 50, 51, 60
 

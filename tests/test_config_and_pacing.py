@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import pytest
 
-from orbit_sim.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
-from orbit_sim.graph import build_graph, filter_config
-from orbit_sim.launcher import validate
-from orbit_sim.lockstep import Pacer
-from orbit_sim.truth import build_time
+from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from bench_engine.graph import build_graph, filter_config
+from bench_engine.launcher import validate
+from bench_engine.lockstep import Pacer
+from bench_engine.timegrid import build_time
 
 
 def test_override_parses_yaml_values_and_creates_sections() -> None:
@@ -66,31 +66,51 @@ def test_time_grid_uses_integer_nanoseconds() -> None:
     assert grid.t_ns(4200) == 4320_800_000_000 + 420_000_000_000
 
 
+RADAR = {"radar": ["/truth/state"]}
+
+
 def test_strict_pacing_waits_for_sensor_and_filters() -> None:
-    pacer = Pacer(["radar"], {"ekf": ["radar"], "ukf": ["radar"]}, window=0)
-    assert pacer.can_publish(0)
-    assert not pacer.can_publish(1)  # radar has not handled step 0
-    pacer.on_ack("radar", 0, 1)  # published one measurement
-    assert not pacer.can_publish(1)  # the filters have not consumed it
-    pacer.on_ack("ekf", 0, 1)
-    pacer.on_ack("ukf", 0, 1)
-    assert pacer.can_publish(1) and pacer.complete(0)
-    pacer.on_ack("someone_else", 5, 9)  # foreign acks are ignored
-    assert not pacer.complete(1)
+    pacer = Pacer({**RADAR, "ekf": ["/radar/measurement"], "ukf": ["/radar/measurement"]}, window=0)
+    assert pacer.can_publish()
+    pacer.on_published("/truth/state")  # step 0
+    assert not pacer.can_publish()  # radar has not handled step 0
+    pacer.on_ack("radar", 1, {"/radar/measurement": 1})  # published one measurement
+    assert not pacer.can_publish()  # the filters have not consumed it
+    pacer.on_ack("ekf", 1, {"/ekf/estimate": 1})
+    pacer.on_ack("ukf", 1, {})
+    assert pacer.can_publish() and pacer.complete()
+    pacer.on_ack("someone_else", 9, {"/radar/measurement": 9})  # foreign acks are ignored
+    pacer.on_published("/truth/state")  # step 1
+    assert not pacer.complete()
 
 
 def test_window_lets_the_source_run_ahead_by_a_bounded_amount() -> None:
-    pacer = Pacer(["radar"], {"ukf": ["radar"]}, window=3)
-    assert pacer.can_publish(3) and not pacer.can_publish(4)
-    pacer.on_ack("radar", 3, 4)
-    assert pacer.backlog("ukf") == 4 and not pacer.can_publish(5)
-    pacer.on_ack("ukf", 3, 1)
-    assert pacer.can_publish(5)
+    pacer = Pacer({**RADAR, "ukf": ["/radar/measurement"]}, window=3)
+    for _ in range(4):  # steps 0..3
+        assert pacer.can_publish()
+        pacer.on_published("/truth/state")
+    assert not pacer.can_publish()  # step 4 would be 4 ahead of the radar
+    pacer.on_ack("radar", 4, {"/radar/measurement": 4})
+    assert pacer.backlog("ukf") == 4 and not pacer.can_publish()
+    pacer.on_ack("ukf", 1, {})
+    assert pacer.can_publish()
 
 
 def test_replay_pacing_counts_its_own_publications() -> None:
-    pacer = Pacer(["radar"], {"ukf": ["radar"]}, window=0, sensor_acks=False)
-    pacer.on_published("radar")
-    assert not pacer.can_publish(1)
-    pacer.on_ack("ukf", 0, 1)
-    assert pacer.can_publish(1) and pacer.complete(0)
+    pacer = Pacer({"ukf": ["/radar/measurement"]}, window=0)
+    pacer.on_published("/radar/measurement")
+    assert not pacer.can_publish()
+    pacer.on_ack("ukf", 1, {})
+    assert pacer.can_publish() and pacer.complete()
+
+
+def test_pacing_a_three_stage_pipeline_counts_every_hop() -> None:
+    """camera -> identifier -> tracker: the source waits for the last stage, and completion needs every hop."""
+    pacer = Pacer({"camera": ["/truth/state"], "ident": ["/camera/measurement"], "track": ["/ident/estimate"]},
+                  window=0)
+    pacer.on_published("/truth/state")
+    pacer.on_ack("camera", 1, {"/camera/measurement": 1})
+    pacer.on_ack("ident", 1, {"/ident/estimate": 2})  # one frame in, two outputs
+    assert pacer.backlog("track") == 2 and not pacer.can_publish() and not pacer.complete()
+    pacer.on_ack("track", 2, {})
+    assert pacer.can_publish() and pacer.complete()

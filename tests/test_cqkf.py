@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 from scipy.special import gamma
 
-from radar_sensor.isl import RelativePositionModel
+from bench_models.isl import RelativePositionModel
 from tracker_filters.cqkf import CubatureQuadratureKF, weighted_measurement_mean
 from tracker_filters.cubature import cubature_quadrature_points, radial_rule
 from tracker_filters.kf import KalmanFilter
-from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from orbit_sim.angles import wrapped_residual
-from tracker_filters.relative_dynamics import CWBiasDynamics
+from bench_models.relative_dynamics import CWBiasDynamics
 
 
 def random_gaussian(n, seed):

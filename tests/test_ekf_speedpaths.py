@@ -8,10 +8,10 @@ import pytest
 from orbit_sim.cowell import propagate
 from orbit_sim.frames import ecef_to_eci, enu_rotation
 from orbit_sim.kepler import kepler_to_cartesian
-from radar_sensor.radar import GroundRadarModel
+from bench_models.radar import GroundRadarModel
 from tracker_filters.ekf import SecondOrderEKF, second_order_moments
 from tracker_filters.kf import gain_and_nis, joseph_update
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
 
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)

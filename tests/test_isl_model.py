@@ -1,10 +1,10 @@
-"""Inter-satellite-link measurement models (radar_sensor.isl): geometry, Jacobians, wrapping, batches."""
+"""Inter-satellite-link measurement models (bench_models.isl): geometry, Jacobians, wrapping, batches."""
 import numpy as np
 import pytest
 
 from orbit_sim.relative import to_convention
-from radar_sensor.isl import RangeAzElModel, RelativePositionModel
-from tracker_filters.models import MeasurementModel
+from bench_models.isl import RangeAzElModel, RelativePositionModel
+from bench_models.models import MeasurementModel
 
 CONVENTIONS = ("radial_along_normal", "along_radial")
 

@@ -6,12 +6,12 @@ from scipy.stats import chi2
 
 from orbit_sim.frames import ecef_to_eci, enu_rotation
 from orbit_sim.kepler import kepler_to_cartesian
-from radar_sensor.radar import GroundRadarModel
+from bench_models.radar import GroundRadarModel
 from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF, second_order_moments
 from tracker_filters.kf import KalmanFilter
-from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
-from tracker_filters.registry import FILTERS, make_filter
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from tracker_filters.registry import filter_names, make_filter
 from tracker_filters.relinearisation import PassBatch
 from tracker_filters.sigma_points import ScaledSigmaPoints
 from tracker_filters.ukf import UnscentedKalmanFilter
@@ -417,7 +417,7 @@ def test_azimuth_crossing_north_gives_no_innovation_spike(name):
 
 def test_registry_builds_filters_and_names_errors():
     dyn = OrbitJ2Dynamics(sigma_accel=1e-3)
-    assert set(FILTERS) >= {"kf", "ekf", "ukf"}
+    assert set(filter_names()) >= {"kf", "ekf", "ukf"}
     assert isinstance(make_filter("ekf", dyn), ExtendedKalmanFilter)
     ukf = make_filter("ukf", dyn, alpha=0.5, beta=2.0, kappa=0.0)
     assert isinstance(ukf, UnscentedKalmanFilter) and ukf.points.alpha == 0.5

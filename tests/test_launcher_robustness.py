@@ -109,7 +109,7 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
 
 
 def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
-    from orbit_sim.domains import reserve
+    from bench_engine.domains import reserve
     held = reserve(75)
     try:
         res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", "75", timeout=60)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from orbit_sim.config import load_scenario
+from bench_engine.config import load_scenario
 from orbit_sim.truth import build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters.builders import build_filter_stack

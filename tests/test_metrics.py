@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from tracker_filters.metrics import (
+from bench_eval.metrics import (
     RadarSamples, Track, fraction_within_sigma, formation_settling_time, leo_series, mean_absolute_error,
     nees, nees_series, nees_summary, radar_coordinate_rmse, rmse_over_runs, score_formation, score_leo,
     settling_time, summarise, time_grid,

@@ -9,8 +9,8 @@ import sys
 import pytest
 
 LOWER = {
-    "orbit_sim": ["orbit_sim.launcher", "orbit_sim.graph", "orbit_sim.truth", "orbit_sim.angles"],
-    "radar_sensor": ["radar_sensor.radar", "radar_sensor.isl", "radar_sensor.sensor"],
+    "orbit_sim": ["bench_engine.launcher", "bench_engine.graph", "orbit_sim.truth", "orbit_sim.angles"],
+    "radar_sensor": ["bench_models.radar", "bench_models.isl", "radar_sensor.sensor"],
 }
 HIGHER = {"orbit_sim": ("radar_sensor", "tracker_filters"), "radar_sensor": ("tracker_filters",)}
 

@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 from scipy.special import logsumexp
 
-from radar_sensor.isl import RangeAzElModel
+from bench_models.isl import RangeAzElModel
 from tracker_filters.kf import KalmanFilter
-from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from orbit_sim.angles import wrap_angle, wrapped_residual
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
-from tracker_filters.relative_dynamics import CWDynamics
+from bench_models.relative_dynamics import CWDynamics
 
 FILTERS = (SIRParticleFilter, RegularisedParticleFilter)
 DYN = ConstantVelocity(0.5, ndim=2)
@@ -299,7 +299,7 @@ def test_azimuth_through_zero_gives_no_spike(cls, R_meas):
 def test_pf_is_consistent_on_paper_001_when_the_truth_follows_its_model():
     """formation_pf's filter (scenario config: CW, the paper's Q, P0, R), truth driven by the same Q:
     average NEES over 8 runs × 40 steps (after 20 s) close to the 6 dof (measured 6.2 at N = 2 000)."""
-    from orbit_sim.config import load_scenario
+    from bench_engine.config import load_scenario
     from orbit_sim.relative import from_convention
     from tracker_filters.builders import build_filter_stack
 

@@ -7,12 +7,12 @@ cost is the batch's Gauss-Newton cost at the same x0 (no linearisation enters ei
 import numpy as np
 import pytest
 
-from orbit_sim.config import load_scenario
+from bench_engine.config import load_scenario
 from orbit_sim.truth import build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters.builders import build_filter_stack
 from tracker_filters.kf import KalmanFilter
-from tracker_filters.linear_models import ConstantVelocity, PositionMeasurement
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from tracker_filters.posterior_sampling import adaptive_posterior, batch_cost, weighted_moments
 from tracker_filters.relinearisation import PassBatch
 

@@ -1,4 +1,4 @@
-"""Linear relative-motion models (tracker_filters.relative_dynamics) against their definitions and against
+"""Linear relative-motion models (bench_models.relative_dynamics) against their definitions and against
 the nonlinear two-body + J2 relative motion of two spacecraft (chief a = 7100 km, e = 0).
 
 Run as a script to print the model-error table quoted in the report:
@@ -11,8 +11,8 @@ from scipy.optimize import least_squares
 
 from orbit_sim import cowell, gravity, hill, kepler, relative
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
-from tracker_filters.models import DynamicsModel
-from tracker_filters.relative_dynamics import (CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics,
+from bench_models.models import DynamicsModel
+from bench_models.relative_dynamics import (CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics,
                                                ss_coefficients, van_loan, wna_block)
 
 A_REF = 7100e3

@@ -8,9 +8,9 @@ import pytest
 
 from orbit_sim.cowell import propagate
 from orbit_sim.kepler import kepler_to_cartesian
-from radar_sensor.radar import GroundRadarModel
+from bench_models.radar import GroundRadarModel
 from tracker_filters.initialisation import initial_state_from_scan
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.relinearisation import PassBatch
 
 CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),

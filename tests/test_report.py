@@ -1,8 +1,8 @@
 """Report writer: Markdown tables next to the paper's numbers, PNG figures, generic and extra sections."""
 import numpy as np
 
-from tracker_filters.metrics import RadarSamples, Track, leo_series, score_leo
-from tracker_filters.report import PAPER_LEO_RADAR, Section, Table, difference, fmt, write_report
+from bench_eval.metrics import RadarSamples, Track, leo_series, score_leo
+from bench_eval.report import PAPER_LEO_RADAR, Section, Table, difference, fmt, write_report
 
 LABELS = ["x", "y", "z", "vx", "vy", "vz"]
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from orbit_sim.config import SCENARIO_DIR, ScenarioError, apply_overrides, load_scenario
-from tracker_filters.report import paired_ordering, paper004_case
+from bench_engine.config import ScenarioError, apply_overrides, load_scenario, scenario_path
+from bench_eval.report import paired_ordering, paper004_case
 
 SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
 sys.path.insert(0, str(SCRIPTS))
@@ -21,7 +21,7 @@ COMPONENT_ROWS = ("δx [m]", "δy [m]", "δz [m]", "δvx [mm/s]", "δvy [mm/s]",
 
 def scenario_with(tmp_path: Path, grids: dict) -> Path:
     """formation_cqkf with its sweeps replaced by ``grids``, written as a YAML file."""
-    cfg = yaml.safe_load((SCENARIO_DIR / "formation_cqkf.yaml").read_text())
+    cfg = yaml.safe_load(scenario_path("formation_cqkf").read_text())
     cfg["sweeps"] = grids
     path = tmp_path / "formation_cqkf.yaml"
     path.write_text(yaml.safe_dump(cfg, sort_keys=False))

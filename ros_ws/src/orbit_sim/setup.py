@@ -1,24 +1,35 @@
-"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench also uses it in place."""
-from glob import glob
+"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
+The entry points register this package's components with the bench (bench_engine.plugins)."""
 from setuptools import find_packages, setup
 
 PACKAGE = "orbit_sim"
 
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version="0.2.0",
     packages=find_packages(exclude=["test"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
-        ("share/" + PACKAGE + "/config/scenarios", glob("config/scenarios/*.yaml")),
     ],
     install_requires=["setuptools"],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="Tracking bench team",
     maintainer_email="bench@example.org",
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
-    entry_points={"console_scripts": ["truth_node = orbit_sim.truth_node:main", "recorder_node = orbit_sim.recorder_node:main", "player_node = orbit_sim.player_node:main"]},
+    entry_points={
+        "tracking_bench.node_kinds": [
+            "truth = orbit_sim.truth_source:TRUTH"],
+        "tracking_bench.truth_models": [
+            "cowell_j2 = orbit_sim.truth:single_orbit_truth",
+            "cowell_twobody = orbit_sim.truth:single_orbit_truth",
+            "formation_j2 = orbit_sim.truth:formation_truth",
+            "formation_twobody = orbit_sim.truth:formation_truth",
+            "hill_cw = orbit_sim.truth:formation_truth"],
+        "tracking_bench.sections": [
+            "earth = orbit_sim.truth:build_earth",
+            "truth = orbit_sim.truth:build_truth"]
+    },
 )

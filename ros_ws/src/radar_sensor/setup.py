@@ -1,23 +1,33 @@
-"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench also uses it in place."""
-from glob import glob
+"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
+The entry points register this package's components with the bench (bench_engine.plugins)."""
 from setuptools import find_packages, setup
 
 PACKAGE = "radar_sensor"
 
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version="0.2.0",
     packages=find_packages(exclude=["test"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
     ],
     install_requires=["setuptools"],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="Tracking bench team",
     maintainer_email="bench@example.org",
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
-    entry_points={"console_scripts": ["sensor_node = radar_sensor.sensor_node:main"]},
+    entry_points={
+        "tracking_bench.node_kinds": [
+            "sensor = radar_sensor.sensor_stage:SENSOR"],
+        "tracking_bench.sensors": [
+            "ground_radar = radar_sensor.sensor:GROUND_RADAR",
+            "isl_radio = radar_sensor.sensor:ISL_RADIO",
+            "relative_position = radar_sensor.sensor:RELATIVE_POSITION"],
+        "tracking_bench.codecs": [
+            "bench_msgs.msg.RangeAzEl = radar_sensor.messages:RANGE_AZ_EL",
+            "bench_msgs.msg.VectorMeasurement = radar_sensor.messages:VECTOR_MEASUREMENT"]
+    },
 )

@@ -1,9 +1,9 @@
 """Ground truth of a run, built from the scenario's ``earth``, ``time`` and ``truth`` sections.
 
 The whole trajectory is integrated up front with Cowell's method (``cowell.propagate``, solve_ivp at tight
-tolerances) and sampled on the run's step grid; the truth node then only publishes rows.
+tolerances) and sampled on the run's step grid; the truth source then only publishes rows.
 
-Models (``truth.model``):
+Models (``truth.model``, registered in the entry-point group ``tracking_bench.truth_models``):
 - ``cowell_j2`` / ``cowell_twobody``: one spacecraft, ECI state [x y z vx vy vz] (frame "eci").
 - ``formation_j2`` / ``formation_twobody``: chief and deputy each propagated in ECI; the published state is
   the deputy relative to the chief in the chief's LVLH frame (x radial, y along-track, z orbit normal),
@@ -19,10 +19,11 @@ from functools import lru_cache
 import numpy as np
 
 from orbit_sim import cowell, gravity, hill, kepler, relative
-from orbit_sim.config import ScenarioError, Section
+from bench_engine import plugins
+from bench_engine.config import ScenarioError, Section
+from bench_engine.timegrid import TimeGrid, build_time
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
-TRUTH_MODELS = ("cowell_j2", "cowell_twobody", "formation_j2", "formation_twobody", "hill_cw")
 ORBIT_LABELS = ("x", "y", "z", "vx", "vy", "vz")
 
 
@@ -35,25 +36,6 @@ class Earth:
     re: float = R_EARTH
     rotation_rate: float = OMEGA_EARTH
     theta0: float = 0.0  # Earth rotation angle at the epoch [rad]
-
-
-@dataclass(frozen=True)
-class TimeGrid:
-    """Lock-step grid: step k happens at t = start + k dt (integer nanoseconds, no drift)."""
-
-    start_ns: int
-    dt_ns: int
-    steps: int
-
-    @property
-    def dt(self) -> float:
-        return self.dt_ns * 1e-9
-
-    def t_ns(self, k: int) -> int:
-        return self.start_ns + k * self.dt_ns
-
-    def times(self) -> np.ndarray:
-        return (self.start_ns + np.arange(self.steps, dtype=np.int64) * self.dt_ns) * 1e-9
 
 
 @dataclass
@@ -71,17 +53,6 @@ def build_earth(cfg: dict) -> Earth:
                   theta0=np.radians(sec.get("theta0_deg", float, 0.0)))
     sec.finish()
     return earth
-
-
-def build_time(cfg: dict) -> TimeGrid:
-    sec = Section(cfg.get("time"), "time")
-    start = sec.non_negative("start")
-    dt = sec.positive("dt")
-    duration = sec.positive("duration")
-    sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
-    sec.finish()
-    dt_ns = int(round(dt * 1e9))
-    return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1)
 
 
 def _semi_major_axis(sec: Section, mu: float) -> float:
@@ -156,7 +127,7 @@ def _relative_initial_state(sec: Section, n: float) -> np.ndarray:
     return relative.from_convention(np.array(vec, dtype=float), convention)
 
 
-def _formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> np.ndarray:
+def formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> Truth:
     """Relative LVLH states on the grid (nonlinear two-body (+ J2) of both spacecraft, or exact CW)."""
     chief0 = orbit_state(sec.section("chief", default_empty=False), earth.mu)
     n = float(np.sqrt(earth.mu / np.linalg.norm(chief0[:3]) ** 3))
@@ -177,11 +148,23 @@ def _formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> 
         deputy = cowell.propagate(deputy0, times, mu=earth.mu, j2=j2, re=earth.re)
         accel = gravity.acceleration(chief[:, :3], earth.mu, j2, earth.re)
         states = relative.eci_to_lvlh(chief, deputy, accel)
-    return states[1:] if grid.start_ns > 0 else states
+    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT_LABELS, "lvlh")
+
+
+def single_orbit_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> Truth:
+    """One spacecraft in ECI from ``truth.orbit`` (Keplerian elements), two-body (+ J2 for ``cowell_j2``)."""
+    x0 = orbit_state(sec.section("orbit", default_empty=False), earth.mu)
+    j2 = earth.j2 if model == "cowell_j2" else 0.0
+    times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
+    states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
+    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT_LABELS, "eci")
 
 
 def build_truth(cfg: dict) -> Truth:
-    """Integrate the scenario's truth and sample it on the step grid (cached per truth configuration)."""
+    """Integrate the scenario's truth and sample it on the step grid (cached per truth configuration).
+
+    ``truth.model`` names a registered truth model (entry-point group ``tracking_bench.truth_models``): a
+    function (section, model name, earth, grid) -> Truth."""
     key = json.dumps({k: cfg.get(k) for k in ("earth", "time", "truth")}, sort_keys=True, default=str)
     return _build_truth(key)
 
@@ -192,22 +175,8 @@ def _build_truth(key: str) -> Truth:
     earth = build_earth(cfg)
     grid = build_time(cfg)
     sec = Section(cfg.get("truth"), "truth")
-    model = sec.choice("model", TRUTH_MODELS)
-    if model.startswith("cowell"):
-        x0 = orbit_state(sec.section("orbit", default_empty=False), earth.mu)
-        j2 = earth.j2 if model == "cowell_j2" else 0.0
-        times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
-        states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
-        states = states[1:] if grid.start_ns > 0 else states
-        frame = "eci"
-    else:
-        states = _formation_truth(sec, model, earth, grid)
-        frame = "lvlh"
+    model = sec.choice("model", plugins.names("truth_models"))
+    truth = plugins.load("truth_models", model)(sec, model, earth, grid)
     sec.finish()
-    states.setflags(write=False)
-    return Truth(grid, states, ORBIT_LABELS, frame)
-
-
-def check_config(cfg: dict, name: str) -> None:
-    """Launcher check of the truth node ``name`` (graph.NodeSpec.check): builds the truth once."""
-    build_truth(cfg)
+    truth.states.setflags(write=False)
+    return truth

@@ -1,47 +1,54 @@
-"""Conversions between measurement vectors and their ROS messages (RangeAzEl, VectorMeasurement)."""
+"""Codecs between measurement items (bench_engine.stage.Measurement) and their ROS messages.
+
+Registered per message type in the entry-point group ``tracking_bench.codecs``: RangeAzEl (range, azimuth,
+elevation, optional range rate, 4x4 covariance) and VectorMeasurement (labelled vector + covariance).
+"""
 from __future__ import annotations
 
 import numpy as np
 
-from bench_msgs.msg import RangeAzEl, VectorMeasurement
+from bench_engine.stage import Measurement, set_stamp, stamp_ns
+
+RANGE_AZ_EL_LABELS = ("range", "azimuth", "elevation", "range_rate")
 
 
-def _stamp(msg, t_ns: int, frame_id: str, step: int, sensor_id: str) -> None:
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
-    msg.header.frame_id = frame_id
-    msg.step = int(step)
-    msg.sensor_id = sensor_id
-
-
-def to_message(msg_type: type, z: np.ndarray, R: np.ndarray, labels, t_ns: int, frame_id: str, step: int,
-               sensor_id: str):
-    """Build a measurement message of ``msg_type`` carrying z and its covariance R."""
-    msg = msg_type()
-    _stamp(msg, t_ns, frame_id, step, sensor_id)
-    if msg_type is RangeAzEl:
+class RangeAzElCodec:
+    def encode(self, item: Measurement, msg_type: type):
+        msg = msg_type()
+        set_stamp(msg, item)
+        msg.sensor_id = item.source
+        z = item.z
         msg.range, msg.azimuth, msg.elevation = (float(v) for v in z[:3])
         msg.has_range_rate = len(z) > 3
         msg.range_rate = float(z[3]) if msg.has_range_rate else float("nan")
         cov = np.zeros((4, 4))
-        cov[: len(z), : len(z)] = R
+        cov[: len(z), : len(z)] = item.R
         msg.covariance = cov.ravel()
-    else:
-        msg.labels = list(labels)
-        msg.value = np.asarray(z, dtype=float).tolist()
-        msg.covariance = np.asarray(R, dtype=float).ravel().tolist()
-    return msg
+        return msg
 
-
-def from_message(msg) -> tuple[float, np.ndarray, np.ndarray]:
-    """(t [s], z, R) of a measurement message."""
-    t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-    if isinstance(msg, RangeAzEl):
+    def decode(self, msg) -> Measurement:
         d = 4 if msg.has_range_rate else 3
         z = np.array([msg.range, msg.azimuth, msg.elevation, msg.range_rate][:d])
         R = np.asarray(msg.covariance, dtype=float).reshape(4, 4)[:d, :d].copy()
-        return t, z, R
-    z = np.asarray(msg.value, dtype=float)
-    return t, z, np.asarray(msg.covariance, dtype=float).reshape(len(z), len(z))
+        return Measurement(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, z, R,
+                           list(RANGE_AZ_EL_LABELS[:d]))
 
 
-MESSAGE_CLASSES = {"bench_msgs/msg/RangeAzEl": RangeAzEl, "bench_msgs/msg/VectorMeasurement": VectorMeasurement}
+class VectorMeasurementCodec:
+    def encode(self, item: Measurement, msg_type: type):
+        msg = msg_type()
+        set_stamp(msg, item)
+        msg.sensor_id = item.source
+        msg.labels = list(item.labels)
+        msg.value = np.asarray(item.z, dtype=float).tolist()
+        msg.covariance = np.asarray(item.R, dtype=float).ravel().tolist()
+        return msg
+
+    def decode(self, msg) -> Measurement:
+        z = np.asarray(msg.value, dtype=float)
+        return Measurement(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, z,
+                           np.asarray(msg.covariance, dtype=float).reshape(len(z), len(z)), list(msg.labels))
+
+
+RANGE_AZ_EL = RangeAzElCodec()
+VECTOR_MEASUREMENT = VectorMeasurementCodec()

@@ -2,6 +2,9 @@
 
 Built from the scenario's ``sensors.NAME`` section by :func:`build_sensor`; the sensor node and every filter
 use the same object, so simulation and estimation agree on the model (frames, Earth rotation, conventions).
+Sensor types are registered in the entry-point group ``tracking_bench.sensors`` as :class:`SensorType`
+objects (the message type they publish and their builder): a new sensor type is a new module and one line in
+``setup.py``.
 """
 from __future__ import annotations
 
@@ -10,13 +13,14 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from orbit_sim.config import ScenarioError, Section
+from bench_engine import plugins
+from bench_engine.config import ScenarioError, Section
 from orbit_sim.truth import Earth, build_earth
-from radar_sensor.isl import RangeAzElModel, RelativePositionModel
-from radar_sensor.radar import GroundRadarModel
+from bench_models.isl import RangeAzElModel, RelativePositionModel
+from bench_models.radar import GroundRadarModel
 
 if TYPE_CHECKING:
-    from tracker_filters.models import MeasurementModel
+    from bench_models.models import MeasurementModel
 
 SENSOR_TYPES = ("ground_radar", "isl_radio", "relative_position")
 
@@ -53,14 +57,36 @@ class Sensor:
         return z
 
 
-def build_sensor(cfg: dict, name: str) -> Sensor:
-    """Build sensor ``name`` from ``sensors.NAME``; raises ScenarioError naming any bad key."""
+@dataclass(frozen=True)
+class SensorType:
+    """A registered sensor type: the ROS message type it publishes and how to build it from its section
+    (section, sensor name, Earth model, sample every n steps) -> Sensor."""
+
+    message_type: str
+    build: Callable[[Section, str, Earth, int], Sensor]
+
+
+def sensor_names(cfg: dict) -> list[str]:
+    """The scenario's sensors, in the order of its ``sensors`` section."""
+    return list((cfg.get("sensors") or {}).keys())
+
+
+def sensor_type(cfg: dict, name: str) -> SensorType:
+    """The registered type of sensor ``name`` (ScenarioError naming the key and the registered types)."""
     sensors = cfg.get("sensors") or {}
     if name not in sensors:
         raise ScenarioError(f"unknown sensor '{name}'; the scenario has: {sorted(sensors)}")
-    sec = Section(sensors[name], f"sensors.{name}")
-    kind = sec.choice("type", SENSOR_TYPES)
-    sensor = _BUILDERS[kind](sec, name, build_earth(cfg), _every_n_steps(sec, cfg))
+    section = sensors[name] if isinstance(sensors[name], dict) else {}
+    return plugins.load("sensors", Section(section, f"sensors.{name}").choice("type", plugins.names("sensors")))
+
+
+def build_sensor(cfg: dict, name: str) -> Sensor:
+    """Build sensor ``name`` from ``sensors.NAME``; raises ScenarioError naming any bad key."""
+    stype = sensor_type(cfg, name)
+    sec = Section(cfg["sensors"][name], f"sensors.{name}")
+    kind = sec.get("type", str)
+    sensor = stype.build(sec, name, build_earth(cfg), _every_n_steps(sec, cfg))
+    sensor.kind = kind
     sec.finish()
     return sensor
 
@@ -108,9 +134,6 @@ def _relative_position(sec: Section, name: str, earth: Earth, every: int) -> Sen
                   sec.probability("p_detect", 1.0), every, sec.get("frame_id", str, "lvlh"), lambda x, t: True)
 
 
-_BUILDERS = {"ground_radar": _ground_radar, "isl_radio": _isl_radio, "relative_position": _relative_position}
-
-
-def check_config(cfg: dict, name: str) -> None:
-    """Launcher check of the sensor node ``name`` (graph.NodeSpec.check)."""
-    build_sensor(cfg, name)
+GROUND_RADAR = SensorType("bench_msgs/msg/RangeAzEl", _ground_radar)
+ISL_RADIO = SensorType("bench_msgs/msg/RangeAzEl", _isl_radio)
+RELATIVE_POSITION = SensorType("bench_msgs/msg/VectorMeasurement", _relative_position)

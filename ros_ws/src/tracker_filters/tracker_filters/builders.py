@@ -2,7 +2,7 @@
 
 A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``filters.NAME``:
 
-    type: ukf                 # any name in tracker_filters.registry.FILTERS
+    type: ukf                 # a registered estimator (entry-point group tracking_bench.estimators)
     sensors: [radar]          # measurement topics it consumes
     dynamics: {model: orbit_j2, sigma_accel: 0.5}
     init: {method: first_scan, velocity_sigma: 8000.0}
@@ -17,18 +17,18 @@ from typing import Callable
 import numpy as np
 
 from orbit_sim import relative
-from orbit_sim.config import ScenarioError, Section
-from orbit_sim.graph import filter_config, sensor_names
+from bench_engine.config import ScenarioError, Section
+from bench_engine import plugins
+from bench_engine.graph import filter_config
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
-from radar_sensor.sensor import Sensor, build_sensor
+from radar_sensor.sensor import Sensor, build_sensor, sensor_names
 from tracker_filters import registry
 from tracker_filters.filter_base import Filter
-from tracker_filters.given_noise import GivenProcessNoise
+from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
-from tracker_filters.models import DynamicsModel
-from tracker_filters.orbit_dynamics import OrbitJ2Dynamics
-from tracker_filters.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
-from tracker_filters.scoring import scoring_options
+from bench_models.models import DynamicsModel
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
 
@@ -43,7 +43,7 @@ class FilterStack:
     initialise: Initialiser
 
 
-def _orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
+def orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
     earth = build_earth(cfg)
     return OrbitJ2Dynamics(sec.non_negative("sigma_accel"), mu=earth.mu, j2=earth.j2, re=earth.re)
 
@@ -63,22 +63,20 @@ def _reference(sec: Section, cfg: dict):
     return reference_orbit(cfg, sec.choice("reference", ("stated", "mean"), "stated") == "mean")
 
 
-def _cw(sec: Section, cfg: dict) -> DynamicsModel:
+def cw(sec: Section, cfg: dict) -> DynamicsModel:
     return CWDynamics(_reference(sec, cfg).n, _sigma_accel(sec),
                       sec.choice("discretisation", ("exact", "euler"), "exact"))
 
 
-def _cw_bias(sec: Section, cfg: dict) -> DynamicsModel:
+def cw_bias(sec: Section, cfg: dict) -> DynamicsModel:
     return CWBiasDynamics(_reference(sec, cfg).n, _sigma_accel(sec), sec.non_negative("sigma_bias"))
 
 
-def _ss(sec: Section, cfg: dict) -> DynamicsModel:
+def ss(sec: Section, cfg: dict) -> DynamicsModel:
     ref, earth = _reference(sec, cfg), build_earth(cfg)
     return SchweighartSedwickDynamics(ref.a, ref.inclination, _sigma_accel(sec), earth.mu, earth.j2, earth.re)
 
 
-DYNAMICS: dict[str, Callable[[Section, dict], DynamicsModel]] = {
-    "orbit_j2": _orbit_j2, "cw": _cw, "cw_bias": _cw_bias, "ss": _ss}
 
 
 def _given_q(sec: Section, dynamics: DynamicsModel) -> DynamicsModel:
@@ -95,13 +93,13 @@ def _given_q(sec: Section, dynamics: DynamicsModel) -> DynamicsModel:
 
 
 def build_dynamics(sec: Section, cfg: dict) -> DynamicsModel:
-    model = sec.choice("model", sorted(DYNAMICS))
-    dynamics = _given_q(sec, DYNAMICS[model](sec, cfg))
+    model = sec.choice("model", plugins.names("dynamics"))
+    dynamics = _given_q(sec, plugins.load("dynamics", model)(sec, cfg))
     sec.finish()
     return dynamics
 
 
-def _first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     velocity_sigma = sec.positive("velocity_sigma")
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -119,7 +117,7 @@ def _padded(values: np.ndarray, sec: Section, key: str, n: int) -> np.ndarray:
     return np.concatenate([values, np.asarray(extra, dtype=float)])
 
 
-def _given(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def given(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     """Initial estimate and standard deviations stated by the paper, in ``convention`` axes."""
     n = len(dynamics.labels)
     convention = sec.choice("convention", relative.CONVENTIONS, "radial_along_normal")
@@ -131,7 +129,7 @@ def _given(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
 
 
-def _truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     """Paper 004: initial estimate = true initial state with a relative error (2 %), diagonal P0."""
     n = len(dynamics.labels)
     fraction = sec.get("error_fraction", float, check=lambda v: v >= 0, expect=">= 0")
@@ -143,13 +141,9 @@ def _truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialis
     return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
 
 
-INITIALISERS: dict[str, Callable[[Section, dict, DynamicsModel], Initialiser]] = {
-    "first_scan": _first_scan, "given": _given, "truth_scaled": _truth_scaled}
-
-
 def build_initialiser(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
-    method = sec.choice("method", sorted(INITIALISERS))
-    init = INITIALISERS[method](sec, cfg, dynamics)
+    method = sec.choice("method", plugins.names("initialisers"))
+    init = plugins.load("initialisers", method)(sec, cfg, dynamics)
     sec.finish()
     return init
 
@@ -157,7 +151,7 @@ def build_initialiser(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initi
 def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     """Build filter node ``name``; every bad key or value raises ScenarioError naming it."""
     sec = Section(filter_config(cfg, name), f"filters.{name}")
-    kind = sec.choice("type", sorted(registry.FILTERS))
+    kind = sec.choice("type", registry.filter_names())
     inputs = sec.get("sensors", list, sensor_names(cfg))
     dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
     init = build_initialiser(sec.section("init", default_empty=False), cfg, dynamics)
@@ -172,9 +166,3 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
     return FilterStack(name, flt, {s: build_sensor(cfg, s) for s in inputs}, init)
-
-
-def check_config(cfg: dict, name: str) -> None:
-    """Launcher check of the filter node ``name`` (graph.NodeSpec.check): its stack and the scoring section."""
-    build_filter_stack(cfg, name)
-    scoring_options(cfg)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracker_filters.kf import KalmanFilter, joseph_update
-from tracker_filters.models import DynamicsModel, MeasurementModel
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.relinearisation import Relinearising
 
 
@@ -57,7 +57,7 @@ class SecondOrderEKF(ExtendedKalmanFilter):
 
     A model may offer ``derivatives(x, t) -> (h (d,), H (d, n), Hessians (d, m, m))``, the Hessians over
     the first m state components (zero elsewhere), in place of ``h``, ``jacobian`` and ``hessian``: one
-    shared pass, and the moments over the m x m block of P (radar_sensor.radar: m = 3, ~8 us saved per
+    shared pass, and the moments over the m x m block of P (bench_models.radar: m = 3, ~8 us saved per
     step on leo_radar).
     """
 

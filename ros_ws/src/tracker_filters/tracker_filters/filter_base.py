@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tracker_filters.covariance import ensure_pd
-from tracker_filters.models import DynamicsModel, MeasurementModel
+from bench_models.models import DynamicsModel, MeasurementModel
 
 
 @dataclass

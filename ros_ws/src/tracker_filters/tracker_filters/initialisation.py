@@ -42,7 +42,7 @@ def initial_state_from_scan(z: np.ndarray, R: np.ndarray, model, t: float,
     """(x0 (6,), P0 (6, 6)) in ECI at time t from one radar measurement z with noise covariance R.
 
     ``model`` is a radar measurement model offering ``position_from_measurement(z, t)`` and
-    ``position_jacobian(z, t)`` (radar_sensor.radar.GroundRadarModel). Only the first three components of
+    ``position_jacobian(z, t)`` (bench_models.radar.GroundRadarModel). Only the first three components of
     z (range, azimuth, elevation) and the matching 3x3 block of R are used.
     """
     r0, P_pos = scan_position(z, R, model, t, method)

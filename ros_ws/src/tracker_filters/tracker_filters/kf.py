@@ -14,7 +14,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from tracker_filters.filter_base import Filter
-from tracker_filters.models import MeasurementModel
+from bench_models.models import MeasurementModel
 
 
 def cholesky_lower(A: np.ndarray) -> np.ndarray:

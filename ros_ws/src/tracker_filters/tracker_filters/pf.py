@@ -31,7 +31,7 @@ from scipy.special import logsumexp
 
 from tracker_filters.covariance import ensure_pd
 from tracker_filters.filter_base import Filter, StepResult
-from tracker_filters.models import DynamicsModel, MeasurementModel
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.resampling import RESAMPLERS
 
 PROBE_SIZE = 256

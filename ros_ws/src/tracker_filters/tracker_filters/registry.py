@@ -1,30 +1,17 @@
 """Filters by name, for scenario files and the filter node: ``make_filter("ukf", dynamics, alpha=1.0)``.
 
-To register a filter, add its class to FILTERS. A filter class takes the dynamics model first and its
-tuning parameters as keyword arguments, and raises ValueError for an invalid parameter value.
+Filters are registered in the entry-point group ``tracking_bench.estimators`` (name = class). A filter
+class takes the dynamics model first and its tuning parameters as keyword arguments, and raises ValueError
+for an invalid parameter value.
 """
 from __future__ import annotations
 
 import inspect
 
-from tracker_filters.cqkf import CubatureQuadratureKF
-from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF
+from bench_engine import plugins
+from bench_engine.config import ScenarioError
 from tracker_filters.filter_base import Filter
-from tracker_filters.kf import KalmanFilter
-from tracker_filters.models import DynamicsModel
-from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
-from tracker_filters.ukf import UnscentedKalmanFilter
-
-FILTERS: dict[str, type] = {
-    "kf": KalmanFilter,
-    "ekf": ExtendedKalmanFilter,
-    "ekf2": SecondOrderEKF,
-    "ukf": UnscentedKalmanFilter,
-    "cqkf": CubatureQuadratureKF,
-    "sir": SIRParticleFilter,
-    "pf": RegularisedParticleFilter,
-}
-
+from bench_models.models import DynamicsModel
 
 def filter_parameters(name: str) -> list[str]:
     """Names of the keyword parameters filter ``name`` accepts (beyond the dynamics model)."""
@@ -51,8 +38,12 @@ def make_filter(name: str, dynamics: DynamicsModel, **params) -> Filter:
         raise ValueError(message if message.startswith(f"{name}:") else f"{name}: {message}") from err
 
 
+def filter_names() -> list[str]:
+    """Every registered filter type."""
+    return plugins.names("estimators")
+
+
 def _filter_class(name: str) -> type:
-    try:
-        return FILTERS[name]
-    except KeyError:
-        raise ValueError(f"unknown filter {name!r}; allowed: {', '.join(sorted(FILTERS))}") from None
+    if name not in filter_names():
+        raise ValueError(f"unknown filter {name!r}; allowed: {', '.join(filter_names())}")
+    return plugins.load("estimators", name)

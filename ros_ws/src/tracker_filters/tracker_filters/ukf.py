@@ -17,7 +17,7 @@ import numpy as np
 
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import gain_and_nis
-from tracker_filters.models import DynamicsModel, MeasurementModel
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.relinearisation import Relinearising
 from tracker_filters.sigma_points import ScaledSigmaPoints
 

@@ -1,0 +1,400 @@
+"""rosbag2-compatible MCAP bags: a writer producing what ``ros2 bag record -s mcap`` writes (Jazzy), and a reader.
+
+Format (checked against rosbag2's ``jazzy`` branch):
+
+* directory ``<dir>/`` with ``metadata.yaml`` (``rosbag2_bagfile_information``, version 9, as
+  ``rosbag2_storage/include/rosbag2_storage/yaml.hpp`` encodes it) and ``<dir>/<dirname>_0.mcap``;
+* MCAP profile ``ros2``; one schema per type, named ``pkg/msg/Type``, encoding ``ros2msg``, data
+  :func:`bench_engine.msg_schema.schema_text`; one channel per topic, message encoding ``cdr``, channel metadata
+  ``offered_qos_profiles`` (YAML text of the QoS list, version-9 string enums) and ``topic_type_hash``
+  (``rosbag2_storage_mcap/src/mcap_storage.cpp::create_topic``);
+* a metadata record ``rosbag2`` with the single key ``serialized_metadata`` (the YAML of the bag metadata,
+  without the ``rosbag2_bagfile_information`` wrapper), written once when the bag opens and again, final,
+  at close (``SequentialWriter::open`` / ``close`` -> ``MCAPStorage::update_metadata``);
+* chunks of 768 KiB (the MCAP C++ writer's default, which rosbag2 keeps), zstd-compressed as with the
+  rosbag2 storage presets ``zstd_fast`` / ``zstd_small`` (plain rosbag2 defaults to no compression).
+
+Shutdown safety: all MCAP work happens on a writer thread. :meth:`BagWriter.write` only appends to a deque
+(atomic, lock-free), so :meth:`BagWriter.close` may be called from a SIGINT/SIGTERM handler at any moment,
+even one that then raises ``SystemExit``: the thread drains what was queued, writes the summary and footer,
+fsyncs, and writes ``metadata.yaml`` (atomically). If the main thread ends without ``close()``, the writer
+thread closes the bag itself. A truncated file (no summary) is left only when the process dies without running
+Python code: SIGKILL, ``os._exit``, or SIGTERM with neither a Python handler nor rclpy's (``rclpy.init``
+installs C-level SIGINT/SIGTERM handlers that turn the signal into a context shutdown; a recorder then
+closes the bag once spinning returns).
+"""
+from __future__ import annotations
+
+import collections
+import os
+import threading
+import time
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path, PurePath
+from typing import Any, BinaryIO
+
+import yaml
+from mcap.reader import make_reader
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+
+from bench_engine.msg_schema import message_class, schema_text, type_hash
+
+METADATA_VERSION = 9
+STORAGE_IDENTIFIER = "mcap"
+CHUNK_SIZE = 768 * 1024
+MAX_QUEUED = 20_000          # write() waits for the writer thread beyond this many queued messages
+POLL_S = 0.005               # writer thread's idle wait (≈ 0.3 % of a core while idle)
+NS_MAX = 2**63 - 1           # rosbag2's starting time of a bag without messages (nanoseconds::max)
+LIBRARY = f"bench_engine.bag; {LIBRARY_IDENTIFIER}"
+
+DEFAULT_QOS: dict[str, Any] = {
+    # What a reliable keep-last publisher offers, as rosbag2 stores it: durations and liveliness as the
+    # graph reports them for a default publisher (infinite, automatic).
+    "history": "keep_last",
+    "depth": 1000,
+    "reliability": "reliable",
+    "durability": "volatile",
+    "deadline": NS_MAX,
+    "lifespan": NS_MAX,
+    "liveliness": "automatic",
+    "liveliness_lease_duration": NS_MAX,
+    "avoid_ros_namespace_conventions": False,
+}
+_POLICIES = {
+    "history": {"system_default", "keep_last", "keep_all", "unknown"},
+    "reliability": {"system_default", "reliable", "best_effort", "unknown", "best_available"},
+    "durability": {"system_default", "transient_local", "volatile", "unknown", "best_available"},
+    "liveliness": {"system_default", "automatic", "manual_by_topic", "unknown", "best_available"},
+}
+
+
+class _Rosbag2Dumper(yaml.SafeDumper):
+    """YAML in yaml-cpp's style: nested block sequences indented, ``""`` for empty strings, ``~`` for null,
+    repeated values written out (no anchors)."""
+
+    def ignore_aliases(self, data: Any) -> bool:
+        return True
+
+    def increase_indent(self, flow: bool = False, indentless: bool = False) -> None:
+        super().increase_indent(flow, False)
+
+
+_Rosbag2Dumper.add_representer(type(None), lambda d, _: d.represent_scalar("tag:yaml.org,2002:null", "~"))
+_Rosbag2Dumper.add_representer(
+    str, lambda d, s: d.represent_scalar("tag:yaml.org,2002:str", s, style='"' if s == "" else None))
+
+
+def dump_yaml(data: Any) -> str:
+    """YAML text as rosbag2 (yaml-cpp ``YAML::Dump``) writes it: key order kept, no trailing newline."""
+    return yaml.dump(data, Dumper=_Rosbag2Dumper, sort_keys=False, width=float("inf")).rstrip("\n")
+
+
+def _field(profile: Any, key: str) -> Any:
+    """A QoS field of a dict or of an object with attributes (e.g. ``rclpy.qos.QoSProfile``)."""
+    if isinstance(profile, Mapping):
+        return profile.get(key, DEFAULT_QOS[key])
+    return getattr(profile, key, DEFAULT_QOS[key])
+
+
+def _policy(key: str, value: Any) -> str:
+    """A policy as rmw's string name: accepts the name or an enum member (rclpy's ``HistoryPolicy.KEEP_ALL``)."""
+    name = getattr(value, "name", value)
+    name = str(name).lower()
+    if name not in _POLICIES[key]:
+        raise ValueError(f"QoS {key} must be one of {sorted(_POLICIES[key])}, got {value!r}")
+    return name
+
+
+def _duration(value: Any) -> dict[str, int]:
+    """rmw_time_t {sec, nsec} from int nanoseconds, a {sec, nsec} dict or an rclpy Duration."""
+    if isinstance(value, Mapping):
+        return {"sec": int(value["sec"]), "nsec": int(value["nsec"])}
+    sec, nsec = divmod(int(getattr(value, "nanoseconds", value)), 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def qos_dict(profile: Any = None) -> dict[str, Any]:
+    """One QoS profile in rosbag2's version-9 layout; missing fields come from :data:`DEFAULT_QOS`."""
+    profile = {} if profile is None else profile
+    if isinstance(profile, Mapping) and not set(profile) <= set(DEFAULT_QOS):
+        raise ValueError(f"unknown QoS keys {sorted(set(profile) - set(DEFAULT_QOS))}")
+    depth = int(_field(profile, "depth"))
+    if depth < 0:
+        raise ValueError(f"QoS depth must be >= 0, got {depth}")
+    return {
+        "history": _policy("history", _field(profile, "history")),
+        "depth": depth,
+        "reliability": _policy("reliability", _field(profile, "reliability")),
+        "durability": _policy("durability", _field(profile, "durability")),
+        "deadline": _duration(_field(profile, "deadline")),
+        "lifespan": _duration(_field(profile, "lifespan")),
+        "liveliness": _policy("liveliness", _field(profile, "liveliness")),
+        "liveliness_lease_duration": _duration(_field(profile, "liveliness_lease_duration")),
+        "avoid_ros_namespace_conventions": bool(_field(profile, "avoid_ros_namespace_conventions")),
+    }
+
+
+def offered_qos(qos: Any = None) -> list[dict[str, Any]]:
+    """The offered QoS list of a topic: ``None`` (default), one profile, or one profile per publisher."""
+    if isinstance(qos, Sequence) and not isinstance(qos, (str, bytes)):
+        return [qos_dict(p) for p in qos]
+    return [qos_dict(qos)]
+
+
+@dataclass
+class _Topic:
+    name: str
+    type_name: str
+    qos: list[dict[str, Any]]
+    type_hash: str
+    channel_id: int = 0
+    count: int = 0
+
+
+@dataclass
+class _Stats:
+    count: int = 0
+    first_ns: int = NS_MAX
+    last_ns: int = -1
+
+    def add(self, log_time_ns: int) -> None:
+        self.count += 1
+        self.first_ns = min(self.first_ns, log_time_ns)
+        self.last_ns = max(self.last_ns, log_time_ns)
+
+    @property
+    def duration_ns(self) -> int:
+        return self.last_ns - self.first_ns if self.count else 0
+
+
+class BagWriter:
+    """Write a rosbag2 (Jazzy, MCAP storage) bag directory; see the module docstring for the format.
+
+    ``directory`` is created (it may exist if empty); the MCAP file is ``<dirname>_0.mcap`` unless
+    ``storage_name`` gives another file name. Usable as a context manager.
+    """
+
+    def __init__(self, directory: str | os.PathLike, storage_name: str | None = None) -> None:
+        self.directory = Path(directory)
+        self.storage_name = storage_name or f"{self.directory.name}_0.mcap"
+        self.mcap_path = self.directory / self.storage_name
+        self.metadata_path = self.directory / "metadata.yaml"
+        self.ros_distro = os.environ.get("ROS_DISTRO", "jazzy")
+        self._topics: dict[str, _Topic] = {}
+        self._schemas: dict[str, int] = {}
+        self._stats = _Stats()
+        self._pending: collections.deque = collections.deque()  # writer-thread work, in call order
+        self._topics_lock = threading.Lock()
+        self._closing = False
+        self._error: BaseException | None = None
+        self._file = self._create()
+        self._mcap = Writer(self._file, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
+        self._mcap.start(profile="ros2", library=LIBRARY)
+        self._write_metadata_record()
+        self._thread = threading.Thread(target=self._run, name=f"bag-writer:{self.directory.name}")
+        self._thread.start()
+
+    def _create(self) -> BinaryIO:
+        self.directory.mkdir(parents=True, exist_ok=True)
+        if any(self.directory.iterdir()):
+            raise FileExistsError(f"bag directory {self.directory} already exists and is not empty")
+        return open(self.mcap_path, "xb")
+
+    @property
+    def closed(self) -> bool:
+        return self._closing
+
+    def add_topic(self, name: str, type_name: str, qos: Any = None) -> None:
+        """Declare a topic. ``qos``: a dict (keys ``history``, ``depth``, ``reliability``, ``durability``, and
+        optionally ``deadline``/``lifespan``/``liveliness_lease_duration`` in ns, ``liveliness``,
+        ``avoid_ros_namespace_conventions``), an ``rclpy.qos.QoSProfile``, or a list of them (one per
+        publisher); ``None`` means :data:`DEFAULT_QOS`. Re-declaring a topic with the same type is a no-op."""
+        self._check_open()
+        with self._topics_lock:
+            known = self._topics.get(name)
+            if known is not None:
+                if known.type_name != type_name:
+                    raise ValueError(f"topic {name} already declared with type {known.type_name}")
+                return
+            topic = _Topic(name, type_name, offered_qos(qos), type_hash(type_name))
+            definition = schema_text(type_name)
+            self._topics[name] = topic
+            self._pending.append((topic, definition))
+
+    def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Queue one CDR-serialized message (``rclpy.serialization.serialize_message`` or a raw subscription)."""
+        self._check_open()
+        if topic not in self._topics:
+            raise KeyError(f"unknown topic {topic!r}: call add_topic() first")
+        payload = data if type(data) is bytes else bytes(data)
+        log_ns = int(log_time_ns)
+        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+        while len(self._pending) > MAX_QUEUED and self._thread.is_alive():
+            time.sleep(POLL_S)
+        self._pending.append((topic, payload, log_ns, pub_ns))
+
+    def close(self) -> None:
+        """Finish the bag: drain queued messages, write the MCAP summary and ``metadata.yaml``. Idempotent and
+        safe to call from a signal handler."""
+        self._closing = True
+        if threading.current_thread() is not self._thread:
+            self._thread.join()
+        self._raise_error()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def _check_open(self) -> None:
+        self._raise_error()
+        if self._closing:
+            raise ValueError(f"bag {self.directory} is closed")
+
+    def _raise_error(self) -> None:
+        if self._error is not None:
+            raise RuntimeError(f"writing bag {self.directory} failed") from self._error
+
+    # --- writer thread ---------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            while True:
+                stopping = self._closing or not threading.main_thread().is_alive()
+                drained = self._drain()
+                if stopping:
+                    break
+                if not drained:
+                    time.sleep(POLL_S)
+            self._closing = True
+            self._finish()
+        except BaseException as error:  # reported to the caller by close() / write()
+            self._error = error
+            self._closing = True
+            self._file.close()
+
+    def _drain(self) -> bool:
+        items = self._pending
+        drained = False
+        while items:
+            item = items.popleft()
+            if isinstance(item[0], _Topic):
+                self._register(*item)
+            else:
+                self._add_message(*item)
+            drained = True
+        return drained
+
+    def _register(self, topic: _Topic, definition: str) -> None:
+        schema_id = self._schemas.get(topic.type_name)
+        if schema_id is None:
+            schema_id = self._mcap.register_schema(topic.type_name, "ros2msg", definition.encode("utf-8"))
+            self._schemas[topic.type_name] = schema_id
+        topic.channel_id = self._mcap.register_channel(
+            topic.name, "cdr", schema_id,
+            {"offered_qos_profiles": dump_yaml(topic.qos), "topic_type_hash": topic.type_hash})
+
+    def _add_message(self, name: str, data: bytes, log_ns: int, pub_ns: int) -> None:
+        topic = self._topics[name]
+        self._mcap.add_message(topic.channel_id, log_time=log_ns, data=data, publish_time=pub_ns, sequence=0)
+        topic.count += 1
+        self._stats.add(log_ns)
+
+    def _finish(self) -> None:
+        self._write_metadata_record()
+        self._mcap.finish()
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        tmp = self.metadata_path.with_suffix(".yaml.tmp")
+        tmp.write_text(dump_yaml({"rosbag2_bagfile_information": self._metadata()}), encoding="utf-8")
+        os.replace(tmp, self.metadata_path)
+
+    def _write_metadata_record(self) -> None:
+        self._mcap.add_metadata("rosbag2", {"serialized_metadata": dump_yaml(self._metadata())})
+
+    def _metadata(self) -> dict[str, Any]:
+        """The bag metadata (rosbag2 ``BagMetadata``, version 9) for the messages written so far."""
+        stats = self._stats
+        start = {"nanoseconds_since_epoch": stats.first_ns}
+        duration = {"nanoseconds": stats.duration_ns}
+        topics = [{
+            "topic_metadata": {
+                "name": t.name,
+                "type": t.type_name,
+                "serialization_format": "cdr",
+                "offered_qos_profiles": t.qos,
+                "type_description_hash": t.type_hash,
+            },
+            "message_count": t.count,
+        } for t in list(self._topics.values()) if t.channel_id]
+        return {
+            "version": METADATA_VERSION,
+            "storage_identifier": STORAGE_IDENTIFIER,
+            "duration": duration,
+            "starting_time": start,
+            "message_count": stats.count,
+            "topics_with_message_count": topics,
+            "compression_format": "",
+            "compression_mode": "",
+            "relative_file_paths": [self.storage_name],
+            "files": [{"path": self.storage_name, "starting_time": start, "duration": duration,
+                       "message_count": stats.count}],
+            "custom_data": None,
+            "ros_distro": self.ros_distro,
+        }
+
+
+class BagReader:
+    """Read a bag written by :class:`BagWriter` or rosbag2 (MCAP storage): a bag directory or a bare ``.mcap``."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self.files = self._mcap_files()
+
+    def _mcap_files(self) -> list[Path]:
+        if self.path.is_file():
+            return [self.path]
+        metadata = self.path / "metadata.yaml"
+        if metadata.is_file():
+            info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+            if info["storage_identifier"] != STORAGE_IDENTIFIER:
+                raise ValueError(f"{self.path}: storage {info['storage_identifier']!r} is not mcap")
+            return [self.path / PurePath(p).name for p in info["relative_file_paths"]]
+        files = sorted(self.path.glob("*.mcap"))
+        if not files:
+            raise FileNotFoundError(f"no metadata.yaml or .mcap file in {self.path}")
+        return files
+
+    def topics(self) -> dict[str, str]:
+        """Topic name -> type name (``pkg/msg/Type``)."""
+        out: dict[str, str] = {}
+        for path in self.files:
+            with open(path, "rb") as f:
+                summary = make_reader(f).get_summary()
+            if summary is None:
+                raise ValueError(f"{path} has no summary section (truncated bag?)")
+            for channel in summary.channels.values():
+                out[channel.topic] = summary.schemas[channel.schema_id].name
+        return out
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
+        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file."""
+        wanted = None if topics is None else list(topics)
+        for path in self.files:
+            with open(path, "rb") as f:
+                for schema, channel, message in make_reader(f).iter_messages(topics=wanted):
+                    yield channel.topic, schema.name, message.log_time, message.data
+
+    def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+        """``(topic, log_time_ns, message)`` deserialized into the generated ROS classes (no DDS needed)."""
+        from rclpy.serialization import deserialize_message
+
+        classes: dict[str, type] = {}
+        for topic, type_name, log_ns, data in self.messages(topics):
+            cls = classes.get(type_name)
+            if cls is None:
+                cls = classes[type_name] = message_class(type_name)
+            yield topic, log_ns, deserialize_message(data, cls)

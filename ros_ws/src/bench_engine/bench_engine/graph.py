@@ -1,0 +1,213 @@
+"""The node graph of a run, built from data: registered node kinds, each instantiated from the scenario.
+
+A node kind (:class:`NodeKind`, registered in the entry-point group ``tracking_bench.node_kinds``) says which
+of its instances a scenario holds, what each publishes and subscribes, and how to check its configuration.
+:func:`build_graph` asks every registered kind, resolves each subscribed topic to its one publisher, checks
+that the data flow is acyclic and adds the recorder. The launcher starts what the graph lists, every node
+finds its own topics here, and the readiness barrier uses :meth:`Graph.expected_subscribers`.
+
+Roles: ``source`` paces the run (the truth); ``sensor`` nodes turn the source's output into measurements
+(on replay the ``replay`` source publishes their recorded topics instead); ``estimator`` nodes consume
+any topics and publish estimates; the ``recorder`` writes every data topic. Sensors and estimators are
+paced (bench_engine.lockstep): any acyclic chain of them, e.g. camera -> identifier -> tracker -> attitude.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from bench_engine import plugins
+from bench_engine.config import ScenarioError, merge
+
+TRUTH_TOPIC = "/truth/state"
+CLOCK_TOPIC = "/clock"
+ACK_TOPIC = "/sim/ack"
+READY_TOPIC = "/sim/ready"
+DONE_TOPIC = "/sim/done"
+
+TRUTH_TYPE = "bench_msgs/msg/TruthState"
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+ESTIMATE_TYPE = "bench_msgs/msg/StateEstimate"
+ACK_TYPE = "bench_msgs/msg/StepAck"
+
+ROLES = ("source", "replay", "sensor", "estimator", "recorder")
+PACED_ROLES = ("sensor", "estimator")
+
+
+def measurement_topic(sensor: str) -> str:
+    return f"/{sensor}/measurement"
+
+
+def estimate_topic(node: str) -> str:
+    return f"/{node}/estimate"
+
+
+@dataclass
+class NodeSpec:
+    """One node of the run: its name, kind, role, ROS node class and data topics ({topic: type})."""
+
+    name: str
+    kind: str
+    role: str = ""
+    node: str = ""
+    """``module:Class`` of the node, in the package that registers the kind."""
+    publishes: dict[str, str] = field(default_factory=dict)
+    subscribes: dict[str, str] = field(default_factory=dict)
+    """Topic -> type; a kind may leave the type empty, the graph fills it from the topic's publisher."""
+
+
+@dataclass(frozen=True)
+class NodeKind:
+    """A registered kind of node. ``instances(cfg, requested)`` names the kind's nodes in a scenario
+    (``requested``: the run's --filters selection, or None); ``spec(cfg, name)`` gives one node's
+    :class:`NodeSpec` (topics); ``check(cfg, name)`` builds its core objects once and raises ScenarioError
+    naming a bad key; ``stage(cfg, name, run)`` builds the rclpy-free core the node and the in-process
+    runner (bench_engine.inprocess) drive."""
+
+    name: str
+    role: str
+    node: str
+    instances: Callable[[dict, list[str] | None], list[str]]
+    spec: Callable[[dict, str], NodeSpec]
+    check: Callable[[dict, str], None] | None = None
+    stage: Callable[[dict, str, dict], object] | None = None
+    order: int = 0
+    """Build order among kinds of one role (lower first)."""
+
+
+@dataclass
+class Graph:
+    nodes: list[NodeSpec]
+
+    def node(self, name: str) -> NodeSpec:
+        for spec in self.nodes:
+            if spec.name == name:
+                return spec
+        raise KeyError(f"no node '{name}' in this run; nodes: {[n.name for n in self.nodes]}")
+
+    def of_kind(self, kind: str) -> list[NodeSpec]:
+        return [n for n in self.nodes if n.kind == kind]
+
+    def of_role(self, *roles: str) -> list[NodeSpec]:
+        return [n for n in self.nodes if n.role in roles]
+
+    def expected_subscribers(self, topic: str) -> int:
+        return sum(topic in n.subscribes for n in self.nodes)
+
+    def data_topics(self) -> dict[str, str]:
+        """Every data topic of the run with its type (what the recorder records)."""
+        topics: dict[str, str] = {}
+        for spec in self.nodes:
+            topics.update(spec.publishes)
+        return topics
+
+    def paced_inputs(self) -> dict[str, list[str]]:
+        """Paced node -> the data topics it consumes (what bench_engine.lockstep.Pacer counts)."""
+        return {n.name: sorted(n.subscribes) for n in self.of_role(*PACED_ROLES)}
+
+    def topological(self) -> list[NodeSpec]:
+        """Nodes, every publisher before its subscribers (the recorder last)."""
+        publisher = {t: n.name for n in self.nodes for t in n.publishes}
+        order: list[NodeSpec] = []
+        placed: set[str] = set()
+        remaining = list(self.nodes)
+        while remaining:
+            ready = [n for n in remaining
+                     if all(publisher.get(t) in placed or publisher.get(t) == n.name for t in n.subscribes)]
+            if not ready:
+                names = sorted(n.name for n in remaining)
+                raise ScenarioError(f"the nodes {names} consume each other's topics in a cycle: "
+                                    "the data flow of a run must be acyclic")
+            order += ready
+            placed.update(n.name for n in ready)
+            remaining = [n for n in remaining if n.name not in placed]
+        return order
+
+    def start_order(self) -> list[NodeSpec]:
+        """Subscribers before their publishers (so nothing is published to nobody), the source last."""
+        return list(reversed(self.topological()))
+
+
+def resolve_filters(cfg: dict, requested: list[str] | None) -> list[str]:
+    """The filter node names of the run: ``requested`` or the scenario's ``default_filters``."""
+    names = requested or cfg.get("default_filters") or list((cfg.get("filters") or {}).keys())
+    if not names:
+        raise ScenarioError("no filters requested and the scenario has no 'default_filters'")
+    if len(set(names)) != len(names):
+        raise ScenarioError(f"filter names must be unique, got {names}")
+    for name in names:
+        if not name.replace("_", "").isalnum():
+            raise ScenarioError(f"filter name '{name}' must be letters, digits and underscores")
+    return list(names)
+
+
+def filter_config(cfg: dict, name: str) -> dict:
+    """A filter's settings: ``filter_defaults`` merged with ``filters.NAME`` (type defaults to NAME)."""
+    merged = merge(cfg.get("filter_defaults") or {}, (cfg.get("filters") or {}).get(name) or {})
+    merged.setdefault("type", name)
+    return merged
+
+
+def node_kinds() -> dict[str, NodeKind]:
+    """Every registered node kind by name."""
+    return plugins.registered("node_kinds")
+
+
+def _kind_nodes(kind: NodeKind, cfg: dict, requested: list[str] | None) -> list[NodeSpec]:
+    specs = []
+    for name in kind.instances(cfg, requested):
+        spec = kind.spec(cfg, name)
+        spec.kind, spec.role, spec.node = kind.name, kind.role, kind.node
+        specs.append(spec)
+    return specs
+
+
+def build_graph(cfg: dict, filters: list[str] | None, record: bool = True, source: str = "truth") -> Graph:
+    """Nodes of a run: the pacing source (``truth``, or the bag ``player`` on replay), every registered
+    sensor-role and estimator-role kind's instances, and the recorder. Raises ScenarioError for a topic
+    nobody publishes, a topic two nodes publish, a duplicate node name or a cycle."""
+    kinds = sorted(node_kinds().values(), key=lambda k: (ROLES.index(k.role), k.order, k.name))
+    by_name = {k.name: k for k in kinds}
+    if source not in by_name or by_name[source].role not in ("source", "replay"):
+        sources = [k.name for k in kinds if k.role in ("source", "replay")]
+        raise ScenarioError(f"unknown pacing source {source!r}; registered sources: {sources}")
+    truth = [s for k in kinds if k.role == "source" for s in _kind_nodes(k, cfg, filters)]
+    sensors = [s for k in kinds if k.role == "sensor" for s in _kind_nodes(k, cfg, filters)]
+    estimators = [s for k in kinds if k.role == "estimator" for s in _kind_nodes(k, cfg, filters)]
+    if by_name[source].role == "source":
+        nodes = [s for s in truth if s.kind == source] + sensors
+    else:  # replay: the player publishes what the truth and the sensors recorded
+        player = _kind_nodes(by_name[source], cfg, filters)[0]
+        for spec in truth + sensors:
+            player.publishes.update(spec.publishes)
+        nodes = [player]
+    nodes += estimators
+    _resolve_topics(nodes)
+    if record:
+        recorder = [s for k in kinds if k.role == "recorder" for s in _kind_nodes(k, cfg, filters)]
+        for spec in recorder:
+            for node in nodes:
+                spec.subscribes.update(node.publishes)
+        nodes += recorder
+    graph = Graph(nodes)
+    graph.topological()
+    return graph
+
+
+def _resolve_topics(nodes: list[NodeSpec]) -> None:
+    names = [n.name for n in nodes]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ScenarioError(f"node names must be unique across sensors, filters and stages; repeated: {duplicates}")
+    publisher: dict[str, NodeSpec] = {}
+    for node in nodes:
+        for topic in node.publishes:
+            if topic in publisher:
+                raise ScenarioError(f"topic {topic} is published by both '{publisher[topic].name}' and '{node.name}'")
+            publisher[topic] = node
+    for node in nodes:
+        for topic in node.subscribes:
+            if topic not in publisher:
+                raise ScenarioError(f"node '{node.name}' consumes {topic}, which no node of the run publishes; "
+                                    f"published topics: {sorted(publisher)}")
+            node.subscribes[topic] = publisher[topic].publishes[topic]

@@ -1,0 +1,220 @@
+"""Start a run's node graph (one process per node, or all in one process), supervise it, keep the bag whole.
+
+Everything is validated before anything starts: the scenario's top-level keys, every registered section and
+every node's core objects are built once in the launcher, so a bad key stops the run with a message naming it.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from bench_engine import plugins
+from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from bench_engine.domains import DomainInUse, reserve
+from bench_engine.graph import Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.timegrid import build_time
+
+ENGINE_KEYS = ("scenario", "description", "seed", "time", "default_filters", "variants", "sweeps")
+"""Top-level keys the engine reads itself; the other sections are registered (``tracking_bench.sections``)
+or read by the node kinds (``sensors``, ``filters``, ``filter_defaults``)."""
+NODE_SECTIONS = ("sensors", "filters", "filter_defaults")
+MAX_DOMAIN_ID = 101
+
+
+@dataclass
+class RunPlan:
+    out: Path
+    run: dict
+    graph: Graph
+    config_path: Path
+    logs: Path = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.logs = self.out / "logs"
+
+    @property
+    def bag_dir(self) -> Path:
+        return Path(self.run["bag_dir"])
+
+
+def local_dds_env(domain_id: int) -> dict[str, str]:
+    """Environment for DDS on this host only, on its own domain."""
+    if not 0 <= domain_id <= MAX_DOMAIN_ID:
+        raise ScenarioError(f"ROS domain id must be in [0, {MAX_DOMAIN_ID}], got {domain_id}")
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    # One BLAS thread per process: the graph's processes already share the cores, and threaded BLAS on
+    # 6x6 matrices costs milliseconds per call under load.
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    return env
+
+
+def validate(cfg: dict, filters: list[str], source: str) -> None:
+    """Build every object of the run once; raises ScenarioError naming the first bad key or value.
+
+    Checks the top-level keys, the time grid, every registered section (``tracking_bench.sections``: a
+    function cfg -> typed object) and each node's core objects (its kind's ``check``)."""
+    sections = plugins.registered("sections")
+    top = Section(cfg, "")
+    top.mark(*ENGINE_KEYS, *NODE_SECTIONS, *sections)
+    top.finish()
+    build_time(cfg)
+    for read in sections.values():
+        read(cfg)
+    kinds = node_kinds()
+    for spec in build_graph(cfg, filters, record=False, source=source).nodes:
+        check = kinds[spec.kind].check
+        if check is not None:
+            check(cfg, spec.name)
+
+
+def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,
+                overrides: list[str] = (), variant: str | None = None, record: bool = True,
+                source: str = "truth", extra: dict | None = None, cfg: dict | None = None) -> RunPlan:
+    """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``."""
+    if cfg is None:
+        cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
+    if seed is not None:
+        cfg = {**cfg, "seed": int(seed)}
+    names = resolve_filters(cfg, filters)
+    validate(cfg, names, source)
+    graph = build_graph(cfg, names, record, source)
+    out = Path(out).resolve()
+    if record and (out / "bag").exists():
+        raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
+    out.mkdir(parents=True, exist_ok=True)
+    run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
+           "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0))}
+    run.update(extra or {})
+    config_path = out / "run_config.yaml"
+    config_path.write_text(yaml.safe_dump(run, sort_keys=False))
+    return RunPlan(out, run, graph, config_path)
+
+
+def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False) -> int:
+    """One process per node; returns 0 on success, non-zero (naming the failed node) otherwise."""
+    env = local_dds_env(domain_id)
+    plan.logs.mkdir(exist_ok=True)
+    procs: dict[str, subprocess.Popen] = {}
+    interrupted = []
+
+    def forward(signum, _frame):
+        interrupted.append(signum)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for spec in plan.graph.start_order():
+            log = open(plan.logs / f"{spec.name}.log", "w")
+            procs[spec.name] = subprocess.Popen(
+                [sys.executable, "-m", spec.node.split(":")[0], "--name", spec.name, "--config", str(plan.config_path)],
+                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        return _supervise(plan, procs, interrupted, timeout_s, quiet)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
+    deadline = time.monotonic() + timeout_s
+    failed: list[str] = []
+    while any(p.poll() is None for p in procs.values()):
+        failed = [n for n, p in procs.items() if p.poll() not in (None, 0)]
+        if failed or interrupted or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    if failed or interrupted or time.monotonic() > deadline:
+        _stop_all(procs)
+    failed = [n for n, p in procs.items() if p.returncode not in (0, None)]
+    if interrupted:
+        print(f"[launcher] interrupted; bag closed at {plan.bag_dir}", file=sys.stderr)
+        return 128 + interrupted[0]
+    if time.monotonic() > deadline:
+        print(f"[launcher] timed out after {timeout_s:.0f} s", file=sys.stderr)
+        return 124
+    for name in failed:
+        print(f"[launcher] node '{name}' failed (exit code {procs[name].returncode}); "
+              f"log: {plan.logs / (name + '.log')}", file=sys.stderr)
+        if not quiet:
+            tail = (plan.logs / f"{name}.log").read_text(errors="replace").splitlines()[-8:]
+            print("\n".join(f"    {line}" for line in tail), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _stop_all(procs: dict) -> None:
+    """SIGINT every node except the recorder, then the recorder (it closes the bag), escalating if needed."""
+    others = [p for n, p in procs.items() if n != "recorder"]
+    for group in (others, [procs["recorder"]] if "recorder" in procs else []):
+        for p in group:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in group:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
+              tag: str = "launch", pin: bool = True) -> int:
+    """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it."""
+    try:
+        reservation = reserve(domain_id)
+    except DomainInUse as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"[{tag}] {plan.run['scenario'].get('scenario')}: nodes {[n.name for n in plan.graph.nodes]}, "
+          f"ROS_DOMAIN_ID={reservation.domain}, out {plan.out}", file=sys.stderr)
+    try:
+        if single_process:
+            return run_single_process(plan, reservation.domain, executor, pin)
+        return run_multiprocess(plan, reservation.domain)
+    finally:
+        reservation.release()
+
+
+def node_class(node: str) -> type:
+    """The class a NodeSpec names as ``module:Class``."""
+    module, name = node.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def pin_to_one_cpu(domain_id: int) -> int | None:
+    """Restrict this thread, and every thread it starts from now on, to one of the CPUs it may use; parallel
+    runs (distinct domains) get different CPUs. Returns the CPU, or None when there is only one.
+
+    Why: in one process the Python callbacks run one at a time, and spreading the DDS delivery threads over
+    other cores only adds cross-core wake-ups. leo_radar, EKF + UKF + recorder on 2 cores (bench_graph.py):
+    88x real time unpinned, 121x pinned."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        return None
+    cpu = cpus[domain_id % len(cpus)]
+    os.sched_setaffinity(0, {cpu})
+    return cpu
+
+
+def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", pin: bool = True) -> int:
+    """All nodes in this process on one executor; on one CPU unless ``pin`` is off (``pin_to_one_cpu``)."""
+    import rclpy
+
+    from bench_engine.bench_node import spin_nodes
+
+    if pin:
+        pin_to_one_cpu(domain_id)
+    os.environ.update(local_dds_env(domain_id))
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    try:
+        nodes = [node_class(spec.node)(spec.name, plan.run) for spec in plan.graph.start_order()]
+        return spin_nodes(nodes, executor)
+    finally:
+        rclpy.try_shutdown()

@@ -1,0 +1,67 @@
+"""The bench's extension points: components registered as Python entry points, looked up by name.
+
+A package adds a node kind, truth model, sensor type, message codec, estimator, dynamics model, initialiser,
+metric, offline estimator, study, scenario or scenario section by naming it in its ``setup.py`` ``entry_points`` under one of
+:data:`GROUPS` (as Stone Soup's ``plugins.py`` loads its components from package metadata). Nothing generic
+is edited: the graph, the launcher, the scorer and the report find every registered component here.
+
+    entry_points={"tracking_bench.sensors": ["ground_radar = radar_sensor.sensor:GROUND_RADAR"]}
+
+Entry points are read from the installed packages' metadata (``pip install -e`` in ``make setup``, or a
+colcon install); any ``*.dist-info`` directory on ``sys.path`` counts, which is how the tests register a
+throw-away package.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+from importlib.metadata import entry_points
+
+from bench_engine.config import ScenarioError
+
+GROUPS = {
+    "node_kinds": "tracking_bench.node_kinds",      # NodeKind (bench_engine.graph)
+    "truth_models": "tracking_bench.truth_models",  # builder(Section, cfg, grid) -> Truth
+    "sensors": "tracking_bench.sensors",            # SensorType
+    "codecs": "tracking_bench.codecs",              # message codec (encode item -> msg, decode msg -> item)
+    "estimators": "tracking_bench.estimators",      # Filter class
+    "dynamics": "tracking_bench.dynamics",          # builder(Section, cfg) -> DynamicsModel
+    "initialisers": "tracking_bench.initialisers",  # builder(Section, cfg, dynamics) -> Initialiser
+    "metrics": "tracking_bench.metrics",            # Metric (bench_eval.scoring)
+    "offline": "tracking_bench.offline",            # OfflineEstimator (bench_eval.offline)
+    "studies": "tracking_bench.studies",            # Study (bench_eval.study)
+    "scenarios": "tracking_bench.scenarios",        # path of a scenario YAML file
+    "sections": "tracking_bench.sections",          # top-level scenario section -> reader(cfg) (strict)
+}
+
+
+@lru_cache(maxsize=None)
+def _entry_points(group: str) -> dict:
+    found = {}
+    for ep in entry_points(group=GROUPS[group]):
+        found.setdefault(ep.name, ep)  # the first on sys.path wins, as for imports
+    return found
+
+
+def names(group: str) -> list[str]:
+    """Registered names of a group, sorted."""
+    return sorted(_entry_points(group))
+
+
+@lru_cache(maxsize=None)
+def load(group: str, name: str) -> object:
+    """The component registered as ``name`` in ``group``; ScenarioError naming the registered ones if absent."""
+    found = _entry_points(group)
+    if name not in found:
+        raise ScenarioError(f"no {group.replace('_', ' ')} named {name!r} is registered; "
+                            f"registered: {', '.join(sorted(found)) or 'none'} (entry-point group {GROUPS[group]})")
+    return found[name].load()
+
+
+def registered(group: str) -> dict[str, object]:
+    """Every component of a group, loaded: {name: component}."""
+    return {name: load(group, name) for name in names(group)}
+
+
+def origin(group: str, name: str) -> str:
+    """``module:attribute`` a registered name points at (for error messages and the dependency test)."""
+    return _entry_points(group)[name].value

@@ -1,0 +1,71 @@
+"""Recorder node: writes every data topic of the run, as serialized CDR, to a rosbag2-style MCAP bag.
+
+Subscribes with ``raw=True`` (no deserialisation) to every topic the graph's nodes publish. On ``/sim/done``
+it drains what is still in flight (until the other nodes have left, or nothing arrived for a while) and
+closes the bag; SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from functools import partial
+from pathlib import Path
+
+import yaml
+
+from bench_engine.bag import BagWriter
+from bench_engine.bench_node import DATA_QOS, BenchNode, node_main
+from bench_engine.msg_schema import message_class
+
+IDLE_AFTER_DONE_S = 0.5
+MAX_DRAIN_S = 15.0
+
+
+class RecorderNode(BenchNode):
+    """rosbag2-compatible MCAP recorder."""
+
+    def setup(self) -> None:
+        self.bag = BagWriter(self.run["bag_dir"])
+        # The scorer needs the scenario (sensor models, scoring options): the bag carries its run config.
+        Path(self.run["bag_dir"], "run_config.yaml").write_text(yaml.safe_dump(self.run, sort_keys=False))
+        self.counts: dict[str, int] = {}
+        self._last_rx = time.monotonic()
+        self._drain_started = None
+        for topic, type_name in sorted(self.spec.subscribes.items()):
+            self.bag.add_topic(topic, type_name, DATA_QOS)
+            self.counts[topic] = 0
+            self.data_subscription(message_class(type_name), topic, partial(self._on_message, topic), raw=True)
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        now_ns = time.time_ns()
+        self.bag.write(topic, data, now_ns, now_ns)
+        self.counts[topic] += 1
+        self._last_rx = time.monotonic()
+
+    def on_done(self, last_step: int) -> None:
+        self._drain_started = time.monotonic()
+        self.create_timer(0.1, self._check_drained)
+
+    def _check_drained(self) -> None:
+        if self.finished:
+            return
+        now = time.monotonic()
+        idle = now - self._last_rx
+        others_gone = all(self.count_publishers(t) == 0 for t in self.counts)
+        if (idle > IDLE_AFTER_DONE_S and others_gone) or idle > 2 * IDLE_AFTER_DONE_S \
+                or now - self._drain_started > MAX_DRAIN_S:
+            self.close()
+            self.finished = True
+
+    def close(self) -> None:
+        """Close the bag (idempotent; also called on SIGINT/SIGTERM)."""
+        self.bag.close()
+
+
+
+def main() -> int:
+    return node_main(RecorderNode)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

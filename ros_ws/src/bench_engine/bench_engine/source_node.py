@@ -1,0 +1,132 @@
+"""The pacing source of a run (truth propagator or bag player): readiness barrier, paced stepping, done.
+
+:class:`CoreSourceNode` is the ROS shell of a registered source kind (the truth): it publishes what the kind's
+:class:`bench_engine.stage.Source` core returns for each step, encoded by the registered codecs, and /clock.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from rclpy.duration import Duration
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String, UInt64
+
+from bench_msgs.msg import StepAck
+from bench_engine.bench_node import DATA_QOS, FLUSH_TIMEOUT_S, LATCHED_QOS, BenchNode, node_main, ns_to_stamp
+from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, node_kinds
+from bench_engine.lockstep import Pacer
+from bench_engine.msg_schema import message_class
+from bench_engine.stage import codec
+
+
+class SourceNode(BenchNode):
+    """Publishes steps 0..steps-1 as fast as the slowest consumer allows; subclasses publish one step."""
+
+    steps: int = 0
+
+    def setup(self) -> None:
+        self._created = time.monotonic()
+        self.pacer = Pacer(self.graph.paced_inputs(), window=int(self.cfg.get("time", {}).get("pacing_window", 0)))
+        self._waiting_for = {n.name for n in self.graph.nodes if n.name != self.get_name()}
+        self._next = 0
+        self._started = None
+        self._done_sent = False
+        self._ready_deadline = time.monotonic() + float(self.run.get("ready_timeout_s", 60.0))
+        self.clock_pub = self.data_publisher(Clock, CLOCK_TOPIC)
+        self.done_pub = self.create_publisher(UInt64, DONE_TOPIC, LATCHED_QOS)
+        self.create_subscription(StepAck, ACK_TOPIC, self._on_ack, DATA_QOS)
+        self.create_subscription(String, READY_TOPIC, self._on_ready_msg, LATCHED_QOS)
+        self._watchdog = self.create_timer(0.5, self._check_start_timeout)
+
+    def publish_step(self, k: int) -> None:
+        """Publish everything of step k (subclass)."""
+        raise RuntimeError("SourceNode subclasses implement publish_step")
+
+    def publish_data(self, topic: str, msg) -> None:
+        """Publish on a data topic and count it for the pacer (its subscribers acknowledge it)."""
+        super().publish_data(topic, msg)
+        self.pacer.on_published(topic)
+
+    def publish_clock(self, t_ns: int) -> None:
+        msg = Clock()
+        ns_to_stamp(t_ns, msg.clock)
+        self.clock_pub.publish(msg)
+
+    # -- protocol ---------------------------------------------------------------------------------------
+    def _on_ready_msg(self, msg: String) -> None:
+        self._waiting_for.discard(msg.data)
+        self._maybe_start()
+
+    def on_ready(self) -> None:
+        self._maybe_start()
+
+    def _maybe_start(self) -> None:
+        if self._started is None and self._announced and not self._waiting_for:
+            self._started = time.monotonic()
+            self._watchdog.cancel()
+            self.get_logger().info(f"all nodes ready after {self._started - self._created:.2f} s; "
+                                   f"stepping {self.steps} steps")
+            self._pump()
+
+    def _check_start_timeout(self) -> None:
+        if self._started is None and time.monotonic() > self._ready_deadline:
+            self.fail(f"nodes never became ready: {sorted(self._waiting_for)} "
+                      "(did one of them fail at start-up?)")
+
+    def _on_ack(self, msg: StepAck) -> None:
+        self.pacer.on_ack(msg.node, msg.count, dict(zip(msg.topics, msg.published)))
+        if self._started is not None:
+            self._pump()
+
+    def _pump(self) -> None:
+        while self._next < self.steps and self.pacer.can_publish():
+            self.publish_step(self._next)
+            self._next += 1
+        if self._next >= self.steps and not self._done_sent and self.pacer.complete():
+            self._finish_run()
+
+    def _finish_run(self) -> None:
+        self._done_sent = True
+        stepping = time.monotonic() - self._started
+        self.done_pub.publish(UInt64(data=self.steps - 1))
+        # every node must hear "done" before this node (the only publisher of it) goes away
+        if not self.done_pub.wait_for_all_acked(Duration(seconds=FLUSH_TIMEOUT_S)):
+            self.get_logger().warning(f"{DONE_TOPIC}: not every node acknowledged it in time")
+        timing = {"startup_s": round(self._started - self._created, 3), "stepping_s": round(stepping, 3),
+                  "steps": self.steps}
+        self.get_logger().info(f"{self.steps} steps in {stepping:.2f} s "
+                               f"({self.steps / max(stepping, 1e-9):.0f} steps/s)")
+        if self.run.get("out"):
+            Path(self.run["out"], "timing.json").write_text(json.dumps(timing, indent=1))
+        self.flush_and_finish()
+
+
+class CoreSourceNode(SourceNode):
+    """The ROS shell of a registered source kind: publishes its core's items of each step, then /clock."""
+
+    def setup(self) -> None:
+        self.core = node_kinds()[self.spec.kind].stage(self.cfg, self.get_name(), self.run)
+        self.steps = self.core.steps
+        super().setup()
+        self.codecs = {}
+        for topic, type_name in self.spec.publishes.items():
+            if topic != CLOCK_TOPIC:
+                self.data_publisher(message_class(type_name), topic)
+                self.codecs[topic] = (codec(type_name), message_class(type_name))
+
+    def publish_step(self, k: int) -> None:
+        for topic, item in self.core.outputs(k):
+            encoder, msg_type = self.codecs[topic]
+            self.publish_data(topic, encoder.encode(item, msg_type))
+        self.publish_clock(self.core.t_ns(k))
+
+
+def main() -> int:
+    return node_main(CoreSourceNode)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,39 @@
+"""The lock-step time grid of a run, from the scenario's ``time`` section."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench_engine.config import Section
+
+
+@dataclass(frozen=True)
+class TimeGrid:
+    """Lock-step grid: step k happens at t = start + k dt (integer nanoseconds, no drift)."""
+
+    start_ns: int
+    dt_ns: int
+    steps: int
+
+    @property
+    def dt(self) -> float:
+        return self.dt_ns * 1e-9
+
+    def t_ns(self, k: int) -> int:
+        return self.start_ns + k * self.dt_ns
+
+    def times(self) -> np.ndarray:
+        return (self.start_ns + np.arange(self.steps, dtype=np.int64) * self.dt_ns) * 1e-9
+
+
+def build_time(cfg: dict) -> TimeGrid:
+    """The grid of ``time``: start, dt, duration [s] (steps = duration / dt + 1), pacing_window."""
+    sec = Section(cfg.get("time"), "time")
+    start = sec.non_negative("start")
+    dt = sec.positive("dt")
+    duration = sec.positive("duration")
+    sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
+    sec.finish()
+    dt_ns = int(round(dt * 1e9))
+    return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1)

@@ -1,0 +1,29 @@
+"""ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
+
+The entry points register this package's components with the bench (bench_engine.plugins)."""
+from setuptools import find_packages, setup
+
+PACKAGE = "bench_studies"
+
+setup(
+    name=PACKAGE,
+    version="0.2.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={PACKAGE: ["*/*.yaml"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="Tracking bench team",
+    maintainer_email="bench@example.org",
+    description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
+    license="Apache-2.0",
+    entry_points={
+        "tracking_bench.scenarios": [
+            "leo_radar = bench_studies.leo_radar:SCENARIO",
+            "formation_pf = bench_studies.formation_pf:SCENARIO",
+            "formation_cqkf = bench_studies.formation_cqkf:SCENARIO"]
+    },
+)
