@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from bench_engine.config import load_scenario
+from bench_engine.inprocess import run_in_process
 from orbit_sim.truth import build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters.builders import build_filter_stack
@@ -52,15 +53,12 @@ def test_weighted_moments_of_equal_weights_are_the_sample_moments():
 
 def test_the_sampled_cost_is_the_batch_cost_on_the_radar_problem():
     cfg = load_scenario("leo_radar", ["time.duration=3", "sensors.radar.p_detect=1.0"])
-    truth, sensor = build_truth(cfg), build_sensor(cfg, "radar")
-    stack, rng = build_filter_stack(cfg, "ukf"), np.random.default_rng(2)
-    batch = None
-    for k, (t, x) in enumerate(zip(truth.grid.times(), truth.states)):
-        z = sensor.observe(x, t, k, rng)
-        if batch is None:
-            batch = PassBatch(stack.filter.dynamics, *stack.initialise(z, sensor.R, sensor, t), t)
-        else:
-            batch.add(t, z, sensor.R, sensor.model)
+    run = run_in_process(cfg, ["ukf"], seed=2)
+    truth, sensor, stack = build_truth(cfg), build_sensor(cfg, "radar"), build_filter_stack(cfg, "ukf")
+    first, *scans = run.items["/radar/measurement"]
+    batch = PassBatch(stack.filter.dynamics, *stack.initialise(first.z, first.R, sensor, first.t), first.t)
+    for m in scans:
+        batch.add(m.t, m.z, m.R, sensor.model)
     X0 = truth.states[0] + np.random.default_rng(4).normal(0.0, [2e3, 2e3, 2e3, 50.0, 50.0, 50.0], (4, 6))
     cost, X_last = batch_cost(batch, X0)
     for x0, c, x_last in zip(X0, cost, X_last):
