@@ -13,8 +13,9 @@ SCRIPTS = ROOT / "scripts"
 SHORT_PASS = ["--set", "time.duration=20"]  # 201 steps from the rise of the leo_radar pass
 
 
-def script(name: str, *args: str, timeout: float = 300, **popen) -> subprocess.CompletedProcess:
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+def script(name: str, *args: str, timeout: float = 300, extra_env: dict[str, str] | None = None,
+           **popen) -> subprocess.CompletedProcess:
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **(extra_env or {}))
     return subprocess.run([sys.executable, str(SCRIPTS / name), *args], capture_output=True, text=True,
                           timeout=timeout, env=env, **popen)
 
