@@ -13,7 +13,8 @@ import numpy as np
 from bench_engine.config import Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
-from radar_sensor.sensor import Sensor, SensorType
+from radar_sensor.sensor import Sensor
+from radar_sensor.sensor_types import SensorType
 from tracker_filters.ekf import ExtendedKalmanFilter
 
 ENTRY_POINTS = {

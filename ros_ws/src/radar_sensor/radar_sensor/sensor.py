@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
 from orbit_sim.truth import Earth, build_earth
 from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.radar import GroundRadarModel
+from radar_sensor.sensor_types import SensorType, sensor_type
 
 if TYPE_CHECKING:
     from bench_models.models import MeasurementModel
@@ -55,29 +55,6 @@ class Sensor:
         z = self.model.h(x_true, t) + noise
         z[self._azimuths] = np.mod(z[self._azimuths], 2.0 * np.pi)
         return z
-
-
-@dataclass(frozen=True)
-class SensorType:
-    """A registered sensor type: the ROS message type it publishes and how to build it from its section
-    (section, sensor name, Earth model, sample every n steps) -> Sensor."""
-
-    message_type: str
-    build: Callable[[Section, str, Earth, int], Sensor]
-
-
-def sensor_names(cfg: dict) -> list[str]:
-    """The scenario's sensors, in the order of its ``sensors`` section."""
-    return list((cfg.get("sensors") or {}).keys())
-
-
-def sensor_type(cfg: dict, name: str) -> SensorType:
-    """The registered type of sensor ``name`` (ScenarioError naming the key and the registered types)."""
-    sensors = cfg.get("sensors") or {}
-    if name not in sensors:
-        raise ScenarioError(f"unknown sensor '{name}'; the scenario has: {sorted(sensors)}")
-    section = sensors[name] if isinstance(sensors[name], dict) else {}
-    return plugins.load("sensors", Section(section, f"sensors.{name}").choice("type", plugins.names("sensors")))
 
 
 def build_sensor(cfg: dict, name: str) -> Sensor:

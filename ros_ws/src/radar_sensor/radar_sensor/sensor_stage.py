@@ -1,5 +1,6 @@
 """The sensor node's core: each truth sample becomes a noisy measurement (or none), registered as the node
-kind ``sensor`` for every entry of the scenario's ``sensors`` section.
+kind ``sensor`` for every entry of the scenario's ``sensors`` section. The kind is read by every node of a
+run to build the graph, so the models are imported only when a sensor is built.
 
 Subscribes ``/truth/state``; publishes ``/NAME/measurement`` (the message type of the sensor's registered
 type), stamped with the truth's sim time and step, its frame in header.frame_id.
@@ -10,13 +11,14 @@ import numpy as np
 
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
-from radar_sensor.sensor import build_sensor, sensor_names, sensor_type
+from radar_sensor.sensor_types import sensor_names, sensor_type
 
 
 class SensorStage:
     """Simulated sensor (ground radar, inter-satellite radio, relative position, ...)."""
 
     def __init__(self, cfg: dict, name: str, run: dict) -> None:
+        from radar_sensor.sensor import build_sensor
         self.name = name
         self.sensor = build_sensor(cfg, name)
         seed = int(run.get("seed", cfg.get("seed", 0)))
@@ -38,6 +40,10 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
                     subscribes={TRUTH_TOPIC: TRUTH_TYPE})
 
 
+def _check(cfg: dict, name: str) -> None:
+    from radar_sensor.sensor import build_sensor
+    build_sensor(cfg, name)
+
+
 SENSOR = NodeKind("sensor", "sensor", "bench_engine.stage_node:StageNode",
-                  instances=lambda cfg, requested: sensor_names(cfg), spec=_spec,
-                  check=lambda cfg, name: build_sensor(cfg, name), stage=SensorStage)
+                  instances=lambda cfg, requested: sensor_names(cfg), spec=_spec, check=_check, stage=SensorStage)

@@ -21,7 +21,8 @@ from bench_engine.config import ScenarioError, Section
 from bench_engine import plugins
 from bench_engine.graph import filter_config
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
-from radar_sensor.sensor import Sensor, build_sensor, sensor_names
+from radar_sensor.sensor import Sensor, build_sensor
+from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
 from tracker_filters.filter_base import Filter
 from bench_models.given_noise import GivenProcessNoise

@@ -4,7 +4,8 @@ node kind ``filter`` for the run's selected filters (``--filters`` or the scenar
 Subscribes the measurement topics of the sensors it consumes (``/SENSOR/measurement``); publishes
 ``/NAME/estimate`` (bench_msgs/StateEstimate with full covariance and state labels) after every accepted
 measurement. Rejected measurements (NaN/inf, out of order, failed update) are logged and skipped;
-recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings.
+recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings. The filters are
+imported only when one is built (every node of a run reads the kind to build the graph).
 """
 from __future__ import annotations
 
@@ -14,14 +15,14 @@ from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, filter_config, measurement_topic
 from bench_engine.graph import resolve_filters
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
-from radar_sensor.sensor import sensor_names
-from tracker_filters.builders import build_filter_stack
+from radar_sensor.sensor_types import sensor_names
 
 
 class FilterStage:
     """State estimator fed by measurement items; the filter type comes from the scenario."""
 
     def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
+        from tracker_filters.builders import build_filter_stack
         self.name = name
         self.stack = build_filter_stack(cfg, name)
         self.sensor_of = {measurement_topic(s): s for s in self.stack.sensors}
@@ -63,5 +64,10 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
                     subscribes={measurement_topic(s): "" for s in inputs})
 
 
+def _check(cfg: dict, name: str) -> None:
+    from tracker_filters.builders import build_filter_stack
+    build_filter_stack(cfg, name)
+
+
 FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode", instances=resolve_filters,
-                  spec=_spec, check=lambda cfg, name: build_filter_stack(cfg, name), stage=FilterStage)
+                  spec=_spec, check=_check, stage=FilterStage)
