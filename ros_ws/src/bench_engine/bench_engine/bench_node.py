@@ -110,12 +110,12 @@ class BenchNode(Node):
         return self.create_subscription(msg_type, topic, callback, DATA_QOS, raw=raw)
 
     def ack(self, step: int, count: int) -> None:
-        """Acknowledge step ``step`` with the node's cumulative message ``count`` (bench_engine.lockstep).
+        """Acknowledge step ``step`` with the node's cumulative consumed message ``count`` and its published
+        counts per topic (bench_engine.lockstep).
 
         With a pacing window W > 0 an acknowledgement is sent once the step or the count has advanced by
         max(1, W // 4) since the last one sent, and otherwise within ACK_FLUSH_S by a timer: the source
-        never waits on a held-back one for long, and the graph carries a quarter of the ack traffic per
-        window (measured on leo_radar: 3 acks per step cost ~15 % of a single-process run)."""
+        never waits on a held-back one for long, and the graph carries a quarter of the ack traffic."""
         if self._ack_every == 1 or (step - self._ack_sent[0] >= self._ack_every
                                     or count - self._ack_sent[1] >= self._ack_every):
             self._send_ack(step, count)

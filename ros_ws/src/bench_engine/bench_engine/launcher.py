@@ -193,8 +193,7 @@ def pin_to_one_cpu(domain_id: int) -> int | None:
     runs (distinct domains) get different CPUs. Returns the CPU, or None when there is only one.
 
     Why: in one process the Python callbacks run one at a time, and spreading the DDS delivery threads over
-    other cores only adds cross-core wake-ups. leo_radar, EKF + UKF + recorder on 2 cores (bench_graph.py):
-    88x real time unpinned, 121x pinned."""
+    other cores only adds cross-core wake-ups (scripts/bench_graph.py measures both)."""
     cpus = sorted(os.sched_getaffinity(0))
     if len(cpus) < 2:
         return None
