@@ -27,6 +27,7 @@ from std_msgs.msg import String, UInt64
 from bench_msgs.msg import StepAck
 from bench_engine.config import ScenarioError
 from bench_engine.graph import ACK_TOPIC, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
+from bench_engine.timegrid import build_time
 
 DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
@@ -123,7 +124,7 @@ class BenchNode(Node):
             self._ack_unsent = (step, count)
 
     def _setup_acks(self) -> None:
-        window = int((self.cfg.get("time") or {}).get("pacing_window", 0))
+        window = build_time(self.cfg).pacing_window
         self._ack_every = max(1, window // 4)
         self._ack_sent: tuple[int, int] = (-1, 0)
         self._ack_unsent: tuple[int, int] | None = None

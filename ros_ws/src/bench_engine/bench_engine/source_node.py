@@ -18,6 +18,7 @@ from bench_msgs.msg import StepAck
 from bench_engine.bench_node import DATA_QOS, FLUSH_TIMEOUT_S, LATCHED_QOS, BenchNode, node_main, ns_to_stamp
 from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, node_kinds
 from bench_engine.lockstep import Pacer
+from bench_engine.timegrid import build_time
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import codec
 
@@ -29,7 +30,7 @@ class SourceNode(BenchNode):
 
     def setup(self) -> None:
         self._created = time.monotonic()
-        self.pacer = Pacer(self.graph.paced_inputs(), window=int(self.cfg.get("time", {}).get("pacing_window", 0)))
+        self.pacer = Pacer(self.graph.paced_inputs(), window=build_time(self.cfg).pacing_window)
         self._waiting_for = {n.name for n in self.graph.nodes if n.name != self.get_name()}
         self._next = 0
         self._started = None

@@ -15,6 +15,8 @@ class TimeGrid:
     start_ns: int
     dt_ns: int
     steps: int
+    pacing_window: int = 0
+    """Steps (messages) the source may run ahead of its slowest consumer (bench_engine.lockstep)."""
 
     @property
     def dt(self) -> float:
@@ -33,7 +35,7 @@ def build_time(cfg: dict) -> TimeGrid:
     start = sec.non_negative("start")
     dt = sec.positive("dt")
     duration = sec.positive("duration")
-    sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
+    window = sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
     sec.finish()
     dt_ns = int(round(dt * 1e9))
-    return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1)
+    return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1, window)

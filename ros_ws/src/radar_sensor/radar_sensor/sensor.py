@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section
+from bench_engine.timegrid import build_time
 from orbit_sim.truth import Earth, build_earth
 from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.radar import GroundRadarModel
@@ -70,7 +71,7 @@ def build_sensor(cfg: dict, name: str) -> Sensor:
 
 def _every_n_steps(sec: Section, cfg: dict) -> int:
     interval = sec.positive("interval")
-    dt = float((cfg.get("time") or {}).get("dt", interval))
+    dt = build_time(cfg).dt
     n = int(round(interval / dt))
     if n < 1 or abs(n * dt - interval) > 1e-9 * max(interval, 1.0):
         raise ScenarioError(f"'{sec.path}.interval' ({interval} s) must be a whole multiple of time.dt ({dt} s)")
