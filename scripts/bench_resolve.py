@@ -16,32 +16,25 @@ import os
 import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as in the graph (bench_engine.launcher)
-import numpy as np  # noqa: E402
 
 from bench_engine.config import load_scenario  # noqa: E402
-from orbit_sim.truth import build_truth  # noqa: E402
+from bench_engine.inprocess import run_in_process  # noqa: E402
 from radar_sensor.sensor import build_sensor  # noqa: E402
 from tracker_filters.builders import build_filter_stack  # noqa: E402
 from tracker_filters.relinearisation import PassBatch  # noqa: E402
 
 
 def pass_scans(seed: int):
-    """(dynamics, prior (x0, P0, t0), true state at t0, scans [(t, z)], R, model) of one leo_radar pass."""
+    """(dynamics, prior (x0, P0, t0), true state at t0, scans [(t, z)], R, model) of one leo_radar pass; the
+    radar's scans are drawn by the graph's own cores in process (truth and sensor only)."""
     cfg = load_scenario("leo_radar")
-    truth = build_truth(cfg)
+    run = run_in_process(cfg, seed=seed, roles=("sensor",))
     sensor = build_sensor(cfg, "radar")
     stack = build_filter_stack(cfg, "ekf")
-    rng = np.random.default_rng(seed)
-    prior, x_t0, scans = None, None, []
-    for k, (t, x) in enumerate(zip(truth.grid.times(), np.asarray(truth.states))):
-        z = sensor.observe(x, t, k, rng)
-        if z is None:
-            continue
-        if prior is None:
-            prior, x_t0 = (*stack.initialise(z, sensor.R, sensor, t), float(t)), x
-        else:
-            scans.append((float(t), z))
-    return stack.filter.dynamics, prior, x_t0, scans, sensor.R, sensor.model
+    first, *rest = run.items["/radar/measurement"]
+    x_t0 = next(s.state for s in run.items["/truth/state"] if s.step == first.step)
+    prior = (*stack.initialise(first.z, first.R, sensor, first.t), first.t)
+    return stack.filter.dynamics, prior, x_t0, [(m.t, m.z) for m in rest], sensor.R, sensor.model
 
 
 def best_time(fn, repeats: int) -> tuple[float, object]:

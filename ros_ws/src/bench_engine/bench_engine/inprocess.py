@@ -32,9 +32,10 @@ def _collector(run: InProcessRun, node: str) -> Log:
 
 
 def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None = None,
-                   until_step: int | None = None) -> InProcessRun:
+                   until_step: int | None = None, roles: tuple[str, ...] = ("sensor", "estimator")) -> InProcessRun:
     """Run ``cfg`` (a resolved scenario) with ``filters`` (default: its default_filters) and ``seed``
-    (default: the scenario's) up to step ``until_step`` (default: the last)."""
+    (default: the scenario's) up to step ``until_step`` (default: the last). ``roles=("sensor",)`` runs the
+    truth and the sensors only (the measurements, without estimators)."""
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
     graph = build_graph(cfg, resolve_filters(cfg, filters), record=False)
@@ -45,7 +46,7 @@ def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None
     source = kinds[source_spec.kind].stage(cfg, source_spec.name, context)
     stages, subscribers = {}, {}
     for spec in graph.topological():
-        if spec.role in ("sensor", "estimator"):
+        if spec.role in roles:
             stages[spec.name] = kinds[spec.kind].stage(cfg, spec.name, context)
             stages[spec.name].log = _collector(run, spec.name)
             for topic in spec.subscribes:

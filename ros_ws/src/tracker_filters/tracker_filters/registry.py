@@ -9,7 +9,6 @@ from __future__ import annotations
 import inspect
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError
 from tracker_filters.filter_base import Filter
 from bench_models.models import DynamicsModel
 
