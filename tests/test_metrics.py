@@ -6,8 +6,8 @@ import pytest
 from scipy.stats import chi2
 
 from bench_eval.metrics import (
-    RadarSamples, Track, fraction_within_sigma, formation_settling_time, leo_series, mean_absolute_error,
-    nees, nees_series, nees_summary, radar_coordinate_rmse, rmse_over_runs, score_formation, score_leo,
+    RadarSamples, Track, fraction_within_sigma, axes_settling_time, convergence_series, mean_absolute_error,
+    nees, nees_series, nees_summary, radar_coordinate_rmse, rmse_over_runs, score_errors, score_convergence,
     settling_time, summarise, time_grid,
 )
 
@@ -150,10 +150,10 @@ def test_mae_settling_time_and_sigma_fraction():
     assert mae["x"] == pytest.approx(np.mean(err[:, 0])) and mae["vz"] == pytest.approx(np.mean(err[:, 5]))
     assert mean_absolute_error([run], skip_s=100.0)["y"] == pytest.approx(np.mean(err[100:, 1]))
     # position: 10 exp(-t/20) <= 0.5 from t = 20 ln 20 = 59.9 s; velocity 0.5 exp(-t/10) <= 0.02 from 32.2 s
-    assert formation_settling_time([run]) == pytest.approx(60.0)
+    assert axes_settling_time([run]) == pytest.approx(60.0)
     spiked = err.copy()
     spiked[120, 4] = 0.05
-    assert formation_settling_time([track_from_errors(t, spiked)]) == pytest.approx(121.0)
+    assert axes_settling_time([track_from_errors(t, spiked)]) == pytest.approx(121.0)
     assert np.isnan(settling_time(t, np.full((len(t), 1), 1.0), [0.5]))
     P = np.tile(np.eye(2), (4, 1, 1))
     frac = fraction_within_sigma([track_from_errors(np.arange(4.0), [[0, 0], [1, -3.5], [2, 0], [-4, 0]], P)])
@@ -164,7 +164,7 @@ def test_score_leo_structure_and_consistency():
     tracks = {"ekf": gaussian_runs(5, 100, 1.0, seed=5), "ukf": gaussian_runs(5, 100, 2.0, seed=6)}
     z = np.array([[1000.0, 0.1, 0.2]] * 10)
     radar = {"ekf": RadarSamples(z + [1.0, 1e-4, 0.0], z + [30.0, 0.0, 2e-3], z)}
-    scored = score_leo(tracks, radar)
+    scored = score_convergence(tracks, radar)
     json.dumps(scored, allow_nan=False)
     ekf = scored["ekf"]
     t, r = rmse_over_runs(tracks["ekf"])
@@ -173,12 +173,12 @@ def test_score_leo_structure_and_consistency():
     assert ekf["radar"]["filter"] == pytest.approx({"range_m": 1.0, "azimuth_mrad": 0.1, "elevation_mrad": 0.0})
     assert ekf["radar"]["measurement"]["elevation_mrad"] == pytest.approx(2.0)
     assert "radar" not in scored["ukf"] and scored["ukf"]["nees_mean"] < scored["ekf"]["nees_mean"]
-    series = leo_series(tracks)
+    series = convergence_series(tracks)
     assert series["ekf"]["t"][0] == 0.0 and series["ukf"]["nees"]["dof"] == 6
 
 
 def test_score_formation_is_json_ready():
-    scored = score_formation({"pf": gaussian_runs(3, 50, 1.0, seed=7)})
+    scored = score_errors({"pf": gaussian_runs(3, 50, 1.0, seed=7)})
     json.dumps(scored, allow_nan=False)
     assert scored["pf"]["settling_time_s"] is None  # stationary unit-scale errors never go under 0.02 m/s
     assert set(scored["pf"]["mae"]) == set(LABELS)

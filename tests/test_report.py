@@ -1,7 +1,7 @@
 """Report writer: Markdown tables next to the paper's numbers, PNG figures, generic and extra sections."""
 import numpy as np
 
-from bench_eval.metrics import RadarSamples, Track, leo_series, score_leo
+from bench_eval.metrics import RadarSamples, Track, convergence_series, score_convergence
 from bench_eval.report import PAPER_LEO_RADAR, Section, Table, difference, fmt, write_report
 
 LABELS = ["x", "y", "z", "vx", "vy", "vz"]
@@ -28,7 +28,7 @@ def leo_inputs():
     z = np.column_stack([np.full(500, 1.5e6), rng.uniform(0, 2 * np.pi, 500), rng.uniform(0.1, 1.0, 500)])
     radar = {name: RadarSamples(z + rng.normal(size=z.shape) * [15.0, 7e-5, 7e-5],
                                 z + rng.normal(size=z.shape) * [31.6, 0.017, 0.017], z) for name in tracks}
-    return {"leo_radar": score_leo(tracks, radar)}, {"leo_radar": leo_series(tracks)}
+    return {"leo_radar": score_convergence(tracks, radar)}, {"leo_radar": convergence_series(tracks)}
 
 
 def test_write_report_leo(tmp_path):

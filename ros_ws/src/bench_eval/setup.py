@@ -21,6 +21,11 @@ setup(
     license="Apache-2.0",
     entry_points={
         "tracking_bench.sections": [
-            "scoring = bench_eval.scoring:scoring_options"]
+            "scoring = bench_eval.scoring:scoring_options"],
+        "tracking_bench.metrics": [
+            "convergence = bench_eval.metric_families:CONVERGENCE",
+            "errors = bench_eval.metric_families:ERRORS"],
+        "tracking_bench.offline": [
+            "rts = bench_eval.offline:RTS"]
     },
 )

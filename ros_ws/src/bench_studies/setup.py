@@ -24,6 +24,10 @@ setup(
         "tracking_bench.scenarios": [
             "leo_radar = bench_studies.leo_radar:SCENARIO",
             "formation_pf = bench_studies.formation_pf:SCENARIO",
-            "formation_cqkf = bench_studies.formation_cqkf:SCENARIO"]
+            "formation_cqkf = bench_studies.formation_cqkf:SCENARIO"],
+        "tracking_bench.studies": [
+            "leo_radar = bench_studies.leo_radar.study:STUDY",
+            "formation_pf = bench_studies.formation_pf.study:STUDY",
+            "formation_cqkf = bench_studies.formation_cqkf.study:STUDY"]
     },
 )

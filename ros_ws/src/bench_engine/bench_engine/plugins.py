@@ -1,9 +1,10 @@
 """The bench's extension points: components registered as Python entry points, looked up by name.
 
 A package adds a node kind, truth model, sensor type, message codec, estimator, dynamics model, initialiser,
-metric, offline estimator, study, scenario or scenario section by naming it in its ``setup.py`` ``entry_points`` under one of
-:data:`GROUPS` (as Stone Soup's ``plugins.py`` loads its components from package metadata). Nothing generic
-is edited: the graph, the launcher, the scorer and the report find every registered component here.
+metric, offline estimator, study, scenario or scenario section by naming it in its ``setup.py``
+``entry_points`` under one of :data:`GROUPS` (as Stone Soup's ``plugins.py`` loads its components from
+package metadata). Nothing generic is edited: the graph, the launcher, the scorer and the report find every
+registered component here.
 
     entry_points={"tracking_bench.sensors": ["ground_radar = radar_sensor.sensor:GROUND_RADAR"]}
 

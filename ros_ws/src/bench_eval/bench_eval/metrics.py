@@ -1,16 +1,16 @@
-"""Scoring metrics: Monte Carlo RMSE and its summary, NEES consistency, radar-coordinate RMSE, formation metrics.
+"""Scoring metrics: Monte Carlo RMSE and its summary, NEES consistency, measurement-space RMSE, error statistics.
 
-Sources
-- ``leo_radar`` (paper 000): position RMSE over N Monte Carlo runs per time step (eq. 35), summarised as in
-  Table 2 by the peak, the time to converge, the band the error "wanders in" after convergence (the paper's
-  "roughness interval", e.g. 600-700 m) and the converged RMSE value (645 m); Table 3 compares the RMSE in
-  radar coordinates (range, azimuth, elevation) of the raw measurements and of the filters.
-  The paper defines none of these operationally (they are read off its Fig. 6); the definitions used here
-  are in :func:`summarise`. Its per-axis rows are consistent with a per-axis RMSE: the axis peaks
-  7600, 8300, 33400 m combine to 35200 m, the position peak.
-- ``formation_cqkf`` (paper 004, Tables 1-2): mean absolute error per state component, errors inside +-3 sigma.
-- ``formation_pf`` (paper 001, Figs. 6-7): the time after which every position axis stays below 0.5 m and
-  every velocity axis below 0.02 m/s.
+Two families of scores are built from them (registered in bench_eval.metric_families):
+- convergence (:func:`score_convergence`): position RMSE over N Monte Carlo runs per time step (paper 000
+  eq. 35), summarised by the peak, the time to converge, the band the error "wanders in" after convergence
+  and the converged RMSE value (operational definitions in :func:`summarise`), per axis as well; NEES; and
+  the RMSE in a sensor's coordinates (range, azimuth, elevation) of the raw measurements and of the filters.
+- errors (:func:`score_errors`): mean absolute error per state component (with each run's value for Monte
+  Carlo error bars and paired comparisons), the time after which every position and velocity axis stays
+  below a threshold, the fraction of errors inside +-3 sigma, NEES.
+
+Errors are taken by each state's own rule (bench_models.states: a quaternion block as a rotation vector,
+angles wrapped); a Track's covariance is in the space of its error labels.
 
 Runs are aligned on a common time grid: the union of all estimate stamps, stamps closer than ``tol`` seconds
 being the same step. A run that misses a step (e.g. a missed detection) simply does not contribute to it.
@@ -25,6 +25,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.stats import chi2
 
+from bench_models.states import error_labels, state_error
 from orbit_sim.angles import wrapped_residual
 
 Components = Sequence[str | int]
@@ -55,23 +56,28 @@ class Track:
         self.P = np.asarray(self.P, dtype=float)
         self.x_true = np.asarray(self.x_true, dtype=float)
         self.labels = list(self.labels)
-        k, n = len(self.t), len(self.labels)
-        if self.x_est.shape != (k, n) or self.x_true.shape != (k, n) or self.P.shape != (k, n, n):
+        k, n, m = len(self.t), len(self.labels), len(error_labels(self.labels))
+        if self.x_est.shape != (k, n) or self.x_true.shape != (k, n) or self.P.shape != (k, m, m):
             raise ValueError(f"Track shapes disagree: t {self.t.shape}, x_est {self.x_est.shape}, "
                              f"x_true {self.x_true.shape}, P {self.P.shape}, {n} labels")
         if k > 1 and np.any(np.diff(self.t) <= 0.0):
             raise ValueError("Track stamps must be strictly increasing")
 
+    @property
+    def error_labels(self) -> list[str]:
+        """Labels of the error vector (a quaternion block becomes rx, ry, rz: bench_models.states)."""
+        return error_labels(self.labels)
+
     def indices(self, components: Components | None = None) -> list[int]:
-        """State indices of the given labels or indices (all components when None)."""
+        """Error-vector indices of the given labels or indices (all components when None)."""
         if components is None:
-            return list(range(len(self.labels)))
-        return [c if isinstance(c, (int, np.integer)) else self.labels.index(c) for c in components]
+            return list(range(len(self.error_labels)))
+        return [c if isinstance(c, (int, np.integer)) else self.error_labels.index(c) for c in components]
 
     def error(self, components: Components | None = None) -> np.ndarray:
-        """Estimation error x_est - x_true of the selected components, shape (K, c)."""
-        idx = self.indices(components)
-        return self.x_est[:, idx] - self.x_true[:, idx]
+        """Estimation error of the selected components by the state's own rule, shape (K, c)."""
+        _, e = state_error(self.labels, self.x_est, self.x_true)
+        return e[:, self.indices(components)]
 
 
 def time_grid(stamps: Sequence[np.ndarray], tol: float = DEFAULT_TOL_S) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -247,13 +253,13 @@ def radar_block(samples: RadarSamples) -> dict:
 
 def mean_absolute_error(tracks: Sequence[Track], components: Components | None = None,
                         skip_s: float = 0.0) -> dict[str, float]:
-    """Mean |x_est - x_true| per component over all runs and steps (paper 004 Tables 1-2).
+    """Mean |error| per component over all runs and steps (paper 004 Tables 1-2).
 
     Steps earlier than ``skip_s`` after each run's first stamp are left out.
     """
     errs = [np.abs(tr.error(components))[tr.t - tr.t[0] >= skip_s] for tr in tracks]
     mae = np.mean(np.concatenate(errs, axis=0), axis=0)
-    labels = [tracks[0].labels[i] for i in tracks[0].indices(components)]
+    labels = [tracks[0].error_labels[i] for i in tracks[0].indices(components)]
     return {lab: float(v) for lab, v in zip(labels, mae)}
 
 
@@ -276,7 +282,7 @@ def settling_time(t: np.ndarray, abs_err: np.ndarray, thresholds: Sequence[float
     return float(t[k] - t0) if k < len(t) else float("nan")
 
 
-def formation_settling_time(tracks: Sequence[Track], position_threshold: float = 0.5,
+def axes_settling_time(tracks: Sequence[Track], position_threshold: float = 0.5,
                             velocity_threshold: float = 0.02, position: Components = POSITION,
                             velocity: Components = VELOCITY, tol: float = DEFAULT_TOL_S) -> float:
     """Time after which every position axis error stays below ``position_threshold`` [m] and every velocity
@@ -295,7 +301,7 @@ def fraction_within_sigma(tracks: Sequence[Track], components: Components | None
     """Fraction of steps (all runs) with |error_i| <= k sqrt(P_ii), per component (paper 004's 3-sigma check)."""
     idx = tracks[0].indices(components)
     inside = np.concatenate([np.abs(tr.error(idx)) <= k * np.sqrt(tr.P[:, idx, idx]) for tr in tracks])
-    return {tracks[0].labels[i]: float(v) for i, v in zip(idx, np.mean(inside, axis=0))}
+    return {tracks[0].error_labels[i]: float(v) for i, v in zip(idx, np.mean(inside, axis=0))}
 
 
 def json_ready(obj):
@@ -320,11 +326,11 @@ def _curve_block(t: np.ndarray, rmse: np.ndarray, summary_kwargs: Mapping) -> di
             "convergence_time_s": s["convergence_time_s"], "band_m": s["band"], "threshold_m": s["threshold"]}
 
 
-def score_leo(tracks_by_filter: Mapping[str, Sequence[Track]],
+def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
               radar_by_filter: Mapping[str, RadarSamples] | None = None, *, position: Components = POSITION,
               nees_skip_s: float = 0.0, alpha: float = 0.05, tol: float = DEFAULT_TOL_S, smooth_s: float = 1.0,
               **summary_kwargs) -> dict:
-    """JSON-ready ``leo_radar`` scores per filter (paper 000 Tables 2 and 3).
+    """JSON-ready convergence scores per filter (paper 000 Tables 2 and 3 are of this form).
 
     Per filter: runs, rmse_converged_m, rmse_peak_m, peak_time_s, convergence_time_s, band_m [low, high],
     threshold_m, axes {x, y, z: same keys}, nees_mean, nees_dof, nees_bounds [lo, hi],
@@ -338,6 +344,7 @@ def score_leo(tracks_by_filter: Mapping[str, Sequence[Track]],
     scored = {}
     for name, tracks in tracks_by_filter.items():
         block = {"runs": len(tracks), **_curve_block(*rmse_over_runs(tracks, position, tol), summary_kwargs)}
+        block["rmse_converged_m_runs"] = converged_rms_per_run(tracks, block["convergence_time_s"], position)
         block["axes"] = {str(c): _curve_block(*rmse_over_runs(tracks, [c], tol), summary_kwargs)
                          for c in position}
         ns = nees_summary(tracks, None, alpha, nees_skip_s, tol)
@@ -349,9 +356,24 @@ def score_leo(tracks_by_filter: Mapping[str, Sequence[Track]],
     return json_ready(scored)
 
 
-def leo_series(tracks_by_filter: Mapping[str, Sequence[Track]], position: Components = POSITION,
+def converged_rms_per_run(tracks: Sequence[Track], convergence_time_s: float,
+                          position: Components = POSITION) -> list[float]:
+    """Each run's RMS position error after the convergence time (measured from the earliest stamp of all
+    runs): the spread of the converged RMSE over runs, for its Monte Carlo standard error."""
+    if not np.isfinite(convergence_time_s):
+        return []
+    t0 = min(float(tr.t[0]) for tr in tracks)
+    out = []
+    for tr in tracks:
+        after = tr.t - t0 >= convergence_time_s
+        if np.any(after):
+            out.append(float(np.sqrt(np.mean(np.sum(tr.error(position)[after] ** 2, axis=1)))))
+    return out
+
+
+def convergence_series(tracks_by_filter: Mapping[str, Sequence[Track]], position: Components = POSITION,
                alpha: float = 0.05, tol: float = DEFAULT_TOL_S) -> dict:
-    """Time series for the ``leo_radar`` plots, per filter: t (s from the earliest stamp of all filters),
+    """Time series for the convergence plots, per filter: t (s from the earliest stamp of all filters),
     rmse (position), axes {x, y, z: rmse}, nees {t, mean, lo, hi, dof}."""
     t0 = min(float(tr.t[0]) for tracks in tracks_by_filter.values() for tr in tracks)
     series = {}
@@ -365,15 +387,26 @@ def leo_series(tracks_by_filter: Mapping[str, Sequence[Track]], position: Compon
     return series
 
 
-def score_formation(tracks_by_filter: Mapping[str, Sequence[Track]], *, skip_s: float = 0.0,
-                    position_threshold: float = 0.5, velocity_threshold: float = 0.02,
-                    position: Components = POSITION, velocity: Components = VELOCITY,
-                    tol: float = DEFAULT_TOL_S) -> dict:
-    """JSON-ready formation scores per filter (papers 001 and 004), SI units.
+def below_after_per_run(tracks: Sequence[Track], after_s: float, position_threshold: float,
+                        velocity_threshold: float, position: Components = POSITION,
+                        velocity: Components = VELOCITY) -> list[bool]:
+    """Per run: does every position axis stay within ``position_threshold`` and every velocity axis within
+    ``velocity_threshold`` from ``after_s`` after its first stamp on (paper 001's "after 80 s")?"""
+    thresholds = np.array([position_threshold] * len(position) + [velocity_threshold] * len(velocity))
+    comps = list(position) + list(velocity)
+    return [bool(np.all(np.abs(tr.error(comps))[tr.t - tr.t[0] >= after_s] <= thresholds)) for tr in tracks]
+
+
+def score_errors(tracks_by_filter: Mapping[str, Sequence[Track]], *, skip_s: float = 0.0,
+                 position_threshold: float = 0.5, velocity_threshold: float = 0.02,
+                 hold_after_s: float | None = None, position: Components = POSITION,
+                 velocity: Components = VELOCITY, tol: float = DEFAULT_TOL_S) -> dict:
+    """JSON-ready error statistics per filter (the form of papers 001 and 004's results), SI units.
 
     Per filter: runs, mae {component: m or m/s}, mae_runs {component: [each run's MAE]} (the Monte Carlo
     spread; the same seeds across filters give paired differences), settling_time_s, within_3sigma
-    {component: fraction}, nees_mean, nees_bounds, nees_fraction_inside.
+    {component: fraction}, nees_mean, nees_dof, nees_bounds, nees_fraction_inside and, with
+    ``hold_after_s``, below_after_runs (:func:`below_after_per_run`).
     """
     scored = {}
     comps = list(position) + list(velocity)
@@ -383,10 +416,14 @@ def score_formation(tracks_by_filter: Mapping[str, Sequence[Track]], *, skip_s: 
             "runs": len(tracks),
             "mae": mean_absolute_error(tracks, comps, skip_s),
             "mae_runs": dict(zip(map(str, comps), mae_per_run(tracks, comps, skip_s).T)),
-            "settling_time_s": formation_settling_time(tracks, position_threshold, velocity_threshold,
+            "settling_time_s": axes_settling_time(tracks, position_threshold, velocity_threshold,
                                                        position, velocity, tol),
             "within_3sigma": fraction_within_sigma(tracks, comps),
-            "nees_mean": ns["mean"], "nees_bounds": ns["bounds"], "nees_fraction_inside": ns["fraction_inside"],
+            "nees_mean": ns["mean"], "nees_dof": ns["dof"], "nees_bounds": ns["bounds"],
+            "nees_fraction_inside": ns["fraction_inside"],
         }
+        if hold_after_s is not None:
+            scored[name]["below_after_runs"] = below_after_per_run(tracks, hold_after_s, position_threshold,
+                                                                   velocity_threshold, position, velocity)
     return json_ready(scored)
 

@@ -1,4 +1,4 @@
-"""Offline scoring from bags only: bag -> aligned tracks -> the scenario's metrics (bench_eval.metrics).
+"""Offline scoring from bags only: bag -> offline estimators -> aligned tracks -> the scenario's metric family.
 
 A bag directory written by the recorder carries the run config (``run_config.yaml``: the resolved scenario),
 so the scorer rebuilds the same sensor models the run used to map estimates into radar coordinates.
@@ -14,24 +14,50 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from bench_engine import plugins
 from bench_engine.bag import BagReader
 from bench_engine.config import Section
 from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC
 from bench_engine.stage import codec
 from bench_eval import metrics
 
-METRICS = ("leo", "formation")
 
 
-def scoring_options(cfg: dict) -> dict:
-    """The scenario's ``scoring`` section, checked: metric family and its options."""
+@dataclass
+class OfflineRun:
+    """One offline estimator of the scoring section: ``estimator`` (registered in tracking_bench.offline) run
+    over the recorded estimates of ``source`` with ``params``; scored under its own name."""
+
+    estimator: str
+    source: str
+    params: dict
+
+
+@dataclass
+class ScoringOptions:
+    metric: str
+    """A registered metric family (entry-point group tracking_bench.metrics)."""
+    options: dict
+    offline: dict[str, OfflineRun]
+
+
+def scoring_options(cfg: dict) -> ScoringOptions:
+    """The scenario's ``scoring`` section, read strictly: ``metric`` (a registered family) and its options, and
+    ``offline: {NAME: {estimator, source, params}}``."""
     sec = Section(cfg.get("scoring"), "scoring")
-    opts = {"metric": sec.choice("metric", METRICS, "leo"),
-            "skip_s": sec.non_negative("skip_s", 0.0),
-            "position_threshold": sec.positive("position_threshold", 0.5),
-            "velocity_threshold": sec.positive("velocity_threshold", 0.02)}
+    metric = sec.choice("metric", plugins.names("metrics"))
+    options = plugins.load("metrics", metric).options(sec)
+    offline = {}
+    off = sec.section("offline")
+    for name in off.keys():
+        entry = off.section(name)
+        offline[name] = OfflineRun(entry.choice("estimator", plugins.names("offline")), entry.get("source", str),
+                                   dict(entry.get("params", dict, {})))
+        entry.finish()
+        plugins.load("offline", offline[name].estimator).check(cfg, offline[name].source, offline[name].params)
+    off.finish()
     sec.finish()
-    return opts
+    return ScoringOptions(metric, options, offline)
 
 
 @dataclass
@@ -116,40 +142,6 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     return metrics.Track(est.t, est.x[:, :n], est.P[:, :n, :n], x_true, est.labels[:n])
 
 
-def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | None:
-    """Estimate, raw measurement and truth in the filter's (first) sensor's coordinates, per estimate."""
-    from tracker_filters.builders import build_filter_stack
-    stack = build_filter_stack(data.scenario, filter_name)
-    sensor_name = next(iter(stack.sensors))
-    sensor = stack.sensors[sensor_name]
-    meas = data.measurements.get(sensor_name, {})
-    est = data.estimates[filter_name]
-    rows = [i for i, k in enumerate(est.steps) if int(k) in meas]
-    if not rows:
-        return None
-    z_est = [sensor.model.h(est.x[i], est.t[i]) for i in rows]
-    z_meas = [meas[int(est.steps[i])] for i in rows]
-    z_true = [sensor.model.h(data.truth[int(est.steps[i])][1], est.t[i]) for i in rows]
-    return metrics.RadarSamples(np.array(z_est), np.array(z_meas), np.array(z_true),
-                                tuple(sensor.model.angle_indices))
-
-
-def formation_series(tracks_by_filter: dict[str, list[metrics.Track]]) -> dict:
-    """Per filter: t (s from the first stamp), RMS error over runs and mean 1-sigma per state component."""
-    t0 = min(float(tr.t[0]) for tracks in tracks_by_filter.values() for tr in tracks)
-    series = {}
-    for name, tracks in tracks_by_filter.items():
-        comps = [c for c in tracks[0].labels if c in metrics.POSITION + metrics.VELOCITY]
-        t, _ = metrics.rmse_over_runs(tracks, comps[:1])
-        rmse, sigma = {}, {}
-        for c in comps:
-            i = tracks[0].labels.index(c)
-            rmse[c] = metrics.rmse_over_runs(tracks, [c])[1]
-            sigma[c] = np.nanmean(metrics.on_grid(tracks, [np.sqrt(tr.P[:, i, i]) for tr in tracks])[1], axis=0)
-        series[name] = {"t": t - t0, "rmse": rmse, "sigma": sigma}
-    return series
-
-
 def _scenario_name(runs: list[BagData]) -> str:
     names = {d.scenario.get("scenario") for d in runs}
     if len(names) != 1:
@@ -157,43 +149,45 @@ def _scenario_name(runs: list[BagData]) -> str:
     return names.pop()
 
 
+def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
+    """Run the scoring section's offline estimators over one run's recorded estimates (bench_eval.offline);
+    their estimates join ``data.estimates``. Returns the names of the estimators that ran."""
+    ran = []
+    for name, job in opts.offline.items():
+        if job.source in data.estimates:
+            data.estimates[name] = plugins.load("offline", job.estimator).run(data, job.source, job.params)
+            ran.append(name)
+    return ran
+
+
 def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
+    """Load the bags, run the offline estimators, and align every estimator's estimates with the truth."""
     runs = load_bags(bag_dirs)
     scenario = _scenario_name(runs)
+    opts = scoring_options(runs[0].scenario)
     tracks: dict[str, list[metrics.Track]] = {}
     for data in runs:
-        for name in data.run["filters"]:
+        for name in data.run["filters"] + run_offline(data, opts):
             if name in data.estimates:
                 tracks.setdefault(name, []).append(track_of(data, name))
     return scenario, tracks, runs
 
 
 def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
-    """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper eq. 35).
+    """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
+    the metric family the scenario's ``scoring.metric`` names.
 
-    Returns {"scenario", "runs", "filters": {name: metrics}} (and the plot series when ``with_series``).
+    Returns {"scenario", "runs", "metric", "filters": {name: scores}} (and the plot series when
+    ``with_series``).
     """
     scenario, tracks, runs = collect(bag_dirs)
     opts = scoring_options(runs[0].scenario)
-    if opts["metric"] == "leo":
-        radar: dict[str, metrics.RadarSamples] = {}
-        for name in tracks:
-            samples = [radar_samples(d, name) for d in runs if name in d.estimates]
-            samples = [s for s in samples if s is not None]
-            if samples:
-                radar[name] = metrics.RadarSamples(np.vstack([s.z_est for s in samples]),
-                                                   np.vstack([s.z_meas for s in samples]),
-                                                   np.vstack([s.z_true for s in samples]),
-                                                   samples[0].angle_indices)
-        scored = metrics.score_leo(tracks, radar)
-        series = metrics.leo_series(tracks) if with_series else None
-    else:
-        scored = metrics.score_formation(tracks, skip_s=opts["skip_s"],
-                                         position_threshold=opts["position_threshold"],
-                                         velocity_threshold=opts["velocity_threshold"])
-        series = formation_series(tracks) if with_series else None
-    result = {"scenario": scenario, "runs": len(runs), "filters": scored}
-    return (result, series) if with_series else result
+    family = plugins.load("metrics", opts.metric)
+    result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
+              "filters": family.score(tracks, runs, opts.options)}
+    if not with_series:
+        return result
+    return result, family.series(tracks, runs, opts.options)
 
 
 def score_run(out_dir: Path, as_json: bool = False) -> str:
@@ -205,8 +199,12 @@ def score_run(out_dir: Path, as_json: bool = False) -> str:
 
 def print_summary(scored: dict) -> str:
     """A short human-readable table of the main numbers."""
+    from bench_eval.claims import diverged
     lines = [f"{scored['scenario']} — {scored['runs']} run(s)"]
     for name, block in scored["filters"].items():
+        if diverged(block):
+            lines.append(f"  {name}: diverged (the filter lost the target: NEES beyond any chi-square band)")
+            continue
         parts = []
         for key, unit in (("rmse_converged_m", "m"), ("rmse_peak_m", "m"), ("convergence_time_s", "s"),
                           ("nees_mean", "")):

@@ -50,8 +50,8 @@ class FilterStage:
 
     def _estimate(self, m: Measurement, nis: float) -> tuple[str, Estimate]:
         flt = self.stack.filter
-        return self.topic, Estimate(m.step, m.t_ns, flt.dynamics.frame, self.name, flt.labels, flt.x.copy(), flt.P.copy(),
-                                    nis, flt.diagnostics())
+        return self.topic, Estimate(m.step, m.t_ns, flt.dynamics.frame, self.name, flt.labels, flt.x.copy(),
+                                    flt.P.copy(), nis, flt.diagnostics())
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:

@@ -1,0 +1,128 @@
+"""The one Monte Carlo runner: many seeded runs of a scenario through the graph, in parallel, every bag kept.
+
+Each run is one launcher process (``python -m bench_engine.run``: the graph in one process, real DDS) on a
+ROS domain of its own (a free one reserved by bench_engine.domains, or ``domains`` given by the caller), so
+parallel runs never hear each other. A run whose bag holds another number of truth messages than its steps
+received messages from a foreign graph on its domain (a process that is not a bench run): it is set aside
+(``RUN.crosstalkK``) and run again. Used by montecarlo.py, sweep.py, demo.py and the studies' scripts.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import yaml
+
+from bench_engine.graph import TRUTH_TOPIC
+
+CROSSTALK_RETRIES = 2
+CROSSTALK_EXIT = 3
+
+
+@dataclass
+class RunSpec:
+    """One run: scenario (name or YAML path), output directory (the bag is OUT/bag), seed and settings."""
+
+    scenario: str
+    out: Path
+    seed: int
+    filters: str | None = None
+    variant: str | None = None
+    overrides: list[str] = field(default_factory=list)
+    multiprocess: bool = False
+
+    def command(self, domain: int | None) -> list[str]:
+        cmd = [sys.executable, "-m", "bench_engine.run", self.scenario, "--seed", str(self.seed), "--out",
+               str(self.out)]
+        if domain is not None:
+            cmd += ["--domain-id", str(domain)]
+        if self.filters:
+            cmd += ["--filters", self.filters]
+        if self.variant:
+            cmd += ["--variant", self.variant]
+        if not self.multiprocess:
+            cmd.append("--single-process")
+        for o in self.overrides:
+            cmd += ["--set", o]
+        return cmd
+
+    @property
+    def bag(self) -> Path:
+        return self.out / "bag"
+
+    @property
+    def log(self) -> Path:
+        return self.out.with_name(self.out.name + ".log")
+
+
+@dataclass
+class RunResult:
+    spec: RunSpec
+    code: int
+    reruns: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.code == 0 and (self.spec.bag / "metadata.yaml").is_file()
+
+
+def crosstalk(bag: Path, steps: int) -> bool:
+    """True when the bag holds another number of truth messages than the run has steps: another graph on the
+    same ROS domain published into this run's topics."""
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    return counts.get(TRUTH_TOPIC) != steps
+
+
+def recorded_steps(bag: Path) -> int:
+    """The number of steps of the run a bag recorded (from its run config)."""
+    from bench_engine.timegrid import build_time
+    return build_time(yaml.safe_load((bag / "run_config.yaml").read_text())["scenario"]).steps
+
+
+def run_one(spec: RunSpec, domain: int | None) -> RunResult:
+    """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log."""
+    spec.out.parent.mkdir(parents=True, exist_ok=True)
+    result = RunResult(spec, CROSSTALK_EXIT)
+    for attempt in range(1 + CROSSTALK_RETRIES):
+        with open(spec.log, "w") as log:
+            code = subprocess.run(spec.command(domain), stdout=log, stderr=subprocess.STDOUT).returncode
+        if code != 0 or not (spec.bag / "metadata.yaml").is_file() \
+                or not crosstalk(spec.bag, recorded_steps(spec.bag)):
+            result.code = code
+            return result
+        spec.out.rename(spec.out.with_name(f"{spec.out.name}.crosstalk{attempt}"))
+        result.reruns.append(f"{spec.out}: foreign messages on its ROS domain, set aside as "
+                             f"{spec.out.name}.crosstalk{attempt}")
+    return result
+
+
+def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = None, desc: str = "runs",
+              on_done: Callable[[RunResult], None] | None = None) -> list[RunResult]:
+    """Run every spec, ``jobs`` at a time with a progress bar; ``domains`` (one per job) pins the ROS domains,
+    else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread)."""
+    from tqdm import tqdm
+    free = list(domains) if domains is not None else [None] * jobs
+    if len(free) < jobs:
+        raise ValueError(f"{jobs} jobs need {jobs} domains, got {len(free)}")
+
+    def one(spec: RunSpec) -> RunResult:
+        domain = free.pop()
+        try:
+            return run_one(spec, domain)
+        finally:
+            free.append(domain)
+
+    results = []
+    with ThreadPoolExecutor(jobs) as pool, tqdm(total=len(specs), unit="run", desc=desc) as bar:
+        for future in as_completed([pool.submit(one, s) for s in specs]):
+            result = future.result()
+            results.append(result)
+            if on_done is not None:
+                on_done(result)
+            bar.update()
+    return results

@@ -1,0 +1,72 @@
+"""One run of a scenario through the ROS 2 graph, recording its bag: ``python -m bench_engine.run SCENARIO``.
+
+The argument parser is shared with scripts/launch.py (which adds scoring). DDS stays on this host
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) and the run takes a ROS domain no other bench run holds.
+Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128+N if interrupted by signal N.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per process: see launcher.local_dds_env
+
+from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
+from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
+from bench_engine.timegrid import build_time  # noqa: E402
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of one run (scenario, filters, seed, output, overrides, variants, process mode)."""
+    p.add_argument("scenario", help=f"scenario name ({', '.join(available_scenarios())}) or a YAML path")
+    p.add_argument("--filters", help="comma-separated filter names (default: the scenario's default_filters)")
+    p.add_argument("--seed", type=int, help="random seed of the sensors (default: the scenario's seed)")
+    p.add_argument("--out", default=None, help="output directory (default: runs/SCENARIO-TIMESTAMP)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, e.g. --set sensors.radar.sigma_range=10 (repeatable)")
+    p.add_argument("--variant", help="apply the scenario's named variants (comma-separated, in order)")
+    p.add_argument("--single-process", action="store_true",
+                   help="run every node in this one process, pinned to one CPU")
+    p.add_argument("--no-pin", action="store_true",
+                   help="with --single-process: let the process's threads use every CPU")
+    p.add_argument("--domain-id", type=int, default=None,
+                   help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
+    p.add_argument("--executor", choices=["events", "single"], default="events",
+                   help="rclpy executor (events = rclpy.experimental.EventsExecutor)")
+
+
+def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
+    """Validate, run and time the graph of ``args``; returns (exit code, plan)."""
+    out = Path(args.out or f"runs/{Path(args.scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
+    filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
+    try:
+        plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
+                           extra={"executor": args.executor})
+    except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2, None
+    started = time.monotonic()
+    code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin)
+    wall = time.monotonic() - started
+    timing = plan.out / "timing.json"
+    if timing.exists():
+        t = json.loads(timing.read_text())
+        sim = (t["steps"] - 1) * build_time(plan.run["scenario"]).dt
+        print(f"[launch] wall {wall:.1f} s (start-up {t['startup_s']:.1f} s, stepping {t['stepping_s']:.1f} s: "
+              f"{sim / max(t['stepping_s'], 1e-9):.0f}x real time); bag {plan.bag_dir}", file=sys.stderr)
+    return code, plan
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_run_arguments(p)
+    return launch(p.parse_args(argv))[0]
+
+
+if __name__ == "__main__":
+    sys.exit(main())

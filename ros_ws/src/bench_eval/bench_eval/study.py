@@ -1,0 +1,44 @@
+"""A study, as the generic report, sweep and demo see it: registered in the entry-point group
+``tracking_bench.studies`` by the package that holds it (bench_studies.<name>).
+
+A study's folder holds its scenario (``scenario.yaml``, registered in ``tracking_bench.scenarios``), the
+paper's numbers and claims as data (``paper.yaml``: ``paper`` and ``claims``, bench_eval.claims), its report
+section and, optionally, its sweep report and the lookup of the paper's case for a sweep cell.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping
+
+import yaml
+
+from bench_engine import plugins
+
+
+@dataclass(frozen=True)
+class Study:
+    name: str
+    paper: Mapping = field(default_factory=dict)
+    """The paper's published numbers (paper.yaml ``paper``)."""
+    claims: list = field(default_factory=list)
+    """The paper's claims with the rule and score that decide each (paper.yaml ``claims``)."""
+    sections: Callable | None = None
+    """(scenario, scored filters, series, paper) -> list of report Sections."""
+    sweep_report: Callable | None = None
+    """(out_dir, sweep, series, extra_markdown) -> Path of the sweep's table.md."""
+    sweep_case: Callable[[Mapping], Mapping | None] | None = None
+    """Resolved scenario of a sweep cell -> the paper's numbers for that case (or None)."""
+    sweep_extra: Callable | None = None
+    """(distinct truths [(label, cfg)]) -> (JSON rows, Markdown) appended to a sweep's report."""
+
+
+def load_paper(path: Path) -> tuple[Mapping, list]:
+    """(paper numbers, claims) of a study's paper.yaml."""
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    return data.get("paper") or {}, list(data.get("claims") or [])
+
+
+def study(name: str | None) -> Study | None:
+    """The registered study of a scenario name, or None."""
+    return plugins.load("studies", name) if name in plugins.names("studies") else None

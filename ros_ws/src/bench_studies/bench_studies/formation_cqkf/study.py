@@ -1,0 +1,8 @@
+"""The formation_cqkf study as the report and the sweeps see it (registered in tracking_bench.studies)."""
+from bench_eval.study import Study
+from bench_studies.formation_cqkf import model_error
+from bench_studies.formation_cqkf.report import (CLAIMS, PAPER, formation_cqkf_sections, paper004_case,
+                                                  write_sweep_report)
+
+STUDY = Study("formation_cqkf", PAPER, CLAIMS, sections=formation_cqkf_sections, sweep_report=write_sweep_report,
+              sweep_case=paper004_case, sweep_extra=model_error.sweep_extra)

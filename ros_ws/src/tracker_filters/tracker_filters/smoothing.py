@@ -1,0 +1,33 @@
+"""Fixed-interval Rauch-Tung-Striebel smoothing: a pure function over a filter's recorded output.
+
+Given the filtered means x_k|k and covariances P_k|k of a linear(ised) Gaussian filter and the transitions
+F_k, Q_k from step k to k+1, the smoothed estimates are (Rauch, Tung & Striebel 1965; Bar-Shalom, Li &
+Kirubarajan, "Estimation with Applications to Tracking and Navigation", 2001, eqs. 8.6.1-14..16):
+
+    P_k+1|k = F_k P_k|k F_k' + Q_k
+    C_k     = P_k|k F_k' P_k+1|k^-1
+    x_k|N   = x_k|k + C_k (x_k+1|N - F_k x_k|k)
+    P_k|N   = P_k|k + C_k (P_k+1|N - P_k+1|k) C_k'
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+
+def rts_smoother(xs: np.ndarray, Ps: np.ndarray, Fs: np.ndarray, Qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Smoothed means (K, n) and covariances (K, n, n) from filtered ``xs`` (K, n), ``Ps`` (K, n, n) and the
+    transitions ``Fs``, ``Qs`` (K - 1, n, n) from each step to the next."""
+    xs, Ps = np.asarray(xs, dtype=float), np.asarray(Ps, dtype=float)
+    Fs, Qs = np.asarray(Fs, dtype=float), np.asarray(Qs, dtype=float)
+    if len(Fs) != len(xs) - 1 or len(Qs) != len(xs) - 1:
+        raise ValueError(f"need {len(xs) - 1} transitions for {len(xs)} estimates, got {len(Fs)} and {len(Qs)}")
+    x_s, P_s = xs.copy(), Ps.copy()
+    for k in range(len(xs) - 2, -1, -1):
+        F = Fs[k]
+        P_pred = F @ Ps[k] @ F.T + Qs[k]
+        C = cho_solve(cho_factor(P_pred), F @ Ps[k]).T  # P_k|k F' P_pred^-1 (P_pred symmetric)
+        x_s[k] = xs[k] + C @ (x_s[k + 1] - F @ xs[k])
+        P = Ps[k] + C @ (P_s[k + 1] - P_pred) @ C.T
+        P_s[k] = 0.5 * (P + P.T)
+    return x_s, P_s
