@@ -1,11 +1,13 @@
-"""Extension by registration: a package outside the bench registers a sensor type, an estimator and two
-pipeline stages (tests/plugin_example), and they run through the real ROS 2 graph with no generic edit.
+"""Extension by registration: a package outside the bench registers a sensor type, an estimator, two pipeline
+stages and a metric (tests/plugin_example), and they run through the real ROS 2 graph and the scorer with no
+generic edit.
 
 The package is "installed" the way importlib.metadata finds any package: a ``*.dist-info`` directory with
 its entry points on PYTHONPATH. The launched nodes inherit PYTHONPATH, so every process sees the plugin.
 """
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -24,17 +26,10 @@ EXAMPLE = Path(__file__).resolve().parent / "plugin_example"
 def plugin_path(tmp_path_factory) -> str:
     site = tmp_path_factory.mktemp("site")
     shutil.copy(EXAMPLE / "bench_plugin_example.py", site)
-    sys.path.insert(0, str(site))
-    try:
-        from bench_plugin_example import ENTRY_POINTS
-    finally:
-        sys.path.remove(str(site))
-        sys.modules.pop("bench_plugin_example", None)
     info = site / "bench_plugin_example-0.1.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: bench-plugin-example\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{line}\n" for line in lines) + "\n" for group, lines in ENTRY_POINTS.items()))
+    shutil.copy(EXAMPLE / "entry_points.txt", info)
     return str(site)
 
 
@@ -48,9 +43,11 @@ def test_the_plugins_components_are_registered(plugin_path):
 
 @pytest.mark.parametrize("window", [0, 5])
 def test_registered_sensor_estimator_and_three_stage_pipeline_run_through_the_graph(plugin_path, tmp_path, window):
-    res = script("launch.py", str(EXAMPLE / "plugin_demo.yaml"), "--out", str(tmp_path), "--no-score",
+    res = script("launch.py", str(EXAMPLE / "plugin_demo.yaml"), "--out", str(tmp_path), "--json",
                  "--set", f"time.pacing_window={window}", extra_env={"PYTHONPATH": plugin_path})
     assert res.returncode == 0, res.stderr[-3000:]
+    scored = json.loads(res.stdout)
+    assert scored["metric"] == "final_error" and scored["filters"]["mine"]["final_error_m"] < 20.0
     bag = read_bag(tmp_path / "bag")
     steps = list(range(41))
     for topic in ("/truth/state", "/ro/measurement", "/relay/estimate", "/smooth/estimate", "/mine/estimate"):
@@ -69,6 +66,10 @@ def test_without_the_plugin_the_scenario_stops_naming_what_is_missing(tmp_path):
     assert "unknown key(s) 'relays', 'smoothers'" in res.stderr  # sections nobody registered
     cfg = yaml.safe_load((EXAMPLE / "plugin_demo.yaml").read_text())
     del cfg["relays"], cfg["smoothers"]
+    (tmp_path / "no_stages.yaml").write_text(yaml.safe_dump(cfg))
+    res = script("launch.py", str(tmp_path / "no_stages.yaml"), "--out", str(tmp_path / "a"))
+    assert res.returncode == 2 and "'scoring.metric' must be one of" in res.stderr and "final_error" in res.stderr
+    cfg["scoring"] = {"metric": "errors"}
     (tmp_path / "no_stages.yaml").write_text(yaml.safe_dump(cfg))
     res = script("launch.py", str(tmp_path / "no_stages.yaml"), "--out", str(tmp_path / "b"))
     assert res.returncode == 2

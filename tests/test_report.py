@@ -1,8 +1,12 @@
-"""Report writer: Markdown tables next to the paper's numbers, PNG figures, generic and extra sections."""
+"""Report writer: the claims table, Markdown tables next to the paper's numbers, PNG figures, generic and extra
+sections."""
 import numpy as np
 
 from bench_eval.metrics import RadarSamples, Track, convergence_series, score_convergence
-from bench_eval.report import PAPER_LEO_RADAR, Section, Table, difference, fmt, write_report
+from bench_eval.report import Section, Table, difference, fmt, write_report
+from bench_eval.study import study
+
+PAPER_LEO_RADAR = study("leo_radar").paper
 
 LABELS = ["x", "y", "z", "vx", "vy", "vz"]
 
@@ -56,12 +60,12 @@ def test_write_report_leo(tmp_path):
 
 def test_report_without_paper_generic_and_extra_sections(tmp_path):
     scored, series = leo_inputs()
-    scored["formation_pf"] = {"pf": {"runs": 2, "mae": {"x": 0.1234, "vx": 0.002}, "settling_time_s": None}}
+    scored["no_study"] = {"pf": {"runs": 2, "mae": {"x": 0.1234, "vx": 0.002}, "settling_time_s": None}}
     extra = Section("notes", "free text here", [Table("t", ["a", "b"], [["1", "2"]])])
     text = write_report(tmp_path, scored, series, paper_table={}, extra_sections=[extra]).read_text()
-    assert "| 35200 |" not in text and "## formation_pf" in text
+    assert "| 35200 |" not in text and "## no_study" in text and "## Claims" not in text
     assert "| mae.x | 0.1234 |" in text and "| settling_time_s | — |" in text
-    assert text.index("## notes") > text.index("## formation_pf") and "| 1 | 2 |" in text
+    assert text.index("## notes") > text.index("## no_study") and "| 1 | 2 |" in text
 
 
 def test_formatting_helpers_and_paper_constant():
@@ -73,3 +77,21 @@ def test_formatting_helpers_and_paper_constant():
     assert ukf["radar"]["filter"]["elevation_mrad"] == 0.0669
     # the per-axis peaks combine to the position peak (paper's Table 2 is internally consistent here)
     assert abs(np.linalg.norm([ekf["axes"][a]["rmse_peak_m"] for a in "xyz"]) - ekf["rmse_peak_m"]) < 100.0
+
+
+def test_the_report_opens_with_the_claims_and_their_verdicts(tmp_path):
+    scored, series = leo_inputs()
+    text = write_report(tmp_path, scored, series).read_text()
+    claims = text.index("## Claims")
+    assert claims < text.index("## leo_radar")
+    assert "| [leo_radar](#leo_radar) | The filters converge to a position RMSE of about 645 m" in text
+    # the synthetic runs converge to ~650 m: the claim holds; their convergence time (~28 s) is under 33 s
+    row = next(line for line in text.splitlines() if "about 645 m" in line)
+    assert row.endswith("| **holds** |")
+    row = next(line for line in text.splitlines() if "within 33 s" in line)
+    assert row.endswith("| **holds** |")
+    scored["leo_radar"]["ekf"]["rmse_converged_m"] = 1300.0
+    scored["leo_radar"]["ekf"]["rmse_converged_m_runs"] = [1300.0, 1310.0, 1290.0]
+    text = write_report(tmp_path / "b", scored, series).read_text()
+    row = next(line for line in text.splitlines() if "about 645 m" in line)
+    assert row.endswith("| **holds only for ukf** |")

@@ -1,4 +1,5 @@
-"""scripts/sweep.py (grids of the scenario's ``sweeps`` section through the graph) and scripts/model_error.py."""
+"""Sweeps (bench_eval.sweep: grids of the scenario's ``sweeps`` section through the graph, scripts/sweep.py) and
+formation_cqkf's model errors (bench_studies.formation_cqkf.model_error)."""
 import json
 import subprocess
 import sys
@@ -9,12 +10,11 @@ import pytest
 import yaml
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, scenario_path
-from bench_eval.report import paired_ordering, paper004_case
-
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
-sys.path.insert(0, str(SCRIPTS))
-import model_error  # noqa: E402
-import sweep  # noqa: E402
+from bench_engine.batch import crosstalk
+from bench_eval import sweep
+from bench_studies.formation_cqkf import model_error
+from bench_studies.formation_cqkf.report import paired_ordering, paper004_case
+from graph_helpers import SCRIPTS, script
 
 COMPONENT_ROWS = ("δx [m]", "δy [m]", "δz [m]", "δvx [mm/s]", "δvy [mm/s]", "δvz [mm/s]")
 
@@ -73,16 +73,17 @@ def test_invalid_grids_fail_naming_the_value(tmp_path, grids, grid, message):
         sweep.load_grid(str(scenario_with(tmp_path, grids)), grid)
 
 
-def test_invalid_cell_value_or_grid_fails_before_any_run(tmp_path, capsys):
+def test_invalid_cell_value_or_grid_fails_before_any_run(tmp_path):
     bad = {"bad": {"axes": {"sigma": {"values": [1.0e-5, -1.0],
                                       "set": ["filters.cw.dynamics.sigma_accel"]}}}}
     path = str(scenario_with(tmp_path, bad))
     out = tmp_path / "out"
-    assert sweep.main([path, "--grid", "bad", "--out", str(out), "--domain-base", "80"]) == 2
-    err = capsys.readouterr().err
-    assert "cell sigma--1" in err and "filters.cw.dynamics.sigma_accel" in err
-    assert sweep.main([path, "--grid", "missing", "--out", str(out), "--domain-base", "80"]) == 2
-    assert "unknown grid 'missing'" in capsys.readouterr().err
+    res = script("sweep.py", path, "--grid", "bad", "--out", str(out), "--domain-base", "80")
+    assert res.returncode == 2
+    assert "cell sigma--1" in res.stderr and "filters.cw.dynamics.sigma_accel" in res.stderr
+    res = script("sweep.py", path, "--grid", "missing", "--out", str(out), "--domain-base", "80")
+    assert res.returncode == 2
+    assert "unknown grid 'missing'" in res.stderr
     assert not out.exists()
 
 
@@ -151,8 +152,8 @@ def test_crosstalk_is_a_truth_message_count_other_than_the_steps(tmp_path):
         (path / "metadata.yaml").write_text(yaml.safe_dump(
             {"rosbag2_bagfile_information": {"topics_with_message_count": topics}}))
         return path
-    assert not sweep.crosstalk(bag(61), 61)
-    assert sweep.crosstalk(bag(262), 61)  # a second graph's truth on the same domain
+    assert not crosstalk(bag(61), 61)
+    assert crosstalk(bag(262), 61)  # a second graph's truth on the same domain
 
 
 # ---------------------------------------------------------------------------------------- model error

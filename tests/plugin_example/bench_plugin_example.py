@@ -1,7 +1,7 @@
 """A throw-away package that extends the bench from outside, as tests/test_registry.py installs it.
 
-It registers (entry points, see ENTRY_POINTS): a range-only sensor type, an estimator (an EKF with covariance
-inflation), two node kinds that make a three-stage pipeline sensor -> relay -> smoother, and the scenario
+It registers (entry points, see entry_points.txt beside this file): a range-only sensor type, an estimator (an EKF with covariance
+inflation), a metric family (the final position error), two node kinds that make a three-stage pipeline sensor -> relay -> smoother, and the scenario
 sections those kinds read. Nothing of the bench is edited to run them.
 """
 from __future__ import annotations
@@ -13,18 +13,10 @@ import numpy as np
 from bench_engine.config import Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
+from bench_eval.metric_families import Metric
 from radar_sensor.sensor import Sensor
 from radar_sensor.sensor_types import SensorType
 from tracker_filters.ekf import ExtendedKalmanFilter
-
-ENTRY_POINTS = {
-    "tracking_bench.sensors": ["range_only = bench_plugin_example:RANGE_ONLY"],
-    "tracking_bench.estimators": ["inflated_ekf = bench_plugin_example:InflatedEKF"],
-    "tracking_bench.node_kinds": ["relay = bench_plugin_example:RELAY", "smoother = bench_plugin_example:SMOOTHER"],
-    "tracking_bench.sections": ["relays = bench_plugin_example:read_relays",
-                                "smoothers = bench_plugin_example:read_smoothers"],
-}
-
 
 class RangeModel:
     """z = |r|, r = the first three state components."""
@@ -124,3 +116,12 @@ def _kind(name: str, key: str, stage: type, reader) -> NodeKind:
 
 RELAY = _kind("relay", "relays", Relay, read_relays)
 SMOOTHER = _kind("smoother", "smoothers", Smoother, read_smoothers)
+
+
+def _final_error(tracks: dict, runs: list, options: dict) -> dict:
+    return {name: {"runs": len(group), "final_error_m": float(np.mean(
+        [np.linalg.norm(tr.error(options["components"])[-1]) for tr in group]))} for name, group in tracks.items()}
+
+
+FINAL_ERROR = Metric(options=lambda sec: {"components": sec.get("components", list, ["x", "y", "z"])},
+                     score=_final_error, series=lambda tracks, runs, options: {})

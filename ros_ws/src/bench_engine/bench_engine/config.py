@@ -3,7 +3,8 @@
 A scenario is a YAML mapping, registered by its study (entry-point group ``tracking_bench.scenarios``).
 Overrides ``key.path=value`` are applied on top (the value is parsed as YAML). Every consumer reads its
 section through :class:`Section`, which records the keys it asked for; :meth:`Section.finish` then rejects
-any key nobody asked for, naming it and the allowed keys. Checks on values raise :class:`ScenarioError` naming the full key path.
+any key nobody asked for, naming it and the allowed keys. Checks on values raise :class:`ScenarioError`
+naming the full key path.
 """
 from __future__ import annotations
 

@@ -85,6 +85,8 @@ class Grid:
     columns: str | None
     axes: list[Axis]
     cells: list[Cell]
+    source: str = ""
+    """The scenario as given (registered name or YAML path): what each run launches."""
 
 
 def _level(spec: Any, path: str) -> Level:
@@ -184,7 +186,7 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
     for key in sorted(scaled_keys):
         if all(_lookup(c.cfg, key) is None for c in cells):
             raise ScenarioError(f"'{path}': no cell has the key to scale '{key}'")
-    return Grid(base["scenario"], name, description, columns, axes, cells)
+    return Grid(base["scenario"], name, description, columns, axes, cells, scenario)
 
 
 def distinct_truths(grid: Grid) -> list[tuple[str, dict]]:
@@ -273,7 +275,7 @@ class SweepRun:
     reruns: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self.specs = {(c.id, i): RunSpec(self.grid.scenario, run_dir(self.out, c, i), self.seed0 + i,
+        self.specs = {(c.id, i): RunSpec(self.grid.source, run_dir(self.out, c, i), self.seed0 + i,
                                          variant=",".join(c.variants) or None, overrides=list(c.overrides))
                       for c in self.grid.cells for i in range(self.runs) if (c.id, i) not in self.done}
         self.remaining = {c.id: sum(1 for cid, _ in self.specs if cid == c.id) for c in self.grid.cells}
