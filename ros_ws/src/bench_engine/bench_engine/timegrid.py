@@ -5,7 +5,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import Section
+from bench_engine.config import ScenarioError, Section
+
+MAX_STEPS = 10_000_000
+"""Most lock-steps a run may have (a day at 0.01 s); beyond it a typo in ``time`` is far likelier than intent."""
 
 
 @dataclass(frozen=True)
@@ -38,4 +41,9 @@ def build_time(cfg: dict) -> TimeGrid:
     window = sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
     sec.finish()
     dt_ns = int(round(dt * 1e9))
-    return TimeGrid(int(round(start * 1e9)), dt_ns, int(round(duration / dt)) + 1, window)
+    steps = int(round(duration / dt)) + 1
+    if dt_ns < 1 or steps > MAX_STEPS:
+        raise ScenarioError(f"'time.duration' / 'time.dt' = {duration:g} s / {dt:g} s gives {steps} steps; a run "
+                            f"may have at most {MAX_STEPS} steps of at least 1 ns: shorten time.duration or "
+                            "lengthen time.dt")
+    return TimeGrid(int(round(start * 1e9)), dt_ns, steps, window)

@@ -30,11 +30,22 @@ def make_filter(name: str, dynamics: DynamicsModel, **params) -> Filter:
     if unknown:
         raise ValueError(f"{name}: unknown parameter(s) {', '.join(unknown)}; "
                          f"allowed: {', '.join(allowed) or 'none'}")
+    _check_types(name, cls, params)
     try:
         return cls(dynamics, **params)
     except ValueError as err:
         message = str(err)
         raise ValueError(message if message.startswith(f"{name}:") else f"{name}: {message}") from err
+
+
+def _check_types(name: str, cls: type, params: dict) -> None:
+    """A parameter whose default is a number must be given a number (ValueError naming it otherwise)."""
+    defaults = {p.name: p.default for p in inspect.signature(cls.__init__).parameters.values()}
+    for key, value in params.items():
+        default = defaults.get(key)
+        numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
+        if numeric and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ValueError(f"{name}: parameter {key} must be a number, got {value!r}")
 
 
 def filter_names() -> list[str]:
