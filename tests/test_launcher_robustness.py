@@ -1,5 +1,5 @@
 """The launcher's promises: bad input stops it before anything starts; signals and dead nodes leave a
-complete bag; normal runs leave no shared-memory files behind."""
+complete bag (a killed recorder's is recovered); normal runs leave no shared-memory files behind."""
 from __future__ import annotations
 
 import json
@@ -79,8 +79,28 @@ def test_dead_node_is_named_and_bag_closed(tmp_path: Path) -> None:
     os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 1
-    assert "node 'ekf' failed" in err
+    assert "node 'ekf' died first (killed by SIGKILL)" in err
     assert read_bag(out / "bag")["/truth/state"]
+
+
+def test_a_killed_recorder_is_named_and_its_bag_recovered(tmp_path: Path) -> None:
+    """SIGKILL leaves the recorder no chance to close the bag; the launcher names it and rebuilds the bag from
+    the chunks it flushed (every second of sim time), which the independent reader then opens."""
+    out = tmp_path / "killed"
+    proc = _launch_background(out, 69)
+    _wait_for_stepping(out, proc)
+    found = subprocess.run(["pgrep", "-f", "--", f"--name recorder --config {out.resolve()}"], capture_output=True,
+                           text=True)
+    os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1
+    assert "node 'recorder' died first (killed by SIGKILL)" in err
+    assert "recovered" in err and (out / "bag" / "metadata.yaml").is_file()
+    assert list((out / "bag").glob("*.mcap.truncated"))
+    bag = read_bag(out / "bag")
+    steps = sorted(m.step for _, m in bag["/truth/state"])
+    assert len(steps) >= 10 and steps == list(range(len(steps)))  # whole seconds of sim time, nothing skipped
+    assert {"/radar/measurement", "/ekf/estimate", "/ukf/estimate"} <= set(bag)
 
 
 def _shm_files() -> set[str]:

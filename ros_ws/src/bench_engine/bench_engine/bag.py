@@ -21,12 +21,15 @@ fsyncs, and writes ``metadata.yaml`` (atomically). If the main thread ends witho
 thread closes the bag itself. A truncated file (no summary) is left only when the process dies without running
 Python code: SIGKILL, ``os._exit``, or SIGTERM with neither a Python handler nor rclpy's (``rclpy.init``
 installs C-level SIGINT/SIGTERM handlers that turn the signal into a context shutdown; a recorder then
-closes the bag once spinning returns).
+closes the bag once spinning returns). :meth:`BagWriter.flush` ends the current chunk and hands it to the
+operating system, so such a crash loses only what came after the last flush; bench_engine.recovery then
+rebuilds a complete bag from the chunks on disk.
 """
 from __future__ import annotations
 
 import collections
 import os
+import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -47,6 +50,7 @@ MAX_QUEUED = 20_000          # write() waits for the writer thread beyond this m
 POLL_S = 0.005               # writer thread's idle wait (≈ 0.3 % of a core while idle)
 NS_MAX = 2**63 - 1           # rosbag2's starting time of a bag without messages (nanoseconds::max)
 LIBRARY = f"bench_engine.bag; {LIBRARY_IDENTIFIER}"
+_FLUSH = object()            # writer-thread work item: end the chunk and flush the file
 
 DEFAULT_QOS: dict[str, Any] = {
     # What a reliable keep-last publisher offers, as rosbag2 stores it: durations and liveliness as the
@@ -234,6 +238,12 @@ class BagWriter:
             time.sleep(POLL_S)
         self._pending.append((topic, payload, log_ns, pub_ns))
 
+    def flush(self) -> None:
+        """End the chunk in progress and write it to the file (asynchronously, in call order): what a crash
+        of this process loses is then only what is written after this call."""
+        self._check_open()
+        self._pending.append((_FLUSH,))
+
     def close(self) -> None:
         """Finish the bag: drain queued messages, write the MCAP summary and ``metadata.yaml``. Idempotent and
         safe to call from a signal handler."""
@@ -280,7 +290,10 @@ class BagWriter:
         drained = False
         while items:
             item = items.popleft()
-            if isinstance(item[0], _Topic):
+            if item[0] is _FLUSH:
+                self._mcap.flush()
+                self._file.flush()
+            elif isinstance(item[0], _Topic):
                 self._register(*item)
             else:
                 self._add_message(*item)
@@ -350,8 +363,15 @@ class BagWriter:
 class BagReader:
     """Read a bag written by :class:`BagWriter` or rosbag2 (MCAP storage): a bag directory or a bare ``.mcap``."""
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike, recover: bool = True) -> None:
+        """``recover``: rebuild a bag directory a crashed recorder left without metadata.yaml first
+        (bench_engine.recovery), saying so on stderr."""
         self.path = Path(path)
+        if recover:
+            from bench_engine.recovery import ensure_complete
+            done = ensure_complete(self.path)
+            if done is not None:
+                print(f"[bag] {done.summary()}", file=sys.stderr)
         self.files = self._mcap_files()
 
     def _mcap_files(self) -> list[Path]:

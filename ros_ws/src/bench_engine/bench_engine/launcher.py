@@ -123,30 +123,58 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
             signal.signal(s, handler)
 
 
+def _exit_text(code: int) -> str:
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
+
+
 def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
+    """Wait for the nodes; on the first failure stop the others and name the node that died first. A bag a
+    killed recorder left incomplete is rebuilt (bench_engine.recovery)."""
     deadline = time.monotonic() + timeout_s
-    failed: list[str] = []
+    first: list[str] = []
     while any(p.poll() is None for p in procs.values()):
-        failed = [n for n, p in procs.items() if p.poll() not in (None, 0)]
-        if failed or interrupted or time.monotonic() > deadline:
+        first = [n for n, p in procs.items() if p.poll() not in (None, 0)]
+        if first or interrupted or time.monotonic() > deadline:
             break
         time.sleep(0.05)
-    if failed or interrupted or time.monotonic() > deadline:
+    if first or interrupted or time.monotonic() > deadline:
         _stop_all(procs)
-    failed = [n for n, p in procs.items() if p.returncode not in (0, None)]
+    _recover_bag(plan)
     if interrupted:
         print(f"[launcher] interrupted; bag closed at {plan.bag_dir}", file=sys.stderr)
         return 128 + interrupted[0]
     if time.monotonic() > deadline:
         print(f"[launcher] timed out after {timeout_s:.0f} s", file=sys.stderr)
         return 124
-    for name in failed:
-        print(f"[launcher] node '{name}' failed (exit code {procs[name].returncode}); "
+    first = first or [n for n, p in procs.items() if p.returncode not in (0, None)]
+    for name in first:
+        print(f"[launcher] node '{name}' died first ({_exit_text(procs[name].returncode)}); "
               f"log: {plan.logs / (name + '.log')}", file=sys.stderr)
         if not quiet:
             tail = (plan.logs / f"{name}.log").read_text(errors="replace").splitlines()[-8:]
             print("\n".join(f"    {line}" for line in tail), file=sys.stderr)
-    return 1 if failed else 0
+    stopped = [n for n, p in procs.items() if n not in first and p.returncode not in (0, None)]
+    if first and stopped:
+        print(f"[launcher] stopped after it: {', '.join(stopped)}", file=sys.stderr)
+    return 1 if first else 0
+
+
+def _recover_bag(plan: RunPlan) -> None:
+    from bench_engine.recovery import BagUnrecoverable, ensure_complete
+    if not plan.run.get("record", True):
+        return
+    try:
+        done = ensure_complete(plan.bag_dir)
+    except BagUnrecoverable as err:
+        print(f"[launcher] the bag could not be recovered: {err}", file=sys.stderr)
+        return
+    if done is not None:
+        print(f"[launcher] {done.summary()}", file=sys.stderr)
 
 
 def _stop_all(procs: dict) -> None:

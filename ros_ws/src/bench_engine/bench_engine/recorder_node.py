@@ -2,7 +2,9 @@
 
 Subscribes with ``raw=True`` (no deserialisation) to every topic the graph's nodes publish. On ``/sim/done``
 it drains what is still in flight (until the other nodes have left, or nothing arrived for a while) and
-closes the bag; SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag.
+closes the bag; SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
+FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
+killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
 """
 from __future__ import annotations
 
@@ -15,8 +17,12 @@ import yaml
 
 from bench_engine.bag import BagWriter
 from bench_engine.bench_node import DATA_QOS, BenchNode, node_main
+from bench_engine.graph import CLOCK_TOPIC
 from bench_engine.msg_schema import message_class
+from bench_engine.timegrid import build_time
 
+FLUSH_SIM_S = 1.0
+"""Sim time between two flushes of the bag."""
 IDLE_AFTER_DONE_S = 0.5
 MAX_DRAIN_S = 15.0
 
@@ -29,6 +35,7 @@ class RecorderNode(BenchNode):
         # The scorer needs the scenario (sensor models, scoring options): the bag carries its run config.
         Path(self.run["bag_dir"], "run_config.yaml").write_text(yaml.safe_dump(self.run, sort_keys=False))
         self.counts: dict[str, int] = {}
+        self._flush_every = max(1, round(FLUSH_SIM_S / build_time(self.cfg).dt))
         self._last_rx = time.monotonic()
         self._drain_started = None
         for topic, type_name in sorted(self.spec.subscribes.items()):
@@ -41,6 +48,8 @@ class RecorderNode(BenchNode):
         self.bag.write(topic, data, now_ns, now_ns)
         self.counts[topic] += 1
         self._last_rx = time.monotonic()
+        if topic == CLOCK_TOPIC and self.counts[topic] % self._flush_every == 0:
+            self.bag.flush()
 
     def on_done(self, last_step: int) -> None:
         self._drain_started = time.monotonic()

@@ -1,0 +1,95 @@
+"""Bags that survive a crash (bench_engine.recovery): what a killed recorder flushed is rebuilt into a complete
+rosbag2 bag that the independent reader opens."""
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+from mcap.opcode import Opcode
+from rclpy.serialization import serialize_message
+
+from bench_engine.bag import BagReader, BagWriter
+from bench_engine.msg_schema import message_class
+from bench_engine.recovery import BagUnrecoverable, needs_recovery, recover
+from graph_helpers import read_bag
+
+TRUTH = "bench_msgs/msg/TruthState"
+
+
+def truth(step: int) -> bytes:
+    msg = message_class(TRUTH)()
+    msg.step, msg.labels, msg.state = step, ["x"], [float(step)]
+    return serialize_message(msg)
+
+
+def last_chunk_offset(mcap: Path) -> int:
+    """File offset of the last Chunk record."""
+    data = mcap.read_bytes()
+    offset, last = 8, -1  # after the magic: records are opcode (1 byte), length (8 bytes), content
+    while offset + 9 <= len(data):
+        if data[offset] == Opcode.CHUNK:
+            last = offset
+        offset += 9 + int.from_bytes(data[offset + 1:offset + 9], "little")
+    return last
+
+
+def crashed_copy(tmp_path: Path, flushed: int, unflushed: int, cut_last_chunk: bool = False) -> Path:
+    """A bag as a SIGKILLed recorder leaves it: ``flushed`` steps flushed, ``unflushed`` more written after the
+    last flush, no close; with ``cut_last_chunk`` the file ends inside its last chunk (a record cut in half)."""
+    writer = BagWriter(tmp_path / "live")
+    writer.add_topic("/truth/state", TRUTH)
+    for k in range(flushed):
+        writer.write("/truth/state", truth(k), 1_000 + k)
+        if k % 10 == 9:
+            writer.flush()
+    writer.flush()
+    for k in range(flushed, flushed + unflushed):
+        writer.write("/truth/state", truth(k), 1_000 + k)
+    time.sleep(0.2)  # the writer thread has handled the queue: the file is what a crash would leave now
+    crashed = tmp_path / "crashed"
+    shutil.copytree(tmp_path / "live", crashed)
+    if cut_last_chunk:
+        mcap = next(crashed.glob("*.mcap"))
+        mcap.write_bytes(mcap.read_bytes()[:last_chunk_offset(mcap) + 30])
+    writer.close()
+    return crashed
+
+
+def steps_of(bag: Path) -> list[int]:
+    return [m.step for _, m in read_bag(bag)["/truth/state"]]
+
+
+def test_every_flushed_message_is_recovered_and_the_unflushed_are_lost(tmp_path: Path) -> None:
+    bag = crashed_copy(tmp_path, flushed=35, unflushed=7)
+    assert needs_recovery(bag)
+    with pytest.raises(Exception):
+        read_bag(bag)  # what the crash left: no reader opens it
+    done = recover(bag)
+    assert done.kept == {"/truth/state": 35} and done.truncated_file.is_file()
+    assert steps_of(bag) == list(range(35))
+    assert not needs_recovery(bag) and "recovered 35 messages" in done.summary()
+
+
+def test_a_record_cut_in_half_ends_the_recovered_data_at_the_last_whole_chunk(tmp_path: Path) -> None:
+    bag = crashed_copy(tmp_path, flushed=40, unflushed=0, cut_last_chunk=True)
+    done = recover(bag)
+    assert done.lost_bytes == 30
+    assert steps_of(bag) == list(range(30))  # chunks of 10 steps: the cut one is lost whole
+
+
+def test_the_reader_recovers_a_crashed_bag_itself(tmp_path: Path, capsys) -> None:
+    bag = crashed_copy(tmp_path, flushed=12, unflushed=3)
+    assert [t for t, *_ in BagReader(bag).messages()] == ["/truth/state"] * 12
+    assert "recovered 12 messages" in capsys.readouterr().err
+
+
+def test_nothing_to_recover_is_a_clear_error(tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BagUnrecoverable, match="no .mcap file"):
+        recover(tmp_path / "empty")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "junk_0.mcap").write_bytes(b"not an mcap file")
+    with pytest.raises(BagUnrecoverable, match="not even the MCAP header"):
+        recover(tmp_path / "junk")
