@@ -28,6 +28,8 @@ setup(
         "tracking_bench.studies": [
             "leo_radar = bench_studies.leo_radar.study:STUDY",
             "formation_pf = bench_studies.formation_pf.study:STUDY",
-            "formation_cqkf = bench_studies.formation_cqkf.study:STUDY"]
+            "formation_cqkf = bench_studies.formation_cqkf.study:STUDY"],
+        "tracking_bench.metrics": [
+            "radar_convergence = bench_studies.leo_radar.metrics:RADAR_CONVERGENCE"]
     },
 )

@@ -3,7 +3,8 @@ names. A family reads its options from the ``scoring`` section, scores the track
 time series its plots need.
 
 - ``convergence``: RMSE over runs summarised by peak, convergence time, band and converged level, per axis;
-  NEES; the RMSE in the first sensor's coordinates of the raw measurements and of each filter.
+  NEES. (A study extends a family with its own scores by registering another Metric, e.g. leo_radar's
+  ``radar_convergence`` adds the RMSE in the radar's coordinates.)
 - ``errors``: mean absolute error per component (per run too), settling time under per-axis thresholds,
   fraction inside +-3 sigma, NEES; options ``skip_s``, ``position_threshold`` [m], ``velocity_threshold`` [m/s]
   and ``hold_after_s`` (per run: do the thresholds hold from then on).
@@ -32,35 +33,6 @@ class Metric:
     series: Callable[[Tracks, list[BagData], dict], dict]
 
 
-def measurement_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | None:
-    """Estimate, raw measurement and truth in the filter's (first) sensor's coordinates, per estimate."""
-    from tracker_filters.builders import build_filter_stack
-    stack = build_filter_stack(data.scenario, filter_name)
-    sensor_name = next(iter(stack.sensors))
-    sensor = stack.sensors[sensor_name]
-    meas = data.measurements.get(sensor_name, {})
-    est = data.estimates[filter_name]
-    rows = [i for i, k in enumerate(est.steps) if int(k) in meas]
-    if not rows:
-        return None
-    z_est = [sensor.model.h(est.x[i], est.t[i]) for i in rows]
-    z_meas = [meas[int(est.steps[i])] for i in rows]
-    z_true = [sensor.model.h(data.truth[int(est.steps[i])][1], est.t[i]) for i in rows]
-    return metrics.RadarSamples(np.array(z_est), np.array(z_meas), np.array(z_true),
-                                tuple(sensor.model.angle_indices))
-
-
-def _convergence_score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
-    radar: dict[str, metrics.RadarSamples] = {}
-    for name in tracks:
-        samples = [measurement_samples(d, name) for d in runs if name in d.estimates and name in d.run["filters"]]
-        samples = [s for s in samples if s is not None]
-        if samples:
-            radar[name] = metrics.RadarSamples(*(np.vstack([getattr(s, k) for s in samples])
-                                                 for k in ("z_est", "z_meas", "z_true")), samples[0].angle_indices)
-    return metrics.score_convergence(tracks, radar)
-
-
 def error_series(tracks: Tracks, runs: list[BagData] | None = None, options: dict | None = None) -> dict:
     """Per filter: t (s from the first stamp), RMS error over runs and mean 1-sigma per position and velocity
     component."""
@@ -85,7 +57,8 @@ def _error_options(sec: Section) -> dict:
             "hold_after_s": sec.get("hold_after_s", float, None, lambda v: v >= 0, ">= 0")}
 
 
-CONVERGENCE = Metric(options=lambda sec: {}, score=_convergence_score,
+CONVERGENCE = Metric(options=lambda sec: {},
+                     score=lambda tracks, runs, options: metrics.score_convergence(tracks),
                      series=lambda tracks, runs, options: metrics.convergence_series(tracks))
 ERRORS = Metric(options=_error_options, score=lambda tracks, runs, options: metrics.score_errors(tracks, **options),
                 series=error_series)

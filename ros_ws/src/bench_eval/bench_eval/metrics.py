@@ -3,8 +3,9 @@
 Two families of scores are built from them (registered in bench_eval.metric_families):
 - convergence (:func:`score_convergence`): position RMSE over N Monte Carlo runs per time step (paper 000
   eq. 35), summarised by the peak, the time to converge, the band the error "wanders in" after convergence
-  and the converged RMSE value (operational definitions in :func:`summarise`), per axis as well; NEES; and
-  the RMSE in a sensor's coordinates (range, azimuth, elevation) of the raw measurements and of the filters.
+  and the converged RMSE value (operational definitions in :func:`summarise`), per axis as well; NEES; and,
+  given samples in a sensor's coordinates (range, azimuth, elevation), the RMSE there of the raw measurements
+  and of the filters (leo_radar's ``radar_convergence`` family supplies them).
 - errors (:func:`score_errors`): mean absolute error per state component (with each run's value for Monte
   Carlo error bars and paired comparisons), the time after which every position and velocity axis stays
   below a threshold, the fraction of errors inside +-3 sigma, NEES.
@@ -337,8 +338,9 @@ def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
     nees_fraction_inside (full-state NEES, see :func:`nees_summary`) and, when ``radar_by_filter`` has the
     filter, radar {filter: {range_m, azimuth_mrad, elevation_mrad}, measurement: {...}}.
     ``smooth_s`` and ``summary_kwargs`` go to :func:`summarise`. The default 1 s window (10 scans at 10 Hz)
-    keeps the convergence test robust when few runs are averaged (a per-axis RMSE over 10 runs fluctuates by
-    ~20 %) and shifts the convergence time by at most half a second.
+    keeps the convergence test robust when few runs are averaged (an RMSE over N runs of one Gaussian error
+    component has a relative spread of about 1/sqrt(2N)) and shifts the convergence time by at most half
+    the window.
     """
     summary_kwargs = {"smooth_s": smooth_s, **summary_kwargs}
     scored = {}

@@ -75,6 +75,36 @@ def difference(bench, paper) -> str:
     return f"{'+' if d >= 0 else '-'}{fmt(abs(d))}{rel}"
 
 
+def thin(t: np.ndarray, max_points: int = 2000) -> slice:
+    """A stride that keeps at most about ``max_points`` points of a long time series for plotting."""
+    return slice(None, None, max(1, len(t) // max_points))
+
+
+def draw_errors_vs_sigma(series: Mapping, title: str,
+                         components: Sequence[tuple[str, str, str, float]]) -> Callable[[Figure], None]:
+    """A figure of the ``errors`` family's series (bench_eval.metric_families.error_series): per component
+    (score key, symbol, display unit, factor from SI to it), the error RMSE over runs (solid) and the filter's
+    mean 3 sigma (dashed), one colour per filter, on log axes, in a grid of 3 columns."""
+    def draw(fig: Figure) -> None:
+        rows = max(1, -(-len(components) // 3))
+        axs = np.atleast_2d(fig.subplots(rows, 3, sharex=True, squeeze=False))
+        for (key, symbol, unit, factor), ax in zip(components, axs.ravel()):
+            for name, s in series.items():
+                if key not in s["rmse"]:
+                    continue
+                k = thin(s["t"])
+                line, = ax.semilogy(s["t"][k], factor * np.asarray(s["rmse"][key])[k], lw=0.8, label=f"{name} RMSE")
+                ax.semilogy(s["t"][k], 3.0 * factor * np.asarray(s["sigma"][key])[k], lw=0.8, ls="--",
+                            color=line.get_color(), label=f"{name} 3σ")
+            ax.set_title(f"{symbol} [{unit}]", fontsize=9)
+            ax.grid(True, which="both", alpha=0.3)
+        for ax in axs[-1]:
+            ax.set_xlabel("time [s]")
+        axs[0, 0].legend(fontsize=7)
+        fig.suptitle(title, fontsize=10)
+    return draw
+
+
 def save_plot(out_dir: Path, plot: Plot) -> Path:
     """Draw and write one plot as PNG; returns its path."""
     fig = Figure(figsize=plot.size, layout="constrained")

@@ -22,7 +22,8 @@ class Study:
     paper: Mapping = field(default_factory=dict)
     """The paper's published numbers (paper.yaml ``paper``)."""
     claims: list = field(default_factory=list)
-    """The paper's claims with the rule and score that decide each (paper.yaml ``claims``)."""
+    """The paper's claims (bench_eval.claims.Claim) with the rule and score that decide each (paper.yaml
+    ``claims``)."""
     sections: Callable | None = None
     """(scenario, scored filters, series, paper) -> list of report Sections."""
     sweep_report: Callable | None = None
@@ -34,9 +35,20 @@ class Study:
 
 
 def load_paper(path: Path) -> tuple[Mapping, list]:
-    """(paper numbers, claims) of a study's paper.yaml."""
-    data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    return data.get("paper") or {}, list(data.get("claims") or [])
+    """(paper numbers, claims) of a study's paper.yaml: ``paper`` (free-form numbers its report section reads)
+    and ``claims`` (read strictly into bench_eval.claims.Claim; a bad claim raises ScenarioError naming the file
+    and key)."""
+    from bench_engine.config import ScenarioError, Section
+    from bench_eval.claims import read_claims
+    path = Path(path)
+    top = Section(yaml.safe_load(path.read_text(encoding="utf-8")) or {}, "")
+    paper = top.get("paper", dict, {})
+    try:
+        claims = read_claims(top.get("claims", list, []))
+        top.finish()
+    except ScenarioError as err:
+        raise ScenarioError(f"{path}: {err}") from err
+    return paper, claims
 
 
 def study(name: str | None) -> Study | None:

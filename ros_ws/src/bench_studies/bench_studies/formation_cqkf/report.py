@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from bench_eval.report import Plot, Section, Table, fmt, render
+from bench_eval.report import Plot, Section, Table, draw_errors_vs_sigma, fmt, render
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -102,29 +102,6 @@ def formation_consistency_table(title: str, rows_in: Sequence[tuple[str, str, Ma
                          "steps inside band", "errors within ±3σ (per component)"], rows)
 
 
-def _thin(t: np.ndarray, max_points: int = 2000) -> slice:
-    return slice(None, None, max(1, len(t) // max_points))
-
-
-def _draw_formation_errors(series: Mapping, title: str) -> Callable[[Figure], None]:
-    """Per component: RMSE over runs (solid) and the filter's 3 sigma (dashed), one colour per filter."""
-    def draw(fig: Figure) -> None:
-        axs = fig.subplots(2, 3, sharex=True)
-        for (key, symbol, unit, factor), ax in zip(FORMATION_COMPONENTS, axs.ravel()):
-            for name, s in series.items():
-                k = _thin(s["t"])
-                line, = ax.semilogy(s["t"][k], factor * np.asarray(s["rmse"][key])[k], lw=0.8, label=f"{name} RMSE")
-                ax.semilogy(s["t"][k], 3.0 * factor * np.asarray(s["sigma"][key])[k], lw=0.8, ls="--",
-                            color=line.get_color(), label=f"{name} 3σ")
-            ax.set_title(f"{symbol} [{unit}]", fontsize=9)
-            ax.grid(True, which="both", alpha=0.3)
-        for ax in axs[1]:
-            ax.set_xlabel("time [s]")
-        axs[0, 0].legend(fontsize=7)
-        fig.suptitle(title, fontsize=10)
-    return draw
-
-
 def _filter_models(scored: Mapping) -> dict[str, str]:
     """Bench filter name -> paper 004 dynamics model key, by name (ss, cw, cwb as in the scenario)."""
     by_name = {"ss": "ss", "cw": "cw", "cwb": "cw_bias"}
@@ -144,7 +121,7 @@ def formation_cqkf_sections(scenario: str, scored: Mapping, series: Mapping | No
                                   _filter_models(scored)),
               formation_consistency_table("Consistency", [("scenario as run", n, b, "—") for n, b in scored.items()])]
     plots = [Plot(f"{scenario}_errors.png", "Error RMSE over runs against the filters' 3σ (paper 004 Figs. 1-6)",
-                  _draw_formation_errors(series, scenario), (11.0, 6.0))] if series else []
+                  draw_errors_vs_sigma(series, scenario, FORMATION_COMPONENTS), (11.0, 6.0))] if series else []
     return [Section(scenario, text, tables, plots)]
 
 
@@ -184,7 +161,7 @@ def sweep_paper_tables(sweep: Mapping) -> list[Table]:
         groups.setdefault(_cell_label(cell, [col]), []).append(cell)
     tables = []
     for group, cells in groups.items():
-        header = ["state"] + [f"{col}={c['labels'][col]}: {_display_names(c)[f]}" for c in cells
+        header = ["state"] + [f"{col}={c['labels'][col]}: {_display_names(c).get(f, f)}" for c in cells
                               for f in c["score"]["filters"]]
         rows = [[f"{symbol} [{unit}]"] + [_mae_cell(c, f, key, factor) for c in cells for f in c["score"]["filters"]]
                 for key, symbol, unit, factor in FORMATION_COMPONENTS]
@@ -196,7 +173,7 @@ def sweep_paper_tables(sweep: Mapping) -> list[Table]:
 
 def sweep_cells_table(sweep: Mapping) -> Table:
     """Every cell and filter: mean absolute error per component (mean ± SE over runs; paper in parentheses)."""
-    rows = [[_cell_label(c), _display_names(c)[f], str(c["score"]["filters"][f]["runs"])]
+    rows = [[_cell_label(c), _display_names(c).get(f, f), str(c["score"]["filters"][f]["runs"])]
             + [_mae_cell(c, f, key, factor) for key, _, _, factor in FORMATION_COMPONENTS]
             for c in _scored_cells(sweep) for f in c["score"]["filters"]]
     return Table("All cells: mean absolute error (mean ± standard error over runs; paper in parentheses)",
@@ -319,7 +296,7 @@ def sweep_plots(sweep: Mapping, series: Mapping[str, Mapping]) -> list[Plot]:
     for c in _scored_cells(sweep):
         if c.get("paper") and series.get(c["id"]):
             plots.append(Plot(f"errors_{c['id']}.png", f"Error RMSE over runs vs the filters' 3σ: {_cell_label(c)}",
-                              _draw_formation_errors(series[c["id"]], _cell_label(c)), (11.0, 6.0)))
+                              draw_errors_vs_sigma(series[c["id"]], _cell_label(c), FORMATION_COMPONENTS), (11.0, 6.0)))
     return plots
 
 

@@ -5,9 +5,11 @@ from __future__ import annotations
 from typing import Mapping
 
 from bench_eval.claims import diverged
-from bench_eval.report import Plot, Section, Table, fmt
+from bench_eval.report import Plot, Section, Table, draw_errors_vs_sigma, fmt
 
 AXES = (("x", "m"), ("y", "m"), ("z", "m"), ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"))
+COMPONENTS = tuple((axis, axis, unit, 1.0) for axis, unit in AXES)
+"""Plotted components: score key, symbol, unit, factor from SI."""
 
 
 def _row(name: str, block: Mapping) -> list[str]:
@@ -25,7 +27,6 @@ def formation_pf_sections(scenario: str, scored: Mapping, series: Mapping | None
                           paper: Mapping | None) -> list[Section]:
     """One table: per filter the runs meeting the paper's claim, settling time, NEES (or "diverged") and the
     mean absolute error per axis; the error-vs-3-sigma figure of the errors family when its series exist."""
-    from bench_studies.formation_cqkf.report import _draw_formation_errors
     text = ("Paper 001's claim: every position axis below 0.5 m and every velocity axis below 0.02 m/s after "
             "about 80 s. 'claim met' counts the runs in which the thresholds hold from 80 s on; a filter whose "
             "normalised error is astronomically large has lost the target and is marked diverged.")
@@ -37,5 +38,5 @@ def formation_pf_sections(scenario: str, scored: Mapping, series: Mapping | None
                   [_row(name, block) for name, block in scored.items()])
     healthy = {n: s for n, s in (series or {}).items() if n in scored and not diverged(scored[n])}
     plots = [Plot(f"{scenario}_errors.png", "Error RMSE over runs against the filters' 3σ (filters that did not "
-                  "diverge)", _draw_formation_errors(healthy, scenario), (11.0, 6.0))] if healthy else []
+                  "diverge)", draw_errors_vs_sigma(healthy, scenario, COMPONENTS), (11.0, 6.0))] if healthy else []
     return [Section(scenario, text, [table], plots)]

@@ -1,0 +1,49 @@
+"""The leo_radar metric family ``radar_convergence`` (registered in tracking_bench.metrics): the generic
+``convergence`` family (bench_eval.metric_families) plus, per filter, the RMSE in the ground radar's own
+coordinates of the raw measurements and of the filter's estimates (paper 000 Table 3).
+
+An estimate x_k and the truth at the same step are mapped through the radar's measurement function h (the
+run's own sensor model, rebuilt from the bag's run config); the raw measurement z_k is the one recorded at
+that step. Range errors are in metres; angle errors are wrapped to (-pi, pi] and reported in mrad
+(bench_eval.metrics.radar_coordinate_rmse).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bench_eval import metrics
+from bench_eval.metric_families import CONVERGENCE, Metric, Tracks
+from bench_eval.scoring import BagData
+
+
+def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | None:
+    """Estimate, raw measurement and truth in the filter's (first) radar's coordinates, at every estimate step
+    that has a recorded measurement (None when there is none)."""
+    from tracker_filters.builders import build_filter_stack
+    stack = build_filter_stack(data.scenario, filter_name)
+    sensor_name = next(iter(stack.sensors))
+    sensor = stack.sensors[sensor_name]
+    meas = data.measurements.get(sensor_name, {})
+    est = data.estimates[filter_name]
+    rows = [i for i, k in enumerate(est.steps) if int(k) in meas]
+    if not rows:
+        return None
+    z_est = [sensor.model.h(est.x[i], est.t[i]) for i in rows]
+    z_meas = [meas[int(est.steps[i])] for i in rows]
+    z_true = [sensor.model.h(data.truth[int(est.steps[i])][1], est.t[i]) for i in rows]
+    return metrics.RadarSamples(np.array(z_est), np.array(z_meas), np.array(z_true),
+                                tuple(sensor.model.angle_indices))
+
+
+def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+    radar: dict[str, metrics.RadarSamples] = {}
+    for name in tracks:
+        samples = [radar_samples(d, name) for d in runs if name in d.estimates and name in d.run["filters"]]
+        samples = [s for s in samples if s is not None]
+        if samples:  # the runs' samples pooled: RMSE over every run and scan
+            radar[name] = metrics.RadarSamples(*(np.vstack([getattr(s, k) for s in samples])
+                                                 for k in ("z_est", "z_meas", "z_true")), samples[0].angle_indices)
+    return metrics.score_convergence(tracks, radar)
+
+
+RADAR_CONVERGENCE = Metric(options=CONVERGENCE.options, score=_score, series=CONVERGENCE.series)
