@@ -2,6 +2,7 @@
 rosbag2 bag that the independent reader opens."""
 from __future__ import annotations
 
+import json
 import shutil
 import time
 from pathlib import Path
@@ -13,7 +14,7 @@ from rclpy.serialization import serialize_message
 from bench_engine.bag import BagReader, BagWriter
 from bench_engine.msg_schema import message_class
 from bench_engine.recovery import BagUnrecoverable, needs_recovery, recover
-from graph_helpers import read_bag
+from graph_helpers import read_bag, script
 
 TRUTH = "bench_msgs/msg/TruthState"
 
@@ -93,3 +94,29 @@ def test_nothing_to_recover_is_a_clear_error(tmp_path: Path) -> None:
     (tmp_path / "junk" / "junk_0.mcap").write_bytes(b"not an mcap file")
     with pytest.raises(BagUnrecoverable, match="not even the MCAP header"):
         recover(tmp_path / "junk")
+
+
+def test_score_recovers_a_crashed_bag_and_names_what_it_cannot_read(tmp_path: Path) -> None:
+    res = script("launch.py", "formation_cqkf", "--set", "time.duration=120", "--no-score", "--single-process",
+                 "--out", str(tmp_path / "run"))
+    assert res.returncode == 0, res.stderr[-2000:]
+    crashed = tmp_path / "crashed"
+    shutil.copytree(tmp_path / "run" / "bag", crashed)
+    (crashed / "metadata.yaml").unlink()  # what a SIGKILLed recorder leaves: no metadata, the file cut short
+    mcap = next(crashed.glob("*.mcap"))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size * 3 // 5])
+    res = script("score.py", str(crashed), "--json")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "recovered" in res.stderr and json.loads(res.stdout)["filters"]["ss"]["runs"] == 1
+    (tmp_path / "empty").mkdir()
+    res = script("score.py", str(tmp_path / "empty"))
+    assert res.returncode == 2 and "not a bag directory" in res.stderr and "Traceback" not in res.stderr
+    damaged = tmp_path / "damaged"
+    shutil.copytree(tmp_path / "run" / "bag", damaged)
+    mcap = next(damaged.glob("*.mcap"))
+    mcap.write_bytes(mcap.read_bytes()[:-100])
+    res = script("score.py", str(damaged))
+    assert res.returncode == 2 and "recover_bag.py --force" in res.stderr and "Traceback" not in res.stderr
+    res = script("recover_bag.py", "--force", str(damaged))
+    assert res.returncode == 0 and "recovered" in res.stdout
+    assert script("score.py", str(damaged)).returncode == 0

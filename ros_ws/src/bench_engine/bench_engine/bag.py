@@ -360,6 +360,10 @@ class BagWriter:
         }
 
 
+class BagDamaged(ValueError):
+    """A bag's MCAP file cannot be read as a whole (truncated or corrupt)."""
+
+
 class BagReader:
     """Read a bag written by :class:`BagWriter` or rosbag2 (MCAP storage): a bag directory or a bare ``.mcap``."""
 
@@ -393,9 +397,13 @@ class BagReader:
         out: dict[str, str] = {}
         for path in self.files:
             with open(path, "rb") as f:
-                summary = make_reader(f).get_summary()
+                try:
+                    summary = make_reader(f).get_summary()
+                except Exception:  # noqa: BLE001 - a damaged summary section reads as none at all
+                    summary = None
             if summary is None:
-                raise ValueError(f"{path} has no summary section (truncated bag?)")
+                raise BagDamaged(f"{path} has no summary section: the file is truncated; rebuild it with "
+                                 f"scripts/recover_bag.py --force {self.path}")
             for channel in summary.channels.values():
                 out[channel.topic] = summary.schemas[channel.schema_id].name
         return out

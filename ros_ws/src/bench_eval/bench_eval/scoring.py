@@ -142,6 +142,10 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     return metrics.Track(est.t, est.x[:, :n], est.P[:, :n, :n], x_true, est.labels[:n])
 
 
+class NothingToScore(ValueError):
+    """The bags hold no estimate of any of their run's estimators."""
+
+
 def _scenario_name(runs: list[BagData]) -> str:
     names = {d.scenario.get("scenario") for d in runs}
     if len(names) != 1:
@@ -181,6 +185,9 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
     ``with_series``).
     """
     scenario, tracks, runs = collect(bag_dirs)
+    if not tracks:
+        raise NothingToScore(f"no estimates in {', '.join(map(str, bag_dirs))}: the run's filters published nothing "
+                             "(did the sensors ever see the target?)")
     opts = scoring_options(runs[0].scenario)
     family = plugins.load("metrics", opts.metric)
     result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
