@@ -21,13 +21,17 @@ setup(
     license="Apache-2.0",
     entry_points={
         "tracking_bench.node_kinds": [
-            "sensor = radar_sensor.sensor_stage:SENSOR"],
+            "sensor = radar_sensor.sensor_stage:SENSOR",
+            "cluttered_sensor = radar_sensor.clutter:CLUTTERED_SENSOR"],
         "tracking_bench.sensors": [
             "ground_radar = radar_sensor.sensor:GROUND_RADAR",
             "isl_radio = radar_sensor.sensor:ISL_RADIO",
             "relative_position = radar_sensor.sensor:RELATIVE_POSITION"],
         "tracking_bench.codecs": [
             "bench_msgs.msg.RangeAzEl = radar_sensor.messages:RANGE_AZ_EL",
-            "bench_msgs.msg.VectorMeasurement = radar_sensor.messages:VECTOR_MEASUREMENT"]
+            "bench_msgs.msg.VectorMeasurement = radar_sensor.messages:VECTOR_MEASUREMENT",
+            "bench_msgs.msg.DetectionSet = radar_sensor.messages:DETECTION_SET"],
+        "tracking_bench.sections": [
+            "cluttered_sensors = radar_sensor.clutter:read_section"]
     },
 )

@@ -20,8 +20,11 @@ setup(
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
     entry_points={
+        "tracking_bench.sections": [
+            "trackers = tracker_filters.tracker_stage:read_trackers"],
         "tracking_bench.node_kinds": [
-            "filter = tracker_filters.filter_stage:FILTER"],
+            "filter = tracker_filters.filter_stage:FILTER",
+            "tracker = tracker_filters.tracker_stage:TRACKER"],
         "tracking_bench.estimators": [
             "kf = tracker_filters.kf:KalmanFilter",
             "ekf = tracker_filters.ekf:ExtendedKalmanFilter",

@@ -164,16 +164,23 @@ def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
     return ran
 
 
+def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
+    """The estimators of a run that are scored against the truth: the run's filters, the offline estimators,
+    then any other estimator of the bag (a tracker, a pipeline stage) whose state labels are truth labels."""
+    names = [n for n in data.run["filters"] + offline if n in data.estimates]
+    return names + sorted(n for n, e in data.estimates.items()
+                          if n not in names and e.labels and set(e.labels) <= set(data.truth_labels))
+
+
 def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
-    """Load the bags, run the offline estimators, and align every estimator's estimates with the truth."""
+    """Load the bags, run the offline estimators, and align every scored estimator's estimates with the truth."""
     runs = load_bags(bag_dirs)
     scenario = _scenario_name(runs)
     opts = scoring_options(runs[0].scenario)
     tracks: dict[str, list[metrics.Track]] = {}
     for data in runs:
-        for name in data.run["filters"] + run_offline(data, opts):
-            if name in data.estimates:
-                tracks.setdefault(name, []).append(track_of(data, name))
+        for name in scored_estimators(data, run_offline(data, opts)):
+            tracks.setdefault(name, []).append(track_of(data, name))
     return scenario, tracks, runs
 
 

@@ -1,13 +1,14 @@
-"""Codecs between measurement items (bench_engine.stage.Measurement) and their ROS messages.
+"""Codecs between measurement items (bench_engine.stage.Measurement, DetectionSet) and their ROS messages.
 
 Registered per message type in the entry-point group ``tracking_bench.codecs``: RangeAzEl (range, azimuth,
-elevation, optional range rate, 4x4 covariance) and VectorMeasurement (labelled vector + covariance).
+elevation, optional range rate, 4x4 covariance), VectorMeasurement (labelled vector + covariance) and
+DetectionSet (a set of labelled vectors with their covariances).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.stage import Measurement, set_stamp, stamp_ns
+from bench_engine.stage import DetectionSet, Measurement, set_stamp, stamp_ns
 
 RANGE_AZ_EL_LABELS = ("range", "azimuth", "elevation", "range_rate")
 
@@ -52,3 +53,25 @@ class VectorMeasurementCodec:
 
 RANGE_AZ_EL = RangeAzElCodec()
 VECTOR_MEASUREMENT = VectorMeasurementCodec()
+
+
+class DetectionSetCodec:
+    """bench_msgs/DetectionSet <-> DetectionSet (detection i: values[i d:(i+1) d], covariance d x d each)."""
+
+    def encode(self, item: DetectionSet, msg_type: type):
+        msg = msg_type()
+        set_stamp(msg, item)
+        msg.sensor_id = item.source
+        msg.labels = list(item.labels)
+        msg.values = np.asarray(item.Z, dtype=float).ravel().tolist()
+        msg.covariance = np.asarray(item.R, dtype=float).ravel().tolist()
+        return msg
+
+    def decode(self, msg) -> DetectionSet:
+        d = len(msg.labels)
+        Z = np.asarray(msg.values, dtype=float).reshape(-1, d)
+        return DetectionSet(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, list(msg.labels), Z,
+                            np.asarray(msg.covariance, dtype=float).reshape(len(Z), d, d))
+
+
+DETECTION_SET = DetectionSetCodec()

@@ -23,9 +23,6 @@ from radar_sensor.sensor_types import SensorType, sensor_type
 if TYPE_CHECKING:
     from bench_models.models import MeasurementModel
 
-SENSOR_TYPES = ("ground_radar", "isl_radio", "relative_position")
-
-
 @dataclass
 class Sensor:
     name: str
@@ -63,13 +60,14 @@ def build_sensor(cfg: dict, name: str) -> Sensor:
     stype = sensor_type(cfg, name)
     sec = Section(cfg["sensors"][name], f"sensors.{name}")
     kind = sec.get("type", str)
-    sensor = stype.build(sec, name, build_earth(cfg), _every_n_steps(sec, cfg))
+    sensor = stype.build(sec, name, build_earth(cfg), every_n_steps(sec, cfg))
     sensor.kind = kind
     sec.finish()
     return sensor
 
 
-def _every_n_steps(sec: Section, cfg: dict) -> int:
+def every_n_steps(sec: Section, cfg: dict) -> int:
+    """The section's ``interval`` as a whole number of time steps (ScenarioError if it is not one)."""
     interval = sec.positive("interval")
     dt = build_time(cfg).dt
     n = int(round(interval / dt))
