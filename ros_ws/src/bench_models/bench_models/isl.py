@@ -43,7 +43,7 @@ class RangeAzElModel:
         """[rho, alpha, delta] for one state (n,) -> (3,) or a batch (m, n) -> (m, 3).
 
         Computed component-first (contiguous rows of m values; a batch's result is a transposed view):
-        for the particle filters' m = 10 000 this is 4x faster than row-wise axes and ``np.mod``.
+        for the particle filters' m = 10 000 this is much cheaper than row-wise axes and ``np.mod``.
         """
         qx, qy, qz = self._axes(x)
         out = np.empty((3,) + np.shape(qx))

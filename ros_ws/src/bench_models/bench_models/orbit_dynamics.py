@@ -15,16 +15,15 @@ weight it towards the start / end, so their gravity-gradient part (G h^2 / 2) ca
 ~ h |dG/dt| / (6 |G|) ~ 4e-3 for h = 10 s (absolute ~5e-7), and 4e-5 (absolute ~5e-13) on the filters'
 0.1 s steps. tests/test_kf_ekf_ukf.py checks this against finite differences of ``propagate``. The cost
 is one gravity-gradient evaluation per sub-step, versus four plus 6x6 products for RK4-integrated
-variational equations; the EKF's 100 us per-step budget is why. For the same reason the gradient is
-evaluated by ``orbit_sim.gravity.gravity_gradient`` on Python floats (3 us against 15 us for numpy
-operations on one 3-vector).
+variational equations: the EKF's per-step budget is why (scripts/bench_filters.py). For the same reason the
+gradient is evaluated by ``orbit_sim.gravity.gravity_gradient`` on Python floats, cheaper than numpy calls on
+one 3-vector.
 
 Trajectory (``trajectory``, for the batch re-solves of tracker_filters/relinearisation.py). The states and
 Phi(t_j, t0) at every scan time of a pass come from one integration of the state and the variational
-equations Phi' = A(t) Phi (42 components) by scipy's DOP853 with dense output at the scan times: ~3.5 ms
-for the ~4000 scans of a 400 s pass (~100 right-hand-side evaluations), against ~95 ms for the per-scan
-``propagate`` + ``transition_matrix`` chain, which it matches to ~1e-5 m in position and ~5e-9 (relative,
-per block) in Phi over 400 s (the per-step path's own midpoint-freezing error; tests/test_relinearisation.py).
+equations Phi' = A(t) Phi (42 components) by scipy's DOP853 with dense output at the scan times, far fewer
+right-hand-side evaluations than the per-scan ``propagate`` + ``transition_matrix`` chain, which it matches to
+that chain's own midpoint-freezing error (tests/test_relinearisation.py; costs: scripts/bench_resolve.py).
 
 Process noise. The paper's eq. 18, 2 sigma_m^2 tau_m [[T^3/3, T^2/2], [T^2/2, T]] padded with zeros, is a
 garbled Singer-model block that leaves y and z noiseless. This model uses the standard continuous white-
@@ -128,8 +127,8 @@ class OrbitJ2Dynamics:
     def _variational_derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         """d/dt [r, v, Phi] = [v, a(r), [[Phi_v], [G(r) Phi_r]]] with Phi (6, 6) flattened row-major.
 
-        State rate and gradient on Python floats (orbit_sim.cowell.state_rate, gravity_gradient): 7 us per
-        call against 17 us with the numpy ``gravity.acceleration`` on one 3-vector.
+        State rate and gradient on Python floats (orbit_sim.cowell.state_rate, gravity_gradient): cheaper than
+        the numpy ``gravity.acceleration`` on one 3-vector, at this call rate.
         """
         out = np.empty(42)
         out[0:6] = state_rate(*y[0:6].tolist(), self.mu, 0.5 * self.mu * self.j2 * self.re * self.re)

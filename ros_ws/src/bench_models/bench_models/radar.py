@@ -132,8 +132,8 @@ class GroundRadarModel:
 
         The Hessians are zero outside the first m state components: m = 3 (position) for range, azimuth
         and elevation, m = 6 with the range rate. One shared pass with the same arithmetic as the three
-        methods (equal results): ~10 us against ~17 us for the three calls before this method existed
-        (range, azimuth, elevation; T cached). ekf.SecondOrderEKF calls it every step.
+        methods (equal results), cheaper than the three calls (range, azimuth, elevation; T cached).
+        ekf.SecondOrderEKF calls it every step.
         """
         x = np.asarray(x, dtype=float)
         T = self.eci_to_enu_rotation(t)
@@ -143,8 +143,8 @@ class GroundRadarModel:
     def _relative(self, x: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """u = T r - M s (3,) of one state x (n,) and, with range rate, w = T (v - omega x r) (3,), else None.
 
-        ``ndarray.dot`` rather than ``@``: the same BLAS call without the matmul ufunc's dispatch (~0.4 us
-        per product on these sizes; likewise in the helpers below)."""
+        ``ndarray.dot`` rather than ``@``: the same BLAS call without the matmul ufunc's dispatch (likewise in
+        the helpers below)."""
         u = T.dot(x[0:3]) - self._station_enu
         if not self.with_range_rate:
             return u, None
@@ -262,7 +262,7 @@ def _values(u: np.ndarray, w: np.ndarray | None) -> list[float]:
 
 def _polar_rows(u: np.ndarray, w: np.ndarray | None) -> np.ndarray:
     """[range, azimuth, elevation(, range_rate)] (m, d) of rows u (m, 3) and w (m, 3) or None, each component
-    written straight into its column (no np.stack: ~3 us less on the UKF's 13 sigma points)."""
+    written straight into its column (no np.stack on the UKF's 13 sigma points)."""
     e, n, up = u[..., 0], u[..., 1], u[..., 2]
     z = np.empty(u.shape[:-1] + (3 if w is None else 4,))
     horiz = np.hypot(e, n)
@@ -284,7 +284,7 @@ def _jacobian(T: np.ndarray, u: np.ndarray, w: np.ndarray | None, size: int) -> 
     c = up / (rng2 * horiz)
     d_polar = np.array([e / rng, n / rng, up / rng,
                         n / horiz2, -e / horiz2, 0.0,
-                        -e * c, -n * c, horiz / rng2]).reshape(3, 3)  # a flat list converts 2x faster
+                        -e * c, -n * c, horiz / rng2]).reshape(3, 3)  # a flat list converts faster than nested ones
     H = np.zeros((3 if w is None else 4, size))
     H[0:3, 0:3] = d_polar.dot(T)
     if w is not None:
@@ -299,7 +299,7 @@ def _jacobian(T: np.ndarray, u: np.ndarray, w: np.ndarray | None, size: int) -> 
 def _hessians(T: np.ndarray, u: np.ndarray, w: np.ndarray | None) -> np.ndarray:
     """d^2 h_i / d x^2 of one state over the first 3 state components (3, 3, 3), or 6 with the range rate
     (4, 6, 6) (``GroundRadarModel.hessian``). The ENU Hessians are formed in Python floats, as one flat list
-    (numpy converts it ~2x faster than nested ones)."""
+    (numpy converts it faster than nested ones)."""
     e, n, up = u.tolist()
     q = e * e + n * n
     rng2 = q + up * up

@@ -165,7 +165,8 @@ class SchweighartSedwickDynamics(LinearRelativeDynamics):
       (paper 004 eq. 8 drops the 1/8; its cross-track line reads z'' - q^2 y, a typo for z'' + q^2 z);
       in-plane:   x'' - 2 (n c) y' - (5 c^2 - 2) n^2 x = 0,   y'' + 2 (n c) x' = 0.
     Its bounded in-plane motion needs vy = -2 n c x (CW: -2 n x); started where the osculating and mean
-    orbits agree (argument of latitude 45 deg), the J2 truth drifts ~18x less with SS's condition (test).
+    orbits agree (argument of latitude 45 deg), the J2 truth drifts much less with SS's condition
+    (tests/test_relative_dynamics.py).
     The original's right-hand sides (the -3 n^2 J2 Re^2/r_ref {...} sin^2(k t) terms of paper 004 eq. 7)
     are the J2 motion of ONE satellite about the reference orbit; they are the same for chief and deputy
     and cancel in the chief-deputy relative motion, which is why the homogeneous form is used here.

@@ -66,10 +66,10 @@ def rk4(x: np.ndarray, dt: float, mu: float = MU_EARTH, j2: float = J2_EARTH, re
     """Fixed-step RK4 propagation of one state (6,) or a batch (m, 6) by dt seconds (dt may be < 0).
 
     The interval is split into ceil(|dt| / max_step) equal sub-steps. Speed matters here: the filters
-    call this every 0.1 s scan within a 100 us (EKF) / 300 us (UKF) budget. Calling the numpy
-    gravity.state_derivative on one (6,) state costs ~50 us per 0.1 s step (per-call overhead on tiny
-    arrays), so the same formula is hand-written component-wise: one state runs in Python floats
-    (~5 us), a batch (m, 6) runs the identical code on numpy columns (one array op per term).
+    call this every 0.1 s scan within their per-step budgets (scripts/bench_filters.py). numpy's per-call
+    overhead on tiny arrays would dominate gravity.state_derivative on one (6,) state, so the same formula is
+    hand-written component-wise: one state runs in Python floats, a batch (m, 6) runs the identical code on
+    numpy columns (one array op per term).
     """
     x = np.asarray(x, dtype=float)
     if dt == 0.0:

@@ -20,10 +20,9 @@ which makes the relative velocity the exact time derivative of the relative posi
 Array convention: a state is (6,) or (m, 6), one per row; the chief may be (6,) (shared) or (m, 6).
 
 ``drift_free`` builds a truly bounded truth formation: a relative state chosen with a linear (CW)
-bounded-motion condition drifts in the nonlinear two-body + J2 truth (for a = 7100 km, measured 1.6 to
-50 m per orbit at 1 km and 220 to 600 m per orbit at 10 km depending on geometry and starting point),
-because the rectilinear CW condition ignores curvature (~300 m/orbit of it at 10 km) and J2 changes the
-period-matching condition.
+bounded-motion condition drifts in the nonlinear two-body + J2 truth (metres to hundreds of metres per
+orbit, growing with the formation's size, tests/test_relative.py), because the rectilinear CW condition
+ignores curvature and J2 changes the period-matching condition.
 """
 from __future__ import annotations
 

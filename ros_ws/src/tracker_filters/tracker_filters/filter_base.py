@@ -67,8 +67,7 @@ class Filter(ABC):
 
         Rejects, without touching the estimate, a measurement that is not finite or is older than the
         current estimate time. The time is converted to a Python float first: a numpy scalar time would
-        turn every scalar operation of the predict (dt, RK4 in Python floats) into a numpy one, ~7 us more
-        per 0.1 s orbit step.
+        turn every scalar operation of the predict (dt, RK4 in Python floats) into a slower numpy one.
         """
         if not self.initialised:
             raise RuntimeError(f"{self.name}: process() called before initialise()")

@@ -4,9 +4,8 @@ Position: the inverse polar conversion of the first (range, azimuth, elevation).
 covariance by the unscented transform of the measurement noise (3-D scaled sigma points, alpha = 1,
 beta = 2, kappa = 0). With 1 deg angle noise the scan's cross-range spread is ~25 km at 1500 km range,
 and over that spread the range shell curves by ~range sigma_angle^2 ~ 0.4 km, more than ten times sigma_r.
-The first-order map (``method="jacobian"``, covariance J R J^T) gives the range direction only sigma_r:
-measured mean NEES of the scan position 385 against 2.4 for the unscented transform (chi-square(3) mean 3;
-tests/test_radar_model.py).
+The first-order map (``method="jacobian"``, covariance J R J^T) gives the range direction only sigma_r and
+is grossly overconfident, the unscented transform is not (tests/test_radar_model.py checks both NEES).
 
 Velocity: one scan carries no velocity information, so it comes from a prior: a mean (default zero) and
 a standard deviation per axis, or a full 3x3 covariance. Chosen by measurement on the leo_radar pass (in

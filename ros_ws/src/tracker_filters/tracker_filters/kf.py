@@ -1,10 +1,10 @@
 """Linear Kalman filter (Joseph form) and the Gaussian update algebra the EKF and UKF share.
 
 The small dense factorisations call LAPACK (dpotrf/dpotrs, dposv) directly: on 3x3 .. 6x6 matrices numpy's
-and scipy's wrappers cost 5-10 us per call against ~1 us for the routine itself, which matters for the
-100 us (EKF) / 300 us (UKF) per-step budgets (measured with scripts/bench_filters.py). For the same reason
-the per-step products use ``ndarray.dot``: on 6x6 and smaller operands it costs ~0.4 us less per product
-than the ``@`` operator (the matmul ufunc's dispatch), for the same BLAS call and the same result.
+and scipy's wrappers cost several times the routine itself, which matters for the EKF and UKF per-step
+budgets (scripts/bench_filters.py measures them). For the same reason the per-step products use
+``ndarray.dot`` rather than the ``@`` operator (the matmul ufunc's dispatch): the same BLAS call and the same
+result, with less overhead on small operands.
 """
 from __future__ import annotations
 

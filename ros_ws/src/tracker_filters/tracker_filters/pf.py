@@ -17,9 +17,9 @@ predicted mean and covariance, with a warning, instead of producing a NaN estima
 
 Layout: the cloud is held component-first, ``_cols`` of shape (n, N) with one particle per column, and every
 per-particle operation is written on such (dim, N) arrays; ``particles`` is its (N, n) transpose, the batch
-layout of the model protocol. With numpy, broadcasting a length-n vector along rows of n = 6 numbers runs
-3–5x slower than along rows of N numbers, and ``X @ A.T`` with a transposed 6×6 A 3x slower than ``A @ Y``
-(measured); with N = 10 000 this layout is what keeps a step of the "pf" under its 5 ms target.
+layout of the model protocol. With numpy, broadcasting along long contiguous rows of N numbers is much
+cheaper than along rows of n = 6, and ``A @ Y`` than ``X @ A.T`` with a transposed 6×6 A; with N = 10 000
+this layout is what keeps a step of the "pf" within its budget (scripts/bench_formation_filters.py).
 """
 from __future__ import annotations
 
@@ -62,9 +62,9 @@ def column_sq_norms(W: np.ndarray) -> np.ndarray:
 def mahalanobis_sq(D: np.ndarray, L: np.ndarray, plus: np.ndarray | None = None) -> np.ndarray:
     """Column-wise |L⁻¹ d_j|² (or |L⁻¹ d_j + p_j|² with ``plus`` P) for D (d, N), lower Cholesky factor L.
 
-    Multiplies by the explicit d×d inverse from LAPACK dtrtri: scipy's solve_triangular costs 15 µs on a
-    6×6 system and, with N = 10 000 right-hand sides or a multi-threaded OpenBLAS under load, 1–14 ms
-    (measured), against the 5 ms per-step target.
+    Multiplies by the explicit d×d inverse from LAPACK dtrtri: scipy's solve_triangular carries a large
+    per-call overhead on a 6×6 system and, with N = 10 000 right-hand sides or a multi-threaded OpenBLAS
+    under load, can take longer than the whole per-step budget.
     """
     L_inv, info = lapack.dtrtri(L, lower=1)
     if info != 0:

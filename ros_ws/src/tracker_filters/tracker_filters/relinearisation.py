@@ -8,8 +8,8 @@ for most of the pass. A recursive filter linearises each scan once, at the estim
 linearisation errors depend on the state error, which persists, so they are correlated from scan to scan
 and lock into the estimate. With the true process noise (zero: the truth is the filter's own two-body + J2
 model) nothing ever forgets them, and any Q > 0 makes the filter pessimistic once the true error keeps
-shrinking (measured: ANEES 8-10 vs 3-4 late in the pass for Q = 0 vs sigma_accel = 0.02 m/s^1.5 after a
-consistent start at 50 s). Re-linearising every scan at the current best estimate removes the lock-in.
+shrinking. Re-linearising every scan at the current best estimate removes the lock-in (the README's leo_radar
+results give the consistency measured with and without it).
 
 The problem. With a deterministic process model (Q = 0) every state is a function of the state x0 at the
 time t0 of the first scan, x(t) = phi(x0, t). The maximum a posteriori x0 given the first-scan prior
@@ -30,22 +30,16 @@ Cost. ``PassBatch.linearise`` is vectorised over the scans when the dynamics off
 and Phi(t_j, t0) at every scan time from one DOP853 integration of the variational equations,
 OrbitJ2Dynamics) and each measurement model ``h_series`` / ``jacobian_series`` (one ECI -> ENU rotation per
 scan, GroundRadarModel): the scans of each model are stacked (each once, when first used),
-A_j = W_j H_j Phi_j is one stacked product and Lambda, g and J are sums over the stack. Measured on the leo_radar pass
-(scripts/bench_resolve.py, one BLAS thread): 5.8 ms per pass over 3981 scans (1.5 us per scan; 2.3 us at
-1000 scans), against 188 ms (47 us per scan) for the per-scan loop of propagate / transition_matrix / h /
-jacobian, which remains the path for any other DynamicsModel / MeasurementModel (e.g. the relative-motion
-models of the formation scenarios) and gives the same answer (to ~1e-8; the integrator and the 0.1 s RK4
-steps agree to ~1e-5 m over 400 s, tests/test_relinearisation.py).
+A_j = W_j H_j Phi_j is one stacked product and Lambda, g and J are sums over the stack
+(scripts/bench_resolve.py measures both paths). The per-scan loop of propagate / transition_matrix / h /
+jacobian remains the path for any other DynamicsModel / MeasurementModel (e.g. the relative-motion models of
+the formation scenarios) and gives the same answer to the integrators' agreement (tests/test_relinearisation.py).
 
-Measured on leo_radar (Q = 0, first re-solve after 100 scans, g = 1.2; 40 runs through the graph): the
-time-averaged NEES of every 50 s window from 100 s on is inside the 40-run 95 % band [4.97, 7.12]
-(5.7-6.3), 50-100 s is at its edge (7.26; 7.0 over 40 runs in process), position RMSE after 150 s 535 m.
-Before ~80 s neither this nor any other Gaussian estimator we measured is consistent (first window:
-UKF 12, second-order EKF 19): the posterior is far from Gaussian (curved range shell, ring of cross-range
-speeds), and the Laplace covariance of the batch solution is itself overconfident (12 runs in process:
-ANEES 76 at 5 s, 23 at 10 s, 11 at 30 s, 6 at 50 s); earlier re-solves make the first seconds worse
-(first re-solve after 30 / 100 / 300 scans: first-window ANEES 30 / 19 / 77). A larger g saves work and
-costs consistency in the second window (g = 1.5 / 1.2 / 1.1: ANEES 7.6 / 7.0 / 6.8 at 50-100 s, in process).
+Consistency. From about 80 s after the first scan the filters with re-solves are consistent; before that no
+Gaussian estimator is (the posterior is a curved range shell with a ring of cross-range speeds, and even the
+batch solution's Laplace covariance is overconfident). Earlier re-solves make the first seconds worse, and a
+larger g saves work at some cost in the second 50 s window. The figures are in the README (leo_radar) and
+come from scripts/montecarlo.py and scripts/leo_posterior_study.py.
 """
 from __future__ import annotations
 
@@ -146,7 +140,7 @@ class PassBatch:
 
     def add(self, t: float, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> None:
         """Keep one scan; its whitening is shared with the previous scan's when R is the same (a sensor's R
-        rarely changes, and a Cholesky per scan would add ~20 us to every filter step)."""
+        rarely changes, and a Cholesky per scan would add to every filter step)."""
         R = np.asarray(R, dtype=float)
         if not np.array_equal(R, self._last_R[0]):
             self._last_R = (R.copy(), whitening(R))
@@ -203,7 +197,7 @@ class PassBatch:
 
     def _stack(self) -> tuple[np.ndarray, list[_ModelScans]]:
         """Every scan's time (k,) and the scans of each measurement model stacked; scans added since the
-        last call are stacked and appended (~0.5 us per scan, once)."""
+        last call are stacked and appended (once per scan)."""
         count, times, groups = self._stacked
         if count != len(self.scans):
             new = self.scans[count:]
