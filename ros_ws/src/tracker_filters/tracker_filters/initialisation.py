@@ -8,13 +8,11 @@ The first-order map (``method="jacobian"``, covariance J R J^T) gives the range 
 is grossly overconfident, the unscented transform is not (tests/test_radar_model.py checks both NEES).
 
 Velocity: one scan carries no velocity information, so it comes from a prior: a mean (default zero) and
-a standard deviation per axis, or a full 3x3 covariance. Chosen by measurement on the leo_radar pass (in
-process): zero mean with 8 km/s per axis (covers the ~7.6 km/s orbital speed in any direction).
-``circular_orbit_velocity_prior`` (circular-orbit speed, unknown direction normal to r) was no better:
-UKF whole-pass ANEES 7.9 vs 6.2, last-100-s RMSE 683 m vs 601 m (4 runs, sigma_accel 0.1); neither it nor
-the isotropic moment match (v_c^2 / 3 per axis) changed the start-up inconsistency of the second-order EKF
-or the UKF (20 runs, sigma_accel 0.5: first-window ANEES 208 / 582 / 212 and 57 / 58 / 51 for isotropic /
-circular / 8 km/s), which comes from the measurement geometry, not the velocity prior (relinearisation.py).
+a standard deviation per axis, or a full 3x3 covariance. The scenario uses zero mean with 8 km/s per axis
+(covers the ~7.6 km/s orbital speed in any direction). ``circular_orbit_velocity_prior`` (circular-orbit
+speed, unknown direction normal to r) and the isotropic moment match (v_c^2 / 3 per axis) did no better on
+the leo_radar pass, and none of them changes the start-up inconsistency, which comes from the measurement
+geometry, not the velocity prior (relinearisation.py).
 """
 from __future__ import annotations
 
