@@ -130,7 +130,12 @@ class Graph:
 
 def resolve_filters(cfg: dict, requested: list[str] | None) -> list[str]:
     """The filter node names of the run: ``requested`` or the scenario's ``default_filters``."""
-    names = requested or cfg.get("default_filters") or list((cfg.get("filters") or {}).keys())
+    filters = cfg.get("filters") or {}
+    if not isinstance(filters, dict):
+        raise ScenarioError(f"'filters' must be a mapping of filter names to settings, got {filters!r}")
+    names = requested or cfg.get("default_filters") or list(filters)
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise ScenarioError(f"'default_filters' must be a list of filter names, got {names!r}")
     if not names:
         raise ScenarioError("no filters requested and the scenario has no 'default_filters'")
     if len(set(names)) != len(names):
@@ -143,7 +148,11 @@ def resolve_filters(cfg: dict, requested: list[str] | None) -> list[str]:
 
 def filter_config(cfg: dict, name: str) -> dict:
     """A filter's settings: ``filter_defaults`` merged with ``filters.NAME`` (type defaults to NAME)."""
-    merged = merge(cfg.get("filter_defaults") or {}, (cfg.get("filters") or {}).get(name) or {})
+    defaults, own = cfg.get("filter_defaults") or {}, (cfg.get("filters") or {}).get(name) or {}
+    for key, value in (("filter_defaults", defaults), (f"filters.{name}", own)):
+        if not isinstance(value, dict):
+            raise ScenarioError(f"'{key}' must be a mapping of settings, got {value!r}")
+    merged = merge(defaults, own)
     merged.setdefault("type", name)
     return merged
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
+from bench_engine.config import scenario_seed
 from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_filters
 from bench_engine.stage import Item, Log
 
@@ -40,7 +41,7 @@ def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None
         cfg = {**cfg, "seed": int(seed)}
     graph = build_graph(cfg, resolve_filters(cfg, filters), record=False)
     run = InProcessRun(graph, {t: [] for t in graph.data_topics() if t != CLOCK_TOPIC})
-    context = {"scenario": cfg, "seed": int(cfg.get("seed", 0))}
+    context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()
     source_spec = graph.of_role("source")[0]
     source = kinds[source_spec.kind].stage(cfg, source_spec.name, context)

@@ -17,7 +17,8 @@ from pathlib import Path
 import yaml
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
+from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
+                                 select_variant)
 from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_filters
 from bench_engine.timegrid import build_time
@@ -65,6 +66,12 @@ def validate(cfg: dict, filters: list[str], source: str) -> None:
     function cfg -> typed object) and each node's core objects (its kind's ``check``)."""
     sections = plugins.registered("sections")
     top = Section(cfg, "")
+    scenario_seed(cfg)
+    top.get("scenario", str, "")
+    top.get("description", str, "")
+    top.get("default_filters", list, [])
+    top.get("variants", dict, {})
+    top.get("sweeps", dict, {})
     top.mark(*ENGINE_KEYS, *NODE_SECTIONS, *sections)
     top.finish()
     build_time(cfg)
@@ -93,7 +100,7 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
         raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
     out.mkdir(parents=True, exist_ok=True)
     run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
-           "bag_dir": str(out / "bag"), "seed": int(cfg.get("seed", 0))}
+           "bag_dir": str(out / "bag"), "seed": scenario_seed(cfg)}
     run.update(extra or {})
     config_path = out / "run_config.yaml"
     config_path.write_text(yaml.safe_dump(run, sort_keys=False))

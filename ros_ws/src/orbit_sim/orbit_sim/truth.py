@@ -55,15 +55,29 @@ def build_earth(cfg: dict) -> Earth:
     return earth
 
 
+A_RANGE_M = (1.0e6, 1.0e10)
+"""Semi-major axes the bench accepts [m]: from inside the Earth (relative-motion studies only need the mean
+motion) to beyond the Moon; outside, a typo is likelier than intent."""
+
+
 def _semi_major_axis(sec: Section, mu: float) -> float:
-    """``a`` [m], or ``period_s`` converted with Kepler's third law (exactly one of them)."""
+    """``a`` [m], or ``period_s`` converted with Kepler's third law (exactly one of them), in A_RANGE_M."""
     if ("a" in sec.data) == ("period_s" in sec.data):
         raise ScenarioError(f"'{sec.path}' needs exactly one of 'a' (m) or 'period_s' (s)")
     if "a" in sec.data:
         sec.mark("period_s")
-        return sec.positive("a")
-    sec.mark("a")
-    return float((mu * (sec.positive("period_s") / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
+        a, key = sec.positive("a"), "a"
+    else:
+        sec.mark("a")
+        period, key = sec.positive("period_s"), "period_s"
+        if not all(2.0 * np.pi * np.sqrt(lim**3 / mu) * f <= period * f for lim, f in zip(A_RANGE_M, (1, -1))):
+            raise ScenarioError(f"'{sec.path}.period_s' is {period:g} s; it must give a semi-major axis between "
+                                f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m")
+        a = float((mu * (period / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
+    if not A_RANGE_M[0] <= a <= A_RANGE_M[1]:
+        raise ScenarioError(f"'{sec.path}.{key}' gives a semi-major axis of {a:.4g} m; it must be between "
+                            f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m")
+    return a
 
 
 def orbit_state(sec: Section, mu: float) -> np.ndarray:
@@ -102,7 +116,8 @@ def reference_orbit(cfg: dict, mean_radius: bool = False) -> ReferenceOrbit:
         times = np.linspace(0.0, 2.0 * np.pi * np.sqrt(a**3 / earth.mu), 721)
         radii = np.linalg.norm(cowell.propagate(x0, times, earth.mu, j2, earth.re)[:, :3], axis=1)
         a = float(np.mean(radii[:-1]))
-    return ReferenceOrbit(a, np.radians(float(chief.get("i_deg", 0.0))), float(np.sqrt(earth.mu / a**3)))
+    inclination = np.radians(Section(chief, "truth.chief").get("i_deg", float, 0.0))
+    return ReferenceOrbit(a, inclination, float(np.sqrt(earth.mu / a**3)))
 
 
 def _relative_initial_state(sec: Section, n: float) -> np.ndarray:

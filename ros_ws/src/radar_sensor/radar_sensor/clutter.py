@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import DetectionSet, Outputs, TruthSample, python_log
 
@@ -45,13 +45,16 @@ class ClutteredSensor:
             return None
         z_true = s.model.h(x_true, t)
         target = s.observe(x_true, t, step, rng)
+        # false detections: N ~ Poisson(clutter_rate), each uniform in the box z_true +- halfwidth
         clutter = z_true + rng.uniform(-1.0, 1.0, (rng.poisson(self.clutter_rate), len(z_true))) * self.halfwidth
+        clutter[:, s._azimuths] = np.mod(clutter[:, s._azimuths], 2.0 * np.pi)  # as the sensor wraps azimuth
         Z = clutter if target is None else np.vstack([target, clutter])
         return Z[rng.permutation(len(Z))]
 
 
 def names(cfg: dict) -> list[str]:
-    return list((cfg.get(SECTION) or {}).keys())
+    """The scenario's cluttered sensors, in section order (ScenarioError if the section is not a mapping)."""
+    return Section(cfg.get(SECTION), SECTION).keys()
 
 
 def build_cluttered(cfg: dict, name: str) -> ClutteredSensor:
@@ -59,16 +62,20 @@ def build_cluttered(cfg: dict, name: str) -> ClutteredSensor:
     from bench_engine import plugins
     from orbit_sim.truth import build_earth
     from radar_sensor.sensor import every_n_steps
-    sections = cfg.get(SECTION) or {}
-    if name not in sections:
-        raise ScenarioError(f"unknown cluttered sensor '{name}'; the scenario has: {sorted(sections)}")
-    sec = Section(sections[name], f"{SECTION}.{name}")
+    sections = Section(cfg.get(SECTION), SECTION)
+    if name not in sections.keys():
+        raise ScenarioError(f"unknown cluttered sensor '{name}'; the scenario has: {sorted(sections.keys())}")
+    sec = sections.section(name, default_empty=False)
     kind = sec.choice("type", plugins.names("sensors"))
-    rate = sec.non_negative("clutter_rate")
-    halfwidth = np.asarray(sec.get("clutter_halfwidth", list), dtype=float)
+    rate = sec.get("clutter_rate", float, check=lambda v: 0.0 <= v < float("inf"), expect="finite and >= 0")
+    values = sec.get("clutter_halfwidth", list)
+    try:
+        halfwidth = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ScenarioError(f"'{sec.path}.clutter_halfwidth' must be a list of numbers, got {values!r}") from None
     sensor = plugins.load("sensors", kind).build(sec, name, build_earth(cfg), every_n_steps(sec, cfg))
     sec.finish()
-    if halfwidth.shape != (len(sensor.model.labels),) or np.any(halfwidth <= 0):
+    if halfwidth.shape != (len(sensor.model.labels),) or not np.all(np.isfinite(halfwidth) & (halfwidth > 0)):
         raise ScenarioError(f"'{sec.path}.clutter_halfwidth' must hold {len(sensor.model.labels)} values > 0 "
                             f"({', '.join(sensor.model.labels)}), got {halfwidth.tolist()}")
     return ClutteredSensor(sensor, rate, halfwidth)
@@ -85,7 +92,7 @@ class ClutteredSensorStage:
     def __init__(self, cfg: dict, name: str, run: dict) -> None:
         self.name = name
         self.cluttered = build_cluttered(cfg, name)
-        seed = int(run.get("seed", cfg.get("seed", 0)))
+        seed = int(run.get("seed", scenario_seed(cfg)))
         self.rng = np.random.default_rng([seed, STREAM + names(cfg).index(name)])
         s = self.cluttered.sensor
         self.labels, self.topic = list(s.model.labels), detections_topic(name)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_engine.config import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
 from radar_sensor.sensor_types import sensor_names, sensor_type
@@ -21,7 +22,7 @@ class SensorStage:
         from radar_sensor.sensor import build_sensor
         self.name = name
         self.sensor = build_sensor(cfg, name)
-        seed = int(run.get("seed", cfg.get("seed", 0)))
+        seed = int(run.get("seed", scenario_seed(cfg)))
         self.rng = np.random.default_rng([seed, 1000 + sensor_names(cfg).index(name)])
         self.topic = measurement_topic(name)
         self.labels = list(self.sensor.model.labels)

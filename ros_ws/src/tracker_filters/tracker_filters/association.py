@@ -1,17 +1,26 @@
-"""Data association: which detection of a step (if any) each track's filter is updated with.
+"""Data association: which detection of a step (if any) updates each track's filter.
 
-Split as in Stone Soup: a hypothesiser scores every (track, detection) pair and gates it; a data associator
-picks a joint assignment from those hypotheses. For track i with predicted state x_i, covariance P_i and a
-detection z_j with covariance R_j through measurement model h (Bar-Shalom, Willett & Tian, "Tracking and
+Split as in Stone Soup: a **hypothesiser** scores every (track, detection) pair and gates it; a **data
+associator** picks from those hypotheses. For track i with predicted measurement zhat_i and its covariance
+Pzz_i (without noise), and detection z_j with noise covariance R_j (Bar-Shalom, Willett & Tian, "Tracking and
 Data Fusion", 2011, ch. 2-3):
 
-    nu_ij = z_j - h(x_i)  (angles wrapped),  S_ij = H_i P_i H_i' + R_j,  d2_ij = nu_ij' S_ij^-1 nu_ij
+    nu_ij = z_j - zhat_i  (angles wrapped by the model's residual)
+    S_ij  = Pzz_i + R_j                                   innovation covariance
+    d2_ij = nu_ij' S_ij^-1 nu_ij                          squared Mahalanobis distance
+    log g_ij = -1/2 (d2_ij + log det(2 pi S_ij))          measurement likelihood
+    gated_ij  <=>  d2_ij <= gamma = chi2.ppf(P_G, dim z)   (the gate holds the target with probability P_G)
 
-and the pair is in the gate when d2_ij <= gamma = chi2.ppf(P_G, dim z). Global nearest neighbour (GNN) takes
-the assignment of gated pairs with the least total d2 (Hungarian algorithm, scipy's linear_sum_assignment),
-each detection used at most once; a track with no gated detection is missed. A probabilistic associator
-(PDA/JPDA: weights beta_ij over the gated hypotheses) implements the same ``associate`` on the same
-hypotheses.
+The predicted measurement comes from the track's filter (:func:`measurement_prediction`): the filter's own
+``predict_measurement(model, t)`` when it has one, the weighted particle moments for a particle cloud, and
+otherwise the first-order (EKF) moments zhat = h(x), Pzz = H P H'.
+
+Every associator returns, per track, an :class:`Association`: the chosen detection (``NO_DETECTION`` on a
+miss) and the weights of all its hypotheses, [missed, detection 0, ..., detection N-1]. Global nearest
+neighbour (:class:`GlobalNearestNeighbour`) gives one-hot weights. A probabilistic associator (PDA, JPDA:
+beta_i0 for the miss and beta_ij over the gated detections, from ``log_likelihood``, P_D, P_G and the clutter
+density) is a new class with the same ``associate`` returning soft weights; the tracker then needs a
+probabilistic update for those tracks (tracker_filters.tracker.Tracker.update_track).
 """
 from __future__ import annotations
 
@@ -26,53 +35,155 @@ NO_DETECTION = -1
 
 
 @dataclass
-class Hypotheses:
-    """Every (track, detection) pair of one step: d2 (T, N) with np.inf outside the gate."""
+class MeasurementPrediction:
+    """What a track expects to measure: zhat (d,) and its covariance Pzz (d, d), measurement noise excluded."""
 
+    z: np.ndarray
+    Pzz: np.ndarray
+
+
+def linearised_prediction(x: np.ndarray, P: np.ndarray, model, t: float) -> MeasurementPrediction:
+    """First-order moments: zhat = h(x), Pzz = H P H' with H = dh/dx at x."""
+    H = model.jacobian(x, t)
+    return MeasurementPrediction(np.asarray(model.h(x, t), dtype=float), H @ P @ H.T)
+
+
+def measurement_prediction(flt, model, t: float) -> MeasurementPrediction:
+    """The predicted measurement of a filter already predicted to time t (its state is only read)."""
+    own = getattr(flt, "predict_measurement", None)
+    if callable(own):
+        return own(model, t)
+    particles = getattr(flt, "particles", None)
+    if particles is not None:
+        w = np.asarray(flt.weights, dtype=float)
+        Y = model.h(particles, t)                    # (M, d)
+        ref = model.h(flt.x, t)
+        zhat = ref + w @ model.residual(Y, ref)      # weighted mean, angles averaged as residuals
+        r = model.residual(Y, zhat)
+        return MeasurementPrediction(zhat, (r * w[:, None]).T @ r)  # Pzz = sum_m w_m r_m r_m'
+    return linearised_prediction(flt.x, flt.P, model, t)
+
+
+@dataclass
+class Hypotheses:
+    """Every (track, detection) pair of one step, T tracks by N detections."""
+
+    z_pred: np.ndarray
+    """(T, d) predicted measurement of each track."""
+    nu: np.ndarray
+    """(T, N, d) innovations z_j - zhat_i."""
+    S: np.ndarray
+    """(T, N, d, d) innovation covariances Pzz_i + R_j."""
     d2: np.ndarray
+    """(T, N) squared Mahalanobis distances (finite for every pair; see ``gated``)."""
+    log_likelihood: np.ndarray
+    """(T, N) log N(nu_ij; 0, S_ij)."""
     gate: float
+    """Gate threshold gamma on d2 (np.inf when there is no detection to gate)."""
+    gate_probability: float
 
     @property
     def gated(self) -> np.ndarray:
-        return np.isfinite(self.d2)
+        """(T, N) True where detection j is inside track i's gate."""
+        return self.d2 <= self.gate
+
+    @property
+    def n_tracks(self) -> int:
+        return self.d2.shape[0]
+
+    @property
+    def n_detections(self) -> int:
+        return self.d2.shape[1]
+
+
+class MahalanobisHypothesiser:
+    """Scores every (track, detection) pair by its squared Mahalanobis distance and gates it with the
+    chi-square gate of probability ``gate_probability`` (module docstring)."""
+
+    def __init__(self, gate_probability: float = 0.999) -> None:
+        if not 0.0 < gate_probability < 1.0:
+            raise ValueError(f"gate_probability must be in (0, 1), got {gate_probability}")
+        self.gate_probability = float(gate_probability)
+
+    def hypothesise(self, predictions: Sequence[MeasurementPrediction], Z: np.ndarray, R: np.ndarray,
+                    model) -> Hypotheses:
+        """Hypotheses of the detections Z (N, d), R (N, d, d) against each track's prediction. A detection
+        with a NaN/inf value or covariance is outside every gate (d2 = inf)."""
+        Z = np.asarray(Z, dtype=float)
+        R = np.asarray(R, dtype=float)
+        T, (N, d) = len(predictions), Z.shape
+        valid = np.isfinite(Z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+        if not valid.all():  # score stand-ins, then put the invalid ones out of reach
+            hyp = self.hypothesise(predictions, np.where(valid[:, None], Z, 0.0),
+                                   np.where(valid[:, None, None], R, np.eye(d)), model)
+            hyp.d2[:, ~valid], hyp.log_likelihood[:, ~valid] = np.inf, -np.inf
+            hyp.nu[:, ~valid], hyp.S[:, ~valid] = np.nan, np.nan
+            return hyp
+        z_pred = np.array([p.z for p in predictions], dtype=float).reshape(T, d)
+        nu, S = np.zeros((T, N, d)), np.zeros((T, N, d, d))
+        d2, loglik = np.zeros((T, N)), np.zeros((T, N))
+        for i, p in enumerate(predictions):
+            nu[i] = model.residual(Z, p.z)
+            S[i] = p.Pzz[None] + R                                                    # S = Pzz + R
+            L = np.linalg.cholesky(S[i])                                              # S = L L'
+            e = np.linalg.solve(L, nu[i][..., None])[..., 0]                          # L e = nu
+            d2[i] = np.einsum("nd,nd->n", e, e)                                       # d2 = nu' S^-1 nu
+            log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+            loglik[i] = -0.5 * (d2[i] + log_det + d * np.log(2.0 * np.pi))
+        gate = float(chi2.ppf(self.gate_probability, d)) if N else np.inf
+        return Hypotheses(z_pred, nu, S, d2, loglik, gate, self.gate_probability)
 
 
 def hypothesise(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray], Z: np.ndarray, R: np.ndarray,
                 model, t: float, gate_probability: float) -> Hypotheses:
-    """Mahalanobis distances d2 (T, N) of every detection Z (N, d), R (N, d, d) to every predicted track, inf
-    outside the chi-square gate of probability ``gate_probability``."""
-    Z = np.asarray(Z, dtype=float)
-    d2 = np.full((len(states), len(Z)), np.inf)
-    if len(Z) == 0:
-        return Hypotheses(d2, np.inf)
-    gate = float(chi2.ppf(gate_probability, Z.shape[1]))
-    for i, (x, P) in enumerate(zip(states, covariances)):
-        H = model.jacobian(x, t)
-        HPH = H @ P @ H.T
-        nu = model.residual(Z, model.h(x, t))
-        for j in range(len(Z)):
-            value = float(nu[j] @ np.linalg.solve(HPH + R[j], nu[j]))
-            if value <= gate:
-                d2[i, j] = value
-    return Hypotheses(d2, gate)
+    """Hypotheses of Z against tracks given by their predicted states and covariances (first-order
+    measurement prediction)."""
+    predictions = [linearised_prediction(np.asarray(x, float), np.asarray(P, float), model, t)
+                   for x, P in zip(states, covariances)]
+    return MahalanobisHypothesiser(gate_probability).hypothesise(predictions, Z, R, model)
+
+
+@dataclass
+class Association:
+    """One track's share of a step's association."""
+
+    detection: int
+    """The detection that updates the track (its most probable hypothesis), NO_DETECTION on a miss."""
+    weights: np.ndarray
+    """(N + 1,) probability of each hypothesis: [missed, detection 0, ..., detection N-1]; sums to 1."""
+
+    @property
+    def is_hard(self) -> bool:
+        """True when one hypothesis carries all the weight (a plain filter update, or none, follows)."""
+        return bool(self.weights[self.detection + 1] == 1.0)
+
+    @staticmethod
+    def hard(detection: int, n_detections: int) -> "Association":
+        weights = np.zeros(n_detections + 1)
+        weights[detection + 1] = 1.0
+        return Association(int(detection), weights)
 
 
 class DataAssociator(Protocol):
-    def associate(self, hypotheses: Hypotheses) -> list[int]:
-        """The detection index of each track, NO_DETECTION for a missed track."""
+    def associate(self, hypotheses: Hypotheses) -> list[Association]:
+        """One Association per track, in the tracks' order."""
 
 
 class GlobalNearestNeighbour:
-    """The joint assignment of gated (track, detection) pairs with the least total d2."""
+    """The joint assignment of gated (track, detection) pairs, each detection to at most one track, that
+    assigns as many tracks as possible and, among those, has the least total d2 (Hungarian algorithm,
+    scipy.optimize.linear_sum_assignment). A track with no gated detection left is missed."""
 
-    def associate(self, hypotheses: Hypotheses) -> list[int]:
-        d2 = hypotheses.d2
-        chosen = [NO_DETECTION] * d2.shape[0]
-        if d2.size == 0 or not np.any(np.isfinite(d2)):
-            return chosen
-        big = 1e6 * (1.0 + np.max(d2[np.isfinite(d2)]))  # a gated pair always beats leaving a track missed
-        rows, cols = linear_sum_assignment(np.where(np.isfinite(d2), d2, big))
-        for i, j in zip(rows, cols):
-            if np.isfinite(d2[i, j]):
-                chosen[i] = int(j)
-        return chosen
+    def associate(self, hypotheses: Hypotheses) -> list[Association]:
+        T, N = hypotheses.n_tracks, hypotheses.n_detections
+        chosen = [NO_DETECTION] * T
+        gated = hypotheses.gated
+        if gated.any():
+            d2 = hypotheses.d2
+            # a pair outside the gate costs more than any set of gated pairs: more tracks assigned always wins
+            forbidden = 1.0 + T * float(np.max(d2[gated]))
+            rows, cols = linear_sum_assignment(np.where(gated, d2, forbidden))
+            for i, j in zip(rows, cols):
+                if gated[i, j]:
+                    chosen[i] = int(j)
+        return [Association.hard(j, N) for j in chosen]

@@ -17,7 +17,7 @@ from typing import Callable
 import numpy as np
 
 from orbit_sim import relative
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine import plugins
 from bench_engine.graph import filter_config
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
@@ -160,7 +160,7 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     sec.finish()
     if "seed" in registry.filter_parameters(kind) and "seed" not in params:
         # random filters (particle filters) draw from the run's seed, distinct per filter name
-        params["seed"] = [int(cfg.get("seed", 0)), zlib.crc32(name.encode())]
+        params["seed"] = [scenario_seed(cfg), zlib.crc32(name.encode())]
     try:
         flt = registry.make_filter(kind, dynamics, **params)
     except (TypeError, ValueError) as err:

@@ -57,6 +57,8 @@ class FilterStage:
 def _spec(cfg: dict, name: str) -> NodeSpec:
     sensors = sensor_names(cfg)
     inputs = filter_config(cfg, name).get("sensors") or sensors
+    if not isinstance(inputs, list) or not all(isinstance(s, str) for s in inputs):
+        raise ScenarioError(f"'filters.{name}.sensors' must be a list of sensor names, got {inputs!r}")
     unknown = [s for s in inputs if s not in sensors]
     if unknown:
         raise ScenarioError(f"'filters.{name}.sensors' names unknown sensor(s) {unknown}; allowed: {sorted(sensors)}")

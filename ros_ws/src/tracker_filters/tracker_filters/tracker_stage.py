@@ -2,13 +2,18 @@
 scenario's ``trackers`` section:
 
     trackers:
-      gnn: {filter: kf, detections: cam, gate_probability: 0.999}
+      gnn:
+        filter: kf                # an entry of the ``filters`` section: each track's filter (type, dynamics,
+                                  # initialiser, parameters), built by tracker_filters.builders
+        detections: cam           # a cluttered sensor (radar_sensor.clutter); its measurement model is used
+        gate_probability: 0.999   # P_G of the chi-square gate (default 0.999)
+        max_misses: 10            # delete the track after this many consecutive misses (default: never)
 
-``filter`` names an entry of the ``filters`` section (its type, dynamics, initialiser and parameters build each
-track's filter); ``detections`` a cluttered sensor (radar_sensor.clutter), whose measurement model the updates
-use. Subscribes ``/DETECTIONS/detections``; publishes ``/NAME/estimate`` (bench_msgs/StateEstimate) for the
-track after every detection set once it exists, with the diagnostics ``associated`` (1 or 0) and
-``candidates`` (detections in the set), so the scorer scores it like a filter.
+Subscribes ``/DETECTIONS/detections`` (bench_msgs/DetectionSet); publishes ``/NAME/estimate``
+(bench_msgs/StateEstimate) for its track after every detection set once the track exists, so the scorer
+scores it like a filter. NIS is the update's (NaN when the track coasted); the diagnostics are ``associated``
+(1 when a detection updated the track or started it, else 0), ``candidates`` (detections in the set),
+``gated`` (detections in the track's gate) and the filter's own.
 """
 from __future__ import annotations
 
@@ -21,35 +26,46 @@ from bench_engine.stage import DetectionSet, Estimate, Outputs, python_log
 SECTION = "trackers"
 
 
-@dataclass
+@dataclass(frozen=True)
 class TrackerConfig:
     filter: str
     detections: str
     gate_probability: float
+    max_misses: int | None
 
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
     """The ``trackers`` section, read strictly (registered section reader)."""
+    from radar_sensor.clutter import names as cluttered_names
     sec = Section(cfg.get(SECTION), SECTION)
+    filters = Section(cfg.get("filters"), "filters").keys()
+    cluttered = cluttered_names(cfg)
     out = {}
     for name in sec.keys():
-        entry = sec.section(name)
-        out[name] = TrackerConfig(entry.choice("filter", list((cfg.get("filters") or {}).keys())),
-                                  entry.choice("detections", list((cfg.get("cluttered_sensors") or {}).keys())),
-                                  entry.get("gate_probability", float, 0.999, lambda v: 0.0 < v < 1.0, "in (0, 1)"))
+        entry = sec.section(name, default_empty=False)
+        out[name] = TrackerConfig(
+            entry.choice("filter", filters), entry.choice("detections", cluttered),
+            entry.get("gate_probability", float, 0.999, lambda v: 0.0 < v < 1.0, "in (0, 1)"),
+            entry.get("max_misses", int, None, lambda v: v >= 1, "an integer >= 1"))
         entry.finish()
     sec.finish()
     return out
 
 
-def build_tracker(cfg: dict, name: str):
-    from radar_sensor.clutter import build_cluttered
-    from tracker_filters.builders import build_filter_stack
-    from tracker_filters.tracker import Tracker
+def tracker_config(cfg: dict, name: str) -> TrackerConfig:
     trackers = read_trackers(cfg)
     if name not in trackers:
         raise ScenarioError(f"unknown tracker '{name}'; the scenario has: {sorted(trackers)}")
-    conf = trackers[name]
+    return trackers[name]
+
+
+def build_tracker(cfg: dict, name: str):
+    """The Tracker of ``trackers.NAME`` over fresh filters of its ``filter`` entry (ScenarioError on any bad
+    key)."""
+    from radar_sensor.clutter import build_cluttered
+    from tracker_filters.builders import build_filter_stack
+    from tracker_filters.tracker import Tracker
+    conf = tracker_config(cfg, name)
     sensor = build_cluttered(cfg, conf.detections).sensor
     stack = build_filter_stack(cfg, conf.filter)
 
@@ -59,32 +75,45 @@ def build_tracker(cfg: dict, name: str):
         return flt
 
     return Tracker(new_filter, lambda z, R, t: stack.initialise(z, R, sensor, t), sensor.model,
-                   conf.gate_probability), conf
+                   conf.gate_probability, max_misses=conf.max_misses)
 
 
 class TrackerStage:
+    """Detection sets in, the track's estimate out."""
+
     def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
         self.name, self.topic = name, estimate_topic(name)
-        self.tracker, _ = build_tracker(cfg, name)
+        self.tracker = build_tracker(cfg, name)
         self.log = python_log(name)
 
     def on_input(self, topic: str, d: DetectionSet) -> Outputs:
         report = self.tracker.step(d.t, d.Z, d.R)
         for reason in report.rejected:
             self.log("warning", f"step {d.step}: update rejected: {reason}")
+        for result in report.results:
+            for warning in (result.warnings if result is not None else []):
+                self.log("warning", warning)
+        if report.deleted:
+            self.log("info", f"step {d.step}: track deleted after {self.tracker.max_misses} consecutive misses")
+        if report.started:
+            self.log("info", f"step {d.step}: track started")
         if not self.tracker.tracks:
             return []
         flt = self.tracker.tracks[0].filter
-        associated = 1.0 if report.started or (report.associated and report.associated[0] >= 0) else 0.0
+        result = report.results[0] if report.results and not report.started else None
+        updated = result is not None and result.accepted
+        gated = float(report.hypotheses.gated[0].sum()) if report.hypotheses is not None and not report.started \
+            else float("nan")
+        diagnostics = {"associated": 1.0 if (report.started or updated) else 0.0,
+                       "candidates": float(len(d.Z)), "gated": gated, **flt.diagnostics()}
         return [(self.topic, Estimate(d.step, d.t_ns, flt.dynamics.frame, self.name, flt.labels, flt.x.copy(),
-                                      flt.P.copy(), float("nan"),
-                                      {"associated": associated, "candidates": float(len(d.Z))}))]
+                                      flt.P.copy(), result.nis if updated else float("nan"), diagnostics))]
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
-    from radar_sensor.clutter import detections_topic
+    from radar_sensor.clutter import DETECTION_SET_TYPE, detections_topic
     return NodeSpec(name, "tracker", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={detections_topic(read_trackers(cfg)[name].detections): ""})
+                    subscribes={detections_topic(tracker_config(cfg, name).detections): DETECTION_SET_TYPE})
 
 
 TRACKER = NodeKind("tracker", "estimator", "bench_engine.stage_node:StageNode",
