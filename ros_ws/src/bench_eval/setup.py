@@ -26,6 +26,8 @@ setup(
             "convergence = bench_eval.metric_families:CONVERGENCE",
             "errors = bench_eval.metric_families:ERRORS"],
         "tracking_bench.offline": [
-            "rts = bench_eval.offline:RTS"]
+            "rts = bench_eval.offline:RTS",
+            "newton = bench_eval.offline:NEWTON",
+            "savgol = bench_eval.offline:SAVGOL"]
     },
 )

@@ -26,7 +26,9 @@ setup(
         "tracking_bench.sensors": [
             "ground_radar = radar_sensor.sensor:GROUND_RADAR",
             "isl_radio = radar_sensor.sensor:ISL_RADIO",
-            "relative_position = radar_sensor.sensor:RELATIVE_POSITION"],
+            "relative_position = radar_sensor.sensor:RELATIVE_POSITION",
+            "gnss = radar_sensor.gnss:GNSS",
+            "kbr = radar_sensor.gnss:KBR"],
         "tracking_bench.codecs": [
             "bench_msgs.msg.RangeAzEl = radar_sensor.messages:RANGE_AZ_EL",
             "bench_msgs.msg.VectorMeasurement = radar_sensor.messages:VECTOR_MEASUREMENT",

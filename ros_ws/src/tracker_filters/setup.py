@@ -21,10 +21,14 @@ setup(
     license="Apache-2.0",
     entry_points={
         "tracking_bench.sections": [
-            "trackers = tracker_filters.tracker_stage:read_trackers"],
+            "trackers = tracker_filters.tracker_stage:read_trackers",
+            "derived_measurements = tracker_filters.derived:read_derived",
+            "fixed_lag_smoothers = tracker_filters.fixed_lag:read_fixed_lag"],
         "tracking_bench.node_kinds": [
             "filter = tracker_filters.filter_stage:FILTER",
-            "tracker = tracker_filters.tracker_stage:TRACKER"],
+            "tracker = tracker_filters.tracker_stage:TRACKER",
+            "derived = tracker_filters.derived:DERIVED",
+            "fixed_lag = tracker_filters.fixed_lag:FIXED_LAG"],
         "tracking_bench.estimators": [
             "kf = tracker_filters.kf:KalmanFilter",
             "ekf = tracker_filters.ekf:ExtendedKalmanFilter",
@@ -37,10 +41,12 @@ setup(
             "orbit_j2 = tracker_filters.builders:orbit_j2",
             "cw = tracker_filters.builders:cw",
             "cw_bias = tracker_filters.builders:cw_bias",
-            "ss = tracker_filters.builders:ss"],
+            "ss = tracker_filters.builders:ss",
+            "white_jerk = tracker_filters.builders:white_jerk"],
         "tracking_bench.initialisers": [
             "first_scan = tracker_filters.builders:first_scan",
             "given = tracker_filters.builders:given",
-            "truth_scaled = tracker_filters.builders:truth_scaled"]
+            "truth_scaled = tracker_filters.builders:truth_scaled",
+            "position_fix = tracker_filters.builders:position_fix"]
     },
 )

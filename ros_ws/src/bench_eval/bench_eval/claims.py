@@ -112,6 +112,10 @@ def lookup(block: Mapping, path: str | None) -> Any:
 
 
 def diverged(block: Mapping) -> bool:
+    """A filter lost its target: its mean NEES is missing or beyond any chi-square band. A metric family that
+    scores no NEES (e.g. residuals against a reference measurement) never reports divergence."""
+    if "nees_mean" not in block:
+        return False
     nees, dof = block.get("nees_mean"), block.get("nees_dof") or len(block.get("mae") or {}) or 6
     return nees is None or not np.isfinite(nees) or nees > DIVERGED_NEES * dof
 

@@ -6,6 +6,10 @@ An offline estimator is registered in the entry-point group ``tracking_bench.off
     scoring:
       offline:
         ss_rts: {estimator: rts, source: ss}     # RTS smoothing of filter "ss"'s recorded estimates
+        newton: {estimator: newton, source: baseline, params: {order: 4, labels: [bx, by, bz, bvx, bvy, bvz]}}
+
+``source`` is an estimator of the run (rts) or one of its measurements, a sensor or a derived measurement
+(numerical differentiation: ``newton``, ``savgol``).
 
 The scorer runs each over every bag and scores its output like another filter's (bench_eval.scoring).
 """
@@ -59,3 +63,62 @@ def _rts_run(data: BagData, source: str, params: dict) -> Estimates:
 
 
 RTS = OfflineEstimator(run=_rts_run, check=_rts_check)
+
+
+def _measurement_series(data: BagData, source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(steps, t, z (K, d)) of a recorded measurement, in step order."""
+    meas = data.measurements[source]
+    steps = np.array(sorted(meas))
+    return steps, np.array([data.truth[int(k)][0] for k in steps]), np.array([meas[int(k)] for k in steps])
+
+
+def _differentiation_check(keys: dict[str, type]) -> Callable[[dict, str, dict], None]:
+    def check(cfg: dict, source: str, params: dict) -> None:
+        names = list((cfg.get("sensors") or {})) + list((cfg.get("derived_measurements") or {}))
+        if source not in names:
+            raise ScenarioError(f"'scoring.offline': source '{source}' is not a measurement of the scenario "
+                                f"({names})")
+        unknown, missing = set(params) - set(keys) - {"labels", "max_gap"}, set(keys) - set(params)
+        if unknown or missing or not isinstance(params.get("labels"), list):
+            raise ScenarioError(f"'scoring.offline' numerical differentiation of '{source}' takes params "
+                                f"{sorted(keys)}, labels (positions then velocities) and optionally max_gap "
+                                f"(s), got {sorted(params)}")
+        gap = params.get("max_gap", 1.0)
+        if isinstance(gap, bool) or not isinstance(gap, (int, float)) or not gap > 0:
+            raise ScenarioError(f"'scoring.offline' params.max_gap must be a positive number of seconds, got {gap!r}")
+        for key, kind in keys.items():
+            if not isinstance(params[key], kind) or isinstance(params[key], bool) or params[key] < 1:
+                raise ScenarioError(f"'scoring.offline' params.{key} must be a positive {kind.__name__}, "
+                                    f"got {params[key]!r}")
+    return check
+
+
+def _differentiated(data: BagData, source: str, params: dict, derivative) -> Estimates:
+    """Positions as measured with their numerical derivative; no covariance (NaN): these are not filters."""
+    steps, t, z = _measurement_series(data, source)
+    x = np.hstack([z, derivative(t, z)])
+    if x.shape[1] != len(params["labels"]):
+        raise ScenarioError(f"'scoring.offline': {len(params['labels'])} labels for {x.shape[1]} components "
+                            f"(positions of '{source}' and their derivatives)")
+    P = np.full((len(t), x.shape[1], x.shape[1]), np.nan)
+    return Estimates(steps, t, x, P, list(params["labels"]), {})
+
+
+def _newton_run(data: BagData, source: str, params: dict) -> Estimates:
+    """Newton's divided-difference polynomial of degree ``order`` (paper 002's "Newton" method); windows never
+    span a gap longer than ``max_gap`` seconds, and are one-sided at the ends of the day and of every gap."""
+    from tracker_filters.differentiation import newton_derivative
+    gap = float(params.get("max_gap", np.inf))
+    return _differentiated(data, source, params, lambda t, z: newton_derivative(t, z, params["order"], gap))
+
+
+def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
+    """Savitzky-Golay: least-squares polynomial of ``polyorder`` over ``window`` samples."""
+    from tracker_filters.differentiation import savgol_derivative
+    gap = float(params.get("max_gap", np.inf))
+    return _differentiated(data, source, params,
+                           lambda t, z: savgol_derivative(t, z, params["window"], params["polyorder"], gap))
+
+
+NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check({"order": int}))
+SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window": int, "polyorder": int}))

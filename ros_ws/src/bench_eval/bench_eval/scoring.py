@@ -154,11 +154,12 @@ def _scenario_name(runs: list[BagData]) -> str:
 
 
 def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
-    """Run the scoring section's offline estimators over one run's recorded estimates (bench_eval.offline);
+    """Run the scoring section's offline estimators over one run's recorded estimates or measurements
+    (bench_eval.offline);
     their estimates join ``data.estimates``. Returns the names of the estimators that ran."""
     ran = []
     for name, job in opts.offline.items():
-        if job.source in data.estimates:
+        if job.source in data.estimates or job.source in data.measurements:
             data.estimates[name] = plugins.load("offline", job.estimator).run(data, job.source, job.params)
             ran.append(name)
     return ran
@@ -166,10 +167,11 @@ def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
 
 def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
     """The estimators of a run that are scored against the truth: the run's filters, the offline estimators,
-    then any other estimator of the bag (a tracker, a pipeline stage) whose state labels are truth labels."""
+    then any other estimator of the bag (a tracker, a smoother, a pipeline stage) that estimates truth
+    components (e.g. a 9-state kinematic smoother whose positions and velocities are in the truth)."""
     names = [n for n in data.run["filters"] + offline if n in data.estimates]
     return names + sorted(n for n, e in data.estimates.items()
-                          if n not in names and e.labels and set(e.labels) <= set(data.truth_labels))
+                          if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
 
 
 def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
@@ -238,5 +240,18 @@ def print_summary(scored: dict) -> str:
             inside = block.get("within_3sigma") or {}
             if inside:
                 parts.append(f"within 3 sigma {min(inside.values()):.0%}..{max(inside.values()):.0%}")
+        if not parts:  # a family without the keys above: its first scalar scores
+            parts = [f"{k}={v:.4g}" for k, v in _scalars(block)[:6]]
         lines.append(f"  {name}: " + "; ".join(parts))
     return "\n".join(lines)
+
+
+def _scalars(block: dict, prefix: str = "") -> list[tuple[str, float]]:
+    """The numeric leaves of a score block, depth first, as (dotted key, value)."""
+    out = []
+    for key, value in block.items():
+        if isinstance(value, dict):
+            out += _scalars(value, f"{prefix}{key}.")
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            out.append((f"{prefix}{key}", float(value)))
+    return out

@@ -60,7 +60,7 @@ A_RANGE_M = (1.0e6, 1.0e10)
 motion) to beyond the Moon; outside, a typo is likelier than intent."""
 
 
-def _semi_major_axis(sec: Section, mu: float) -> float:
+def semi_major_axis(sec: Section, mu: float) -> float:
     """``a`` [m], or ``period_s`` converted with Kepler's third law (exactly one of them), in A_RANGE_M."""
     if ("a" in sec.data) == ("period_s" in sec.data):
         raise ScenarioError(f"'{sec.path}' needs exactly one of 'a' (m) or 'period_s' (s)")
@@ -82,7 +82,7 @@ def _semi_major_axis(sec: Section, mu: float) -> float:
 
 def orbit_state(sec: Section, mu: float) -> np.ndarray:
     """ECI state at the epoch from Keplerian elements (angles in degrees; ``a`` in metres or ``period_s``)."""
-    a = _semi_major_axis(sec, mu)
+    a = semi_major_axis(sec, mu)
     e = sec.get("e", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1)")
     angles = [np.radians(sec.get(k, float, 0.0)) for k in ("i_deg", "raan_deg", "argp_deg", "M_deg")]
     sec.finish()
@@ -109,7 +109,7 @@ def reference_orbit(cfg: dict, mean_radius: bool = False) -> ReferenceOrbit:
     chief = (cfg.get("truth") or {}).get("chief")
     if not isinstance(chief, dict):
         raise ScenarioError("relative-motion models need the chief's orbit in 'truth.chief'")
-    a = _semi_major_axis(Section(chief, "truth.chief"), earth.mu)
+    a = semi_major_axis(Section(chief, "truth.chief"), earth.mu)
     if mean_radius:
         x0 = orbit_state(Section(chief, "truth.chief"), earth.mu)
         j2 = earth.j2 if (cfg.get("truth") or {}).get("model") == "formation_j2" else 0.0

@@ -38,6 +38,16 @@ class Sensor:
         self._chol = np.linalg.cholesky(self.R)
         self._azimuths = [i for i in self.model.angle_indices if self.model.labels[i] == "azimuth"]
 
+    def noise(self, t: float, rng: np.random.Generator) -> np.ndarray:
+        """One draw of the measurement noise at time t: white, N(0, R)."""
+        return self._chol @ rng.standard_normal(self.R.shape[0])
+
+    def bind(self, state_labels: list[str]) -> None:
+        """Bind a model defined on named state components (bench_models.labelled) to the observed state's
+        layout; other models fit one layout already and are kept."""
+        if hasattr(self.model, "for_state"):
+            self.model = self.model.for_state(state_labels)
+
     def observe(self, x_true: np.ndarray, t: float, step: int, rng: np.random.Generator) -> np.ndarray | None:
         """A noisy measurement of x_true at time t, or None (off-cycle, not visible or missed detection).
 
@@ -47,7 +57,7 @@ class Sensor:
         if step % self.every_n_steps or not self.visible(x_true, t):
             return None
         detected = rng.random() < self.p_detect
-        noise = self._chol @ rng.standard_normal(self.R.shape[0])
+        noise = self.noise(t, rng)
         if not detected:
             return None
         z = self.model.h(x_true, t) + noise

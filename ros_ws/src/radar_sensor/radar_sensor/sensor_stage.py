@@ -27,8 +27,12 @@ class SensorStage:
         self.topic = measurement_topic(name)
         self.labels = list(self.sensor.model.labels)
         self.log = python_log(name)
+        self._bound_to: list[str] | None = None
 
     def on_input(self, topic: str, truth: TruthSample) -> Outputs:
+        if self._bound_to != truth.labels:
+            self.sensor.bind(truth.labels)
+            self._bound_to = list(truth.labels)
         z = self.sensor.observe(truth.state, truth.t_ns * 1e-9, truth.step, self.rng)
         if z is None:
             return []

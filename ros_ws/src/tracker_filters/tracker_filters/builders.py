@@ -7,6 +7,7 @@ A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``
     dynamics: {model: orbit_j2, sigma_accel: 0.5}
     init: {method: first_scan, velocity_sigma: 8000.0}
     params: {alpha: 1.0}      # constructor parameters of the filter type
+    gate_probability: 0.9999  # optional NIS gate: reject measurements beyond this chi-square quantile
 """
 from __future__ import annotations
 
@@ -24,12 +25,14 @@ from orbit_sim.truth import build_earth, build_truth, reference_orbit
 from radar_sensor.sensor import Sensor, build_sensor
 from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
+from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.models import DynamicsModel
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
+from bench_models.white_jerk import WhiteJerkDynamics
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
 
@@ -78,6 +81,14 @@ def ss(sec: Section, cfg: dict) -> DynamicsModel:
     return SchweighartSedwickDynamics(ref.a, ref.inclination, _sigma_accel(sec), earth.mu, earth.j2, earth.re)
 
 
+def white_jerk(sec: Section, cfg: dict) -> DynamicsModel:
+    """Paper 002's kinematic model: ``q`` [m^2/s^5] white-jerk density, ``labels`` (positions, velocities,
+    accelerations), ``frame``."""
+    labels = sec.get("labels", list)
+    if len(labels) != 9 or not all(isinstance(s, str) for s in labels) or len(set(labels)) != 9:
+        raise ScenarioError(f"'{sec.path}.labels' must name 9 distinct components (3 positions, 3 velocities, "
+                            f"3 accelerations), got {labels!r}")
+    return WhiteJerkDynamics(sec.non_negative("q"), labels, sec.get("frame", str, "eci"))
 
 
 def _given_q(sec: Section, dynamics: DynamicsModel) -> DynamicsModel:
@@ -142,6 +153,29 @@ def truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialise
     return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
 
 
+def position_fix(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+    """From the first measurement of components of a kinematic state ordered in three equal blocks
+    (positions, velocities, accelerations; bench_models.white_jerk): the measured components take z and R,
+    the others zero mean with ``sigma_velocity`` or ``sigma_acceleration`` [SI]."""
+    sv, sa = sec.positive("sigma_velocity"), sec.positive("sigma_acceleration")
+    n = len(dynamics.labels)
+    if n % 3:
+        raise ScenarioError(f"'{sec.path}': position_fix needs a state of positions, velocities and "
+                            f"accelerations in three equal blocks, got {list(dynamics.labels)}")
+    prior = np.repeat([np.inf, sv, sa], n // 3)
+
+    def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
+        H = sensor.model.jacobian(np.zeros(n), t)
+        measured = [int(np.flatnonzero(row)[0]) for row in H]
+        if not np.all(np.isfinite(np.delete(prior, measured))):
+            raise ValueError(f"{sensor.name}'s first measurement leaves state positions unknown")
+        x0, P0 = np.zeros(n), np.diag(np.where(np.isfinite(prior), prior, 0.0) ** 2)
+        x0[measured] = z
+        P0[np.ix_(measured, measured)] = R
+        return x0, P0
+    return initialise
+
+
 def build_initialiser(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     method = sec.choice("method", plugins.names("initialisers"))
     init = plugins.load("initialisers", method)(sec, cfg, dynamics)
@@ -157,6 +191,7 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
     init = build_initialiser(sec.section("init", default_empty=False), cfg, dynamics)
     params = dict(sec.get("params", dict, {}))
+    gate = sec.get("gate_probability", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = no gate)")
     sec.finish()
     if "seed" in registry.filter_parameters(kind) and "seed" not in params:
         # random filters (particle filters) draw from the run's seed, distinct per filter name
@@ -166,4 +201,16 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     except (TypeError, ValueError) as err:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
-    return FilterStack(name, flt, {s: build_sensor(cfg, s) for s in inputs}, init)
+    flt.gate_probability = gate
+    return FilterStack(name, flt, {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}, init)
+
+
+def measurement_source(cfg: dict, name: str, state_labels) -> Sensor | DerivedSource:
+    """A sensor or a derived measurement a filter consumes, its model bound to the filter's state layout
+    (models on named components, bench_models.labelled; ScenarioError when the state lacks them)."""
+    source = derived_source(cfg, name) if name in read_derived(cfg) else build_sensor(cfg, name)
+    try:
+        source.bind(list(state_labels))
+    except ValueError as err:
+        raise ScenarioError(f"measurement '{name}' does not fit the filter's state: {err}") from None
+    return source

@@ -7,6 +7,7 @@ and leaves the filter untouched; a covariance that loses positive-definiteness i
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -29,13 +30,24 @@ class StepResult:
     """Recoveries the filter made during this step (e.g. covariance repaired)."""
 
 
+@lru_cache(maxsize=64)
+def gate_threshold(probability: float, dof: int) -> float:
+    """Chi-square quantile of ``probability`` with ``dof`` degrees of freedom (the NIS gate)."""
+    from scipy.stats import chi2
+    return float(chi2.ppf(probability, dof))
+
+
 class Filter(ABC):
     """A recursive Bayesian estimator over one dynamics model.
 
     Attributes ``x`` (n,), ``P`` (n, n) and ``t`` (s) hold the current estimate once ``initialise`` ran.
+    ``gate_probability`` (0 = off, set by the builder from the filter's ``gate_probability`` key) rejects a
+    measurement whose NIS exceeds the chi-square quantile of that probability for its dimension: a gross
+    outlier is gated and the estimate is left as it was before the measurement.
     """
 
     name: str = "filter"
+    gate_probability: float = 0.0
 
     def __init__(self, dynamics: DynamicsModel) -> None:
         self.dynamics = dynamics
@@ -86,6 +98,11 @@ class Filter(ABC):
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as err:
             self.x, self.P, self.t = saved
             return StepResult(False, f"update failed and was undone ({err})", warnings=self._warnings)
+        if self.gate_probability and nis > gate_threshold(self.gate_probability, z.shape[0]):
+            self.x, self.P, self.t = saved
+            return StepResult(False, f"gated outlier at t={t} s: NIS {nis:.4g} > "
+                                     f"{gate_threshold(self.gate_probability, z.shape[0]):.4g} "
+                                     f"(gate probability {self.gate_probability})", nis=nis)
         self.P = self._repaired(self.P, "after update")
         return StepResult(True, nis=nis, warnings=self._warnings)
 

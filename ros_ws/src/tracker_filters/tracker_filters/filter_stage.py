@@ -3,7 +3,8 @@ node kind ``filter`` for the run's selected filters (``--filters`` or the scenar
 
 Subscribes the measurement topics of the sensors it consumes (``/SENSOR/measurement``); publishes
 ``/NAME/estimate`` (bench_msgs/StateEstimate with full covariance and state labels) after every accepted
-measurement. Rejected measurements (NaN/inf, out of order, failed update) are logged and skipped;
+measurement. Rejected measurements (NaN/inf, out of order, a step already seen from the same sensor, gated by
+the filter's NIS gate, failed update) are logged and skipped;
 recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings. The filters are
 imported only when one is built (every node of a run reads the kind to build the graph).
 """
@@ -16,6 +17,7 @@ from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.graph import resolve_filters
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
 from radar_sensor.sensor_types import sensor_names
+from tracker_filters.derived import read_derived
 
 
 class FilterStage:
@@ -28,10 +30,16 @@ class FilterStage:
         self.sensor_of = {measurement_topic(s): s for s in self.stack.sensors}
         self.topic = estimate_topic(name)
         self.log = python_log(name)
+        self.last_step: dict[str, int] = {}
 
     def on_input(self, topic: str, m: Measurement) -> Outputs:
         sensor = self.stack.sensors[self.sensor_of[topic]]
         flt = self.stack.filter
+        if m.step <= self.last_step.get(topic, -1):
+            self.log("warning", f"rejected a duplicated or out-of-order measurement from {sensor.name} at step "
+                                f"{m.step} (its last was step {self.last_step[topic]})")
+            return []
+        self.last_step[topic] = m.step
         if not flt.initialised:
             if not (np.all(np.isfinite(m.z)) and np.all(np.isfinite(m.R))):
                 self.log("warning", f"rejected non-finite first measurement at step {m.step}; waiting for the next")
@@ -55,10 +63,10 @@ class FilterStage:
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
-    sensors = sensor_names(cfg)
-    inputs = filter_config(cfg, name).get("sensors") or sensors
+    sensors = sensor_names(cfg) + list(read_derived(cfg))
+    inputs = filter_config(cfg, name).get("sensors") or sensor_names(cfg)
     if not isinstance(inputs, list) or not all(isinstance(s, str) for s in inputs):
-        raise ScenarioError(f"'filters.{name}.sensors' must be a list of sensor names, got {inputs!r}")
+        raise ScenarioError(f"'filters.{name}.sensors' must be a list of sensor or derived measurement names, got {inputs!r}")
     unknown = [s for s in inputs if s not in sensors]
     if unknown:
         raise ScenarioError(f"'filters.{name}.sensors' names unknown sensor(s) {unknown}; allowed: {sorted(sensors)}")

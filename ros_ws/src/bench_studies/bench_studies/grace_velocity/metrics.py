@@ -1,0 +1,135 @@
+"""The grace_velocity metric family ``range_rate`` (registered in tracking_bench.metrics).
+
+Paper 002's yardstick (eq. 27): the range rate implied by an estimated baseline position b and velocity w,
+rho_dot = b . w / |b|, minus the K-band ranging (KBR) range rate of the same step: std, mean, max and min over
+the day. The bench also has the truth, which the paper did not: the same residual against the true range rate
+(the KBR's own noise removed) and the baseline velocity error.
+
+Options (``scoring`` section): ``kbr`` (the KBR sensor, default "kbr"), ``baseline`` (the six baseline labels,
+position then velocity), ``skip_s`` (the filters' start-up excluded, default 0) and ``pairs`` (name: [second
+satellite's estimator, first's]: a baseline formed from two single-satellite estimators).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bench_engine.config import ScenarioError, Section
+from bench_eval.metric_families import Metric, Tracks
+from bench_eval.scoring import BagData
+
+STATS = ("std", "mean", "max", "min", "rms")
+
+
+def _options(sec: Section) -> dict:
+    baseline = sec.get("baseline", list)
+    if len(baseline) != 6 or not all(isinstance(b, str) for b in baseline):
+        raise ScenarioError(f"'scoring.baseline' must list 6 labels (position, velocity), got {baseline!r}")
+    pairs = sec.get("pairs", dict, {})
+    for name, members in pairs.items():
+        if not isinstance(members, list) or len(members) != 2:
+            raise ScenarioError(f"'scoring.pairs.{name}' must name two estimators [second, first]")
+    return {"kbr": sec.get("kbr", str, "kbr"), "baseline": baseline, "skip_s": sec.non_negative("skip_s", 0.0),
+            "pairs": {k: list(v) for k, v in pairs.items()}}
+
+
+def range_rate(b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """rho_dot = b . w / |b| (paper 002, eq. 27) per row."""
+    return np.sum(b * w, axis=-1) / np.linalg.norm(b, axis=-1)
+
+
+def _columns(labels: list[str], wanted: list[str]) -> list[int] | None:
+    return [labels.index(w) for w in wanted] if all(w in labels for w in wanted) else None
+
+
+def baseline_states(data: BagData, name: str, options: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(steps, t, [b w] (K, 6)) of estimator ``name`` (or of a pair's difference), None when it has no baseline."""
+    if name in options["pairs"]:
+        second, first = (data.estimates.get(n) for n in options["pairs"][name])
+        if second is None or first is None:
+            return None
+        common, i2, i1 = np.intersect1d(second.steps, first.steps, return_indices=True)
+        cols = [_columns(e.labels, [lab.replace("b", "", 1) + suffix for lab in options["baseline"]])
+                for e, suffix in ((second, "2"), (first, "1"))]
+        if None in cols:
+            return None
+        return common, second.t[i2], second.x[i2][:, cols[0]] - first.x[i1][:, cols[1]]
+    est = data.estimates.get(name)
+    cols = None if est is None else _columns(est.labels, options["baseline"])
+    return None if cols is None else (est.steps, est.t, est.x[:, cols])
+
+
+def residuals(data: BagData, name: str, options: dict) -> dict[str, np.ndarray] | None:
+    """Per KBR step with an estimate (after skip_s): t, rho_dot_est - rho_dot_KBR, rho_dot_est - rho_dot_true,
+    baseline velocity error (K, 3)."""
+    states = baseline_states(data, name, options)
+    kbr = data.measurements.get(options["kbr"], {})
+    if states is None or not kbr:
+        return None
+    steps, t, bw = states
+    t0 = min(tt for tt, _ in data.truth.values())
+    keep = [i for i, k in enumerate(steps) if int(k) in kbr and t[i] - t0 >= options["skip_s"]]
+    if not keep:
+        return None
+    truth_cols = _columns(data.truth_labels, options["baseline"])
+    truth = np.array([data.truth[int(steps[i])][1][truth_cols] for i in keep])
+    rr = range_rate(bw[keep, :3], bw[keep, 3:])
+    z = np.array([kbr[int(steps[i])][-1] for i in keep])
+    return {"t": t[keep] - t0, "kbr": rr - z, "truth": rr - range_rate(truth[:, :3], truth[:, 3:]),
+            "velocity": bw[keep, 3:] - truth[:, 3:]}
+
+
+def _stats(x: np.ndarray) -> dict[str, float]:
+    return {"std": float(np.std(x)), "mean": float(np.mean(x)), "max": float(np.max(x)), "min": float(np.min(x)),
+            "rms": float(np.sqrt(np.mean(x * x)))}
+
+
+def _score_one(per_run: list[dict]) -> dict:
+    out: dict = {"runs": len(per_run)}
+    for key in ("kbr", "truth"):
+        stats = [_stats(r[key]) for r in per_run]
+        out[f"rr_{key}"] = {s: float(np.mean([st[s] for st in stats])) for s in STATS}
+        out[f"rr_{key}_runs"] = {s: [st[s] for st in stats] for s in STATS}
+    vel = [float(np.sqrt(np.mean(np.sum(r["velocity"] ** 2, axis=1)))) for r in per_run]
+    out["velocity_rmse"] = float(np.mean(vel))
+    out["velocity_rmse_runs"] = vel
+    return out
+
+
+def _names(tracks: Tracks, runs: list[BagData], options: dict) -> list[str]:
+    names = list(tracks) + [p for p in options["pairs"] if p not in tracks]
+    return [n for n in names if any(residuals(d, n, options) is not None for d in runs[:1])]
+
+
+def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+    scores = {}
+    for name in _names(tracks, runs, options):
+        per_run = [r for r in (residuals(d, name, options) for d in runs) if r is not None]
+        if per_run:
+            scores[name] = _score_one(per_run)
+    floor = [f for f in (_kbr_noise(d, options) for d in runs) if f is not None]
+    for block in scores.values():
+        block["kbr_noise_std"] = float(np.mean(floor)) if floor else float("nan")
+    return scores
+
+
+def _kbr_noise(data: BagData, options: dict) -> float | None:
+    """The std of the KBR's own error (KBR minus the true range rate): the floor of any residual against it."""
+    kbr = data.measurements.get(options["kbr"], {})
+    cols = _columns(data.truth_labels, options["baseline"])
+    if not kbr or cols is None:
+        return None
+    truth = np.array([data.truth[k][1][cols] for k in kbr])
+    return float(np.std(np.array([z[-1] for z in kbr.values()]) - range_rate(truth[:, :3], truth[:, 3:])))
+
+
+def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+    """First run's residual time series per estimator (plots over the day)."""
+    out = {}
+    for name in _names(tracks, runs, options):
+        r = residuals(runs[0], name, options)
+        if r is not None:
+            out[name] = {"t": r["t"], "kbr": r["kbr"], "truth": r["truth"]}
+    return out
+
+
+RANGE_RATE = Metric(options=_options, score=_score, series=_series)

@@ -1,0 +1,87 @@
+"""Choosing the white-jerk spectral density q of paper 002's filter without the truth or the KBR.
+
+The paper gives no q. The bench picks the maximum of the innovation log-likelihood of filter (a) over the
+GNSS baselines alone,
+
+    log L(q) = -1/2 sum_k [nu_k' S_k^-1 nu_k + log det S_k + d log 2 pi]      (nu, S: the KF's innovations)
+
+which needs nothing but the measurements a real mission has. The same day's truth then gives the q that
+would have been best (the smallest baseline-velocity RMSE after the start-up) and the KBR the q with the
+smallest range-rate residual: ``scripts/grace_tune_q.py`` prints all three so the reader can see how much a
+measurement-only choice gives away.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench_engine.config import apply_overrides
+from bench_engine.inprocess import run_in_process
+from bench_studies.grace_velocity.metrics import range_rate
+from orbit_sim.truth import build_truth
+from tracker_filters.builders import build_filter_stack
+
+BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
+
+
+@dataclass
+class QScore:
+    q: float
+    loglik: float
+    """Innovation log-likelihood of the measurements (needs no truth)."""
+    velocity_rmse: float
+    """Baseline velocity error against the truth after the start-up [m/s] (3-D RMS)."""
+    rr_kbr_std: float
+    """Std of the range-rate residual against the KBR [m/s]."""
+
+
+def measurements(cfg: dict, seed: int, source: str = "baseline"):
+    """The truth and the sensors only, in process: (run items, truth)."""
+    run = run_in_process(cfg, None, seed=seed, roles=("sensor",))
+    return run.items, build_truth(cfg)
+
+
+def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: float, kbr: str = "kbr") -> QScore:
+    """Run filter ``filter_name`` with density q over recorded measurement items; score it three ways."""
+    # no NIS gate while tuning: a q too small would gate most measurements and score only the few it kept
+    cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
+    stack = build_filter_stack(cfg, filter_name)
+    flt, (source, sensor), = stack.filter, *stack.sensors.items()
+    loglik, xs, steps = 0.0, [], []
+    for m in items[f"/{source}/measurement"]:
+        if not flt.initialised:
+            flt.initialise(*stack.initialise(m.z, m.R, sensor, m.t), m.t)
+        else:
+            flt.predict(m.t)
+            H = sensor.model.jacobian(flt.x, m.t)
+            S = H @ flt.P @ H.T + m.R
+            result = flt.process(m.t, m.z, m.R, sensor.model)
+            if not result.accepted:
+                continue
+            loglik -= 0.5 * (result.nis + np.linalg.slogdet(S)[1] + len(m.z) * np.log(2.0 * np.pi))
+        xs.append(flt.x[:6].copy())
+        steps.append(m.step)
+    xs, steps = np.array(xs), np.array(steps)
+    t = truth.grid.times()[steps] - truth.grid.times()[0]
+    keep = t >= skip_s
+    cols = [truth.labels.index(c) for c in BASELINE]
+    true = truth.states[steps][:, cols]
+    vel_rmse = float(np.sqrt(np.mean(np.sum((xs[keep, 3:] - true[keep, 3:]) ** 2, axis=1))))
+    kbr_z = {m.step: m.z[-1] for m in items.get(f"/{kbr}/measurement", [])}
+    common = [i for i in np.flatnonzero(keep) if steps[i] in kbr_z]
+    rr = range_rate(xs[common, :3], xs[common, 3:]) - np.array([kbr_z[steps[i]] for i in common])
+    return QScore(q, float(loglik), vel_rmse, float(np.std(rr)) if len(rr) else float("nan"))
+
+
+def scan(cfg: dict, filter_name: str, qs: list[float], seed: int, skip_s: float) -> list[QScore]:
+    """score_q over a grid of q on one set of measurements."""
+    items, truth = measurements(cfg, seed)
+    return [score_q(cfg, filter_name, q, items, truth, skip_s) for q in qs]
+
+
+def choices(scores: list[QScore]) -> dict[str, QScore]:
+    """The q each criterion picks: innovation likelihood (no truth), truth velocity, KBR residual."""
+    return {"innovation likelihood (no truth, no KBR)": max(scores, key=lambda s: s.loglik),
+            "velocity error against the truth": min(scores, key=lambda s: s.velocity_rmse),
+            "range-rate residual against the KBR": min(scores, key=lambda s: s.rr_kbr_std)}

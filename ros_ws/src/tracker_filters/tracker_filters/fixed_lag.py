@@ -1,0 +1,104 @@
+"""Fixed-lag smoothing in the graph: the node kind ``fixed_lag`` for every entry of the scenario's
+``fixed_lag_smoothers`` section whose source filter is in the run.
+
+    fixed_lag_smoothers:
+      kf_a_lag: {source: kf_a, lag_s: 300.0}   # the estimate of each step once lag_s of later data is in
+
+The node keeps the source filter's estimates of the last ``lag_s`` seconds. When an estimate arrives that is
+at least ``lag_s`` after the oldest one kept, it runs the RTS backward pass (tracker_filters.smoothing) from
+the newest estimate down to the oldest and publishes the oldest's smoothed estimate, stamped with its own
+step and time. For a linear-Gaussian model the backward pass over that window gives exactly E[x_k | z_1..N]
+with N the newest measurement: fixed-lag smoothing with a delay of at least ``lag_s``. The transitions come
+from the source filter's own dynamics model. The last ``lag_s`` seconds of a run are not published (the node
+never learns that the run ended; the offline ``rts`` estimator smooths them).
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench_engine.config import ScenarioError, Section
+from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, resolve_filters
+from bench_engine.stage import Estimate, Outputs, python_log
+
+SECTION = "fixed_lag_smoothers"
+
+
+@dataclass(frozen=True)
+class FixedLagConfig:
+    name: str
+    source: str
+    lag_s: float
+
+
+def read_fixed_lag(cfg: dict) -> dict[str, FixedLagConfig]:
+    """The ``fixed_lag_smoothers`` section, read strictly (registered section reader)."""
+    sec = Section(cfg.get(SECTION), SECTION)
+    out = {}
+    for name in sec.keys():
+        entry = sec.section(name, default_empty=False)
+        source = entry.get("source", str)
+        if source not in (cfg.get("filters") or {}):
+            raise ScenarioError(f"'{SECTION}.{name}.source' must name a filter of the scenario, got {source!r}")
+        out[name] = FixedLagConfig(name, source, entry.positive("lag_s"))
+        entry.finish()
+    sec.finish()
+    return out
+
+
+class FixedLagSmoother:
+    """The node's core: a window of the source filter's estimates, smoothed backwards on every arrival."""
+
+    def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
+        from tracker_filters.builders import build_filter_stack
+        self.conf = read_fixed_lag(cfg)[name]
+        self.dynamics = build_filter_stack(cfg, self.conf.source).filter.dynamics
+        self.window: deque[Estimate] = deque()
+        self.topic = estimate_topic(name)
+        self.log = python_log(name)
+
+    def on_input(self, topic: str, e: Estimate) -> Outputs:
+        if self.window and e.t_ns <= self.window[-1].t_ns:
+            self.log("warning", f"ignored an estimate of step {e.step} that is not newer than the last")
+            return []
+        self.window.append(e)
+        out = []
+        while len(self.window) > 1 and (self.window[-1].t_ns - self.window[0].t_ns) * 1e-9 >= self.conf.lag_s:
+            out.append((self.topic, self._smoothed_oldest()))
+            self.window.popleft()
+        return out
+
+    def _smoothed_oldest(self) -> Estimate:
+        """RTS backward pass from the newest estimate of the window to the oldest."""
+        items = list(self.window)
+        x_s, P_s = items[-1].x, items[-1].P
+        for k in range(len(items) - 2, -1, -1):
+            x, P = items[k].x, items[k].P
+            dt = (items[k + 1].t_ns - items[k].t_ns) * 1e-9
+            F, Q = self.dynamics.transition_matrix(x, dt), self.dynamics.process_noise(x, dt)
+            P_pred = F @ P @ F.T + Q
+            C = np.linalg.solve(P_pred, F @ P).T
+            x_s = x + C @ (x_s - F @ x)
+            P_s = P + C @ (P_s - P_pred) @ C.T
+            P_s = 0.5 * (P_s + P_s.T)
+        oldest = items[0]
+        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.conf.name, list(oldest.labels), x_s, P_s,
+                        oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
+
+
+def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
+    running = resolve_filters(cfg, requested)
+    return [n for n, c in read_fixed_lag(cfg).items() if c.source in running]
+
+
+def _spec(cfg: dict, name: str) -> NodeSpec:
+    conf = read_fixed_lag(cfg)[name]
+    return NodeSpec(name, "fixed_lag", publishes={estimate_topic(name): ESTIMATE_TYPE},
+                    subscribes={estimate_topic(conf.source): ""})
+
+
+FIXED_LAG = NodeKind("fixed_lag", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
+                     spec=_spec, check=lambda cfg, name: FixedLagSmoother(cfg, name), stage=FixedLagSmoother,
+                     order=1)

@@ -1,0 +1,209 @@
+"""grace_velocity cores (paper 002): white-jerk discretisation, Newton and Savitzky-Golay differentiation, the
+Kalman filter on a noise-free polynomial, fixed-lag smoothing, gating and duplicate rejection, GNSS outages,
+and the higher-fidelity truth's physics (zonal gravity as a potential's gradient, energy and polar angular
+momentum conserved without drag, drag removing energy)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import quad_vec, solve_ivp
+from scipy.linalg import expm
+
+from bench_engine.config import apply_overrides, load_scenario
+from bench_engine.stage import Estimate, Measurement
+from bench_models.labelled import ComponentModel
+from bench_models.white_jerk import F_AXIS, WhiteJerkDynamics, axis_noise
+from orbit_sim import gravity
+from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
+from orbit_sim.pair import pair_rate
+from tracker_filters import registry
+from tracker_filters.differentiation import newton_derivative, newton_weights, savgol_derivative
+from tracker_filters.smoothing import rts_smoother
+
+LABELS = ["px", "py", "pz", "vx", "vy", "vz", "ax", "ay", "az"]
+MU, RE = 3.986004418e14, 6378137.0
+
+
+@pytest.mark.parametrize("dt", [0.1, 5.0, 60.0])
+def test_white_jerk_transition_is_expm_and_noise_is_the_integral(dt: float) -> None:
+    model = WhiteJerkDynamics(2.5e-7, LABELS)
+    F = np.kron(F_AXIS, np.eye(3))
+    np.testing.assert_allclose(model.transition_matrix(None, dt), expm(F * dt), rtol=1e-13, atol=1e-13)
+    G = np.zeros((3, 1))
+    G[2, 0] = 1.0
+    integral, _ = quad_vec(lambda s: expm(F_AXIS * s) @ G @ G.T @ expm(F_AXIS * s).T, 0.0, dt, epsabs=0,
+                           epsrel=1e-12)
+    np.testing.assert_allclose(axis_noise(2.5e-7, dt), 2.5e-7 * integral, rtol=1e-9)
+    Q = model.process_noise(None, dt)
+    np.testing.assert_allclose(Q, np.kron(2.5e-7 * integral, np.eye(3)), rtol=1e-9, atol=1e-30)
+    assert np.all(np.linalg.eigvalsh(Q) > 0)
+    x = np.arange(9.0)
+    np.testing.assert_allclose(model.propagate(np.tile(x, (2, 1)), dt)[1], model.transition_matrix(x, dt) @ x)
+
+
+def test_white_jerk_rejects_bad_settings() -> None:
+    with pytest.raises(ValueError, match="q"):
+        WhiteJerkDynamics(-1.0, LABELS)
+    with pytest.raises(ValueError, match="blocks"):
+        WhiteJerkDynamics(1.0, LABELS[:8])
+
+
+def _poly(t: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    c = np.array([[3.0, -2.0, 0.5], [0.7, 0.1, -0.3], [-0.02, 0.01, 0.004], [1e-3, -2e-3, 5e-4],
+                  [2e-5, 1e-5, -3e-5], [-1e-7, 4e-7, 2e-7], [1e-9, -1e-9, 3e-9]])[:degree + 1]
+    z = sum(c[k] * t[:, None] ** k for k in range(degree + 1))
+    v = sum(k * c[k] * t[:, None] ** (k - 1) for k in range(1, degree + 1))
+    return z, v
+
+
+@pytest.mark.parametrize("order", [1, 2, 4, 6])
+def test_newton_is_exact_on_polynomials_of_its_order_centred_and_at_the_ends(order: int) -> None:
+    t = np.cumsum(np.r_[0.0, np.random.default_rng(order).uniform(0.5, 1.5, 29)])   # uneven sampling
+    z, v = _poly(t, order)
+    np.testing.assert_allclose(newton_derivative(t, z, order), v, rtol=1e-7, atol=1e-8)
+    w = newton_weights(t[:order + 1], t[0])
+    assert w.sum() == pytest.approx(0.0, abs=1e-9) and w @ t[:order + 1] == pytest.approx(1.0)
+
+
+def test_newton_windows_never_span_a_gap() -> None:
+    t = np.r_[np.arange(0.0, 100.0, 10.0), np.arange(400.0, 500.0, 10.0), [900.0]]
+    z, v = _poly(t, 2)
+    z[t >= 400.0] += 50.0                      # a jump across the gap must not leak into either side
+    got = newton_derivative(t, z, 4, max_gap=60.0)
+    np.testing.assert_allclose(got[:-1], v[:-1], rtol=1e-8, atol=1e-8)
+    assert np.all(np.isnan(got[-1]))          # a lone fix has no derivative
+
+
+def test_savgol_is_exact_on_polynomials_of_its_degree() -> None:
+    t = np.arange(0.0, 400.0, 10.0)
+    z, v = _poly(t, 3)
+    np.testing.assert_allclose(savgol_derivative(t, z, 11, 3), v, rtol=1e-6, atol=1e-8)
+    t2 = np.r_[t, np.arange(1000.0, 1040.0, 10.0)]                            # a short segment after a gap
+    z2, v2 = _poly(t2, 3)
+    np.testing.assert_allclose(savgol_derivative(t2, z2, 11, 3, max_gap=60.0), v2, rtol=1e-6, atol=1e-7)
+
+
+def _kf(q: float, R: float):
+    model = ComponentModel(("px", "py", "pz")).for_state(LABELS)
+    flt = registry.make_filter("kf", WhiteJerkDynamics(q, LABELS))
+    return flt, model, R * np.eye(3)
+
+
+def test_kf_recovers_the_velocity_of_a_noise_free_polynomial_trajectory() -> None:
+    t = np.arange(0.0, 2000.0, 10.0)
+    z, v = _poly(t / 100.0, 3)          # a cubic in time: exactly the white-jerk model's noise-free motion
+    v = v / 100.0
+    flt, model, R = _kf(1e-12, 1e-8)
+    flt.initialise(np.r_[z[0], np.zeros(6)], np.diag([1e-8] * 3 + [1.0] * 3 + [1.0] * 3), t[0])
+    for tk, zk in zip(t[1:], z[1:]):
+        assert flt.process(tk, zk, R, model).accepted
+    np.testing.assert_allclose(flt.x[3:6], v[-1], atol=1e-6)
+
+
+def test_a_gross_outlier_is_gated_and_leaves_the_estimate_untouched() -> None:
+    flt, model, R = _kf(1e-6, 8e-4)
+    flt.gate_probability = 0.9999
+    flt.initialise(np.zeros(9), np.diag([8e-4] * 3 + [1e-4] * 3 + [1e-6] * 3), 0.0)
+    assert flt.process(10.0, np.array([0.01, -0.02, 0.0]), R, model).accepted
+    before = (flt.x.copy(), flt.P.copy(), flt.t)
+    result = flt.process(20.0, np.array([30.0, 0.0, 0.0]), R, model)
+    assert not result.accepted and "gated outlier" in result.reason
+    np.testing.assert_array_equal(flt.x, before[0])
+    assert flt.t == before[2]
+    gap = flt.process(620.0, np.array([0.0, 0.01, 0.0]), R, model)       # ten minutes without fixes
+    assert gap.accepted and flt.t == 620.0
+
+
+def test_the_filter_node_core_rejects_duplicated_and_out_of_order_fixes() -> None:
+    from tracker_filters.filter_stage import FilterStage
+    cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600"])
+    stage = FilterStage(cfg, "kf_a")
+    logs = []
+    stage.log = lambda level, text: logs.append((level, text))
+
+    def fix(step: int, z) -> Measurement:
+        return Measurement(step, int(step * 5e9), "eci", "baseline", np.asarray(z, float), 8e-4 * np.eye(3),
+                           ["bx", "by", "bz"])
+    assert len(stage.on_input("/baseline/measurement", fix(0, [2.2e5, 10.0, 5.0]))) == 1
+    assert len(stage.on_input("/baseline/measurement", fix(2, [2.2e5, 12.0, 5.0]))) == 1
+    assert stage.on_input("/baseline/measurement", fix(2, [2.2e5, 12.0, 5.0])) == []
+    assert stage.on_input("/baseline/measurement", fix(1, [2.2e5, 11.0, 5.0])) == []
+    assert [lvl for lvl, _ in logs] == ["warning", "warning"] and "duplicated or out-of-order" in logs[0][1]
+
+
+def test_fixed_lag_smoothing_equals_rts_over_the_data_up_to_the_lag() -> None:
+    from tracker_filters.fixed_lag import FixedLagSmoother
+    cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600", "fixed_lag_smoothers.kf_a_lag.lag_s=50"])
+    smoother = FixedLagSmoother(cfg, "kf_a_lag")
+    rng = np.random.default_rng(5)
+    flt, model, R = _kf(smoother.dynamics.q, 8e-4)
+    flt.initialise(np.r_[2.2e5, 0, 0, np.zeros(6)], np.diag([8e-4] * 3 + [1e2] * 3 + [1.0] * 3), 0.0)
+    xs, Ps, published = [flt.x.copy()], [flt.P.copy()], []
+    for k in range(1, 30):
+        flt.process(10.0 * k, np.r_[2.2e5 + 3.0 * k, -1.0 * k, 0.5] + rng.normal(0, 0.03, 3), R, model)
+        xs.append(flt.x.copy())
+        Ps.append(flt.P.copy())
+    for k, (x, P) in enumerate(zip(xs, Ps)):
+        published += smoother.on_input("/kf_a/estimate", Estimate(k, int(k * 10e9), "eci", "kf_a", LABELS, x, P))
+    assert [e.step for _, e in published] == list(range(25))            # 50 s = 5 estimates behind
+    F, Q = smoother.dynamics.transition_matrix(None, 10.0), smoother.dynamics.process_noise(None, 10.0)
+    for _, e in published[::6]:
+        stop = e.step + 6
+        x_s, P_s = rts_smoother(np.array(xs[e.step:stop]), np.array(Ps[e.step:stop]),
+                                np.repeat(F[None], stop - e.step - 1, 0), np.repeat(Q[None], stop - e.step - 1, 0))
+        np.testing.assert_allclose(e.x, x_s[0], rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(e.P, P_s[0], rtol=1e-6, atol=1e-14)
+
+
+def test_gnss_outages_and_outliers() -> None:
+    from radar_sensor.sensor import build_sensor
+    cfg = {"time": {"start": 0.0, "duration": 1000.0, "dt": 10.0},
+           "sensors": {"g": {"type": "gnss", "position": ["x1", "y1", "z1"], "interval": 10.0,
+                             "sigma_position": 0.02, "outages": [[300.0, 420.0]], "outlier_probability": 0.1,
+                             "outlier_sigma": 30.0}}}
+    sensor = build_sensor(cfg, "g")
+    sensor.bind(["x1", "y1", "z1"])
+    rng = np.random.default_rng(2)
+    z = {k: sensor.observe(np.zeros(3), 10.0 * k, k, rng) for k in range(100)}
+    assert [k for k, v in z.items() if v is None] == list(range(30, 43))
+    big = [k for k, v in z.items() if v is not None and np.max(np.abs(v)) > 1.0]
+    assert 3 <= len(big) <= 20
+    with pytest.raises(Exception, match="outages"):
+        build_sensor({**cfg, "sensors": {"g": {**cfg["sensors"]["g"], "outages": [[5.0, 1.0]]}}}, "g")
+
+
+def test_zonal_gravity_is_the_gradient_of_the_zonal_potential() -> None:
+    r = np.array([4.1e6, -3.3e6, 4.6e6])
+    np.testing.assert_allclose(zonal_acceleration(r, MU, RE, {2: 1.0826e-3}), gravity.acceleration(r, MU, 1.0826e-3, RE),
+                               rtol=1e-13)
+
+    def potential(p: np.ndarray) -> float:
+        rn = np.linalg.norm(p)
+        P, _ = legendre(np.array(p[2] / rn), 6)
+        return MU / rn * (1.0 - sum(j * (RE / rn) ** n * P[n] for n, j in ZONALS.items()))
+    h = 20.0
+    grad = np.array([(potential(r + e) - potential(r - e)) / (2 * h) for e in np.eye(3) * h])
+    perturbation = zonal_acceleration(r, MU, RE, ZONALS) - zonal_acceleration(r, MU, RE, {})
+    np.testing.assert_allclose(grad - zonal_acceleration(r, MU, RE, {}), perturbation, rtol=2e-5)
+
+
+def test_energy_and_polar_angular_momentum_are_conserved_without_drag_and_drag_removes_energy() -> None:
+    x0 = np.array([6.858e6, 0.0, 0.0, 0.0, 135.0, 7620.0])
+    y0 = np.r_[x0, x0 * [1, 1, 1, 1, 1, 1.0001]]
+
+    def invariants(y: np.ndarray) -> tuple[float, float]:
+        r, v = y[:3], y[3:6]
+        rn = np.linalg.norm(r)
+        P, _ = legendre(np.array(r[2] / rn), 6)
+        V = MU / rn * (1.0 - sum(j * (RE / rn) ** n * P[n] for n, j in ZONALS.items()))
+        return 0.5 * v @ v - V, r[0] * v[1] - r[1] * v[0]
+    for ballistic, expect_loss in (((0.0, 0.0), False), ((0.0045, 0.0047), True)):
+        sol = solve_ivp(pair_rate, (0.0, 3 * 5680.0), y0, method="DOP853", rtol=1e-12, atol=1e-6,
+                        args=(MU, RE, ZONALS, ballistic, 7.292115e-5))
+        (e0, h0), (e1, h1) = invariants(y0), invariants(sol.y[:, -1])
+        if expect_loss:
+            assert e1 - e0 < -1.0                                    # J/kg lost to drag over three orbits
+        else:
+            assert abs(e1 - e0) < 1e-5 * abs(e0) * 1e-3 and abs(h1 - h0) < 1e-9 * abs(h0)
+    a = drag_acceleration(x0[:3], x0[3:], 0.0045)
+    assert a @ x0[3:] < 0 and 1e-8 < np.linalg.norm(a) < 1e-5
