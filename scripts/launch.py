@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bench_engine import phases
 from bench_engine.run import add_run_arguments, launch
 
 
@@ -29,6 +30,7 @@ def main(argv: list[str] | None = None) -> int:
         return code
     from bench_eval.scoring import score_run
     print(score_run(plan.out, args.json))
+    phases.mark("scored", "launcher", plan.out)
     return 0
 
 

@@ -6,8 +6,13 @@ Run i of every cell uses seed SEED0 + i and writes OUT/CELL/run_NNN/bag; up to -
 on its own ROS_DOMAIN_ID, all nodes of a run in one process. Outputs: OUT/sweep.json (cells, scores with
 per-run values, the study's extra rows) and OUT/table.md with its PNG plots.
 
+With --scheduler the runs go to a Dask distributed cluster instead (each worker runs whole runs on its own
+host, DDS on that host, bags written to OUT on a file system every worker shares at the same path; a run whose
+worker is lost is run again elsewhere). --resume keeps the complete runs already in OUT and runs the others.
+
 Examples:
   .venv/bin/python scripts/sweep.py formation_cqkf --grid tables --runs 12 --jobs 2 --out runs/sweep-tables
+  .venv/bin/python scripts/sweep.py formation_cqkf --grid tables --runs 40 --scheduler tcp://head:8786 --out /shared/t
   .venv/bin/python scripts/sweep.py formation_cqkf --grid interval --runs 4 --out runs/sweep-interval
   .venv/bin/python scripts/sweep.py formation_cqkf --grid noise --runs 2 --set time.duration=600
 Exit code: 0 on success, 1 if a run or a cell's scoring failed, 2 for a bad grid/scenario/argument.
@@ -41,10 +46,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run reserves a free domain)")
     p.add_argument("--resume", action="store_true",
                    help="keep the complete runs already in OUT (same configuration and seed), run the others")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
+                        "'local' for a local cluster of --jobs worker processes")
+    p.add_argument("--retries", type=int, default=2,
+                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
     p.add_argument("--json", action="store_true", help="print sweep.json instead of the summary")
     args = p.parse_args(argv)
     if args.runs < 1 or args.jobs < 1:
         p.error("--runs and --jobs must be >= 1")
+    if args.scheduler is not None and args.domain_base is not None:
+        p.error("--domain-base is for local runs: with --scheduler each run takes a free domain on its worker's host")
+    if args.retries < 0:
+        p.error("--retries must be >= 0")
     if args.domain_base is not None and (args.domain_base < 0 or args.domain_base + args.jobs - 1 > 101):
         p.error("--domain-base + --jobs - 1 must be in [0, 101] (ROS_DOMAIN_ID range)")
     return args
@@ -65,7 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     started = time.monotonic()
     sweep_run = SweepRun(grid, args.out, args.runs, args.seed0, done)
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
-    sweep_run.run(args.jobs, domains)
+    try:
+        sweep_run.run(args.jobs, domains, args.scheduler, args.retries)
+    except OSError as err:  # e.g. no Dask scheduler at that address
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     wall = time.monotonic() - started
     command = " ".join(["scripts/sweep.py"] + (sys.argv[1:] if argv is None else argv))
     sweep = write_outputs(sweep_run, {"runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs,

@@ -5,9 +5,14 @@ ROS domain of its own (a free one reserved by bench_engine.domains, or ``domains
 parallel runs never hear each other. A run whose bag holds another number of truth messages than its steps
 received messages from a foreign graph on its domain (a process that is not a bench run): it is set aside
 (``RUN.crosstalkK``) and run again. Used by montecarlo.py, sweep.py, demo.py and the studies' scripts.
+
+Executors: local threads, ``jobs`` runs at a time on this host (the default), or a Dask distributed cluster
+(``scheduler``: an address, or ``"local"`` for a LocalCluster of ``jobs`` worker processes; see
+bench_engine.executors). Either way a run is the same subprocess, and its bag lands in its output directory.
 """
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -17,6 +22,8 @@ from typing import Callable
 
 import yaml
 
+from bench_engine import phases
+from bench_engine.config import ScenarioError
 from bench_engine.graph import TRUTH_TOPIC
 
 CROSSTALK_RETRIES = 2
@@ -64,6 +71,8 @@ class RunResult:
     spec: RunSpec
     code: int
     reruns: list[str] = field(default_factory=list)
+    error: str = ""
+    """Why the run could not be made at all (the Dask executor: its task failed on every attempt)."""
 
     @property
     def ok(self) -> bool:
@@ -84,13 +93,16 @@ def recorded_steps(bag: Path) -> int:
     return build_time(yaml.safe_load((bag / "run_config.yaml").read_text())["scenario"]).steps
 
 
-def run_one(spec: RunSpec, domain: int | None) -> RunResult:
-    """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log."""
+def run_one(spec: RunSpec, domain: int | None, **popen) -> RunResult:
+    """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log. ``popen``:
+    extra subprocess arguments (the Dask executor's environment)."""
     spec.out.parent.mkdir(parents=True, exist_ok=True)
     result = RunResult(spec, CROSSTALK_EXIT)
     for attempt in range(1 + CROSSTALK_RETRIES):
+        phases.mark("run_spawn", "batch", spec.out.resolve())
         with open(spec.log, "w") as log:
-            code = subprocess.run(spec.command(domain), stdout=log, stderr=subprocess.STDOUT).returncode
+            code = subprocess.run(spec.command(domain), stdout=log, stderr=subprocess.STDOUT, **popen).returncode
+        phases.mark("run_exited", "batch", spec.out.resolve())
         if code != 0 or not (spec.bag / "metadata.yaml").is_file() \
                 or not crosstalk(spec.bag, recorded_steps(spec.bag)):
             result.code = code
@@ -101,10 +113,40 @@ def run_one(spec: RunSpec, domain: int | None) -> RunResult:
     return result
 
 
+def complete(out: Path) -> bool:
+    """Whether run directory ``out`` holds a complete bag (closed: metadata.yaml, with its run config)."""
+    return (out / "bag" / "metadata.yaml").is_file() and (out / "bag" / "run_config.yaml").is_file()
+
+
+def reusable_run(out: Path, expected: dict, resume: bool) -> bool:
+    """Whether ``out`` holds a complete run of the resolved scenario ``expected`` (seed included) to keep
+    instead of running it again (``resume``). An incomplete run there (a lost worker, an interrupted batch) is
+    removed to be run again. Raises ScenarioError if ``out`` exists without ``resume``, or holds a run of
+    another configuration or with foreign messages."""
+    if not out.exists():
+        return False
+    if not resume:
+        raise ScenarioError(f"{out} already exists: choose another --out, remove it, or give --resume")
+    if not complete(out):
+        shutil.rmtree(out)
+        return False
+    if yaml.safe_load((out / "bag" / "run_config.yaml").read_text())["scenario"] != expected:
+        raise ScenarioError(f"{out} was run with another configuration or seed: remove it or choose another --out")
+    if crosstalk(out / "bag", recorded_steps(out / "bag")):
+        raise ScenarioError(f"{out} holds messages of another graph: remove it to run it again")
+    return True
+
+
 def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = None, desc: str = "runs",
-              on_done: Callable[[RunResult], None] | None = None) -> list[RunResult]:
+              on_done: Callable[[RunResult], None] | None = None, scheduler: str | None = None,
+              retries: int = 2) -> list[RunResult]:
     """Run every spec, ``jobs`` at a time with a progress bar; ``domains`` (one per job) pins the ROS domains,
-    else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread)."""
+    else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread).
+    ``scheduler``: run on a Dask cluster instead (an address or ``"local"``; bench_engine.executors), each
+    run retried up to ``retries`` times if it raises or its worker is lost."""
+    if scheduler is not None:
+        from bench_engine.executors import run_dask
+        return run_dask(specs, scheduler, jobs, desc, on_done, retries)
     from tqdm import tqdm
     free = list(domains) if domains is not None else [None] * jobs
     if len(free) < jobs:

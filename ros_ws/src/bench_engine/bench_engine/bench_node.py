@@ -25,6 +25,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
+from bench_engine import phases
 from bench_engine.config import ScenarioError
 from bench_engine.graph import ACK_TOPIC, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
 from bench_engine.timegrid import build_time
@@ -170,10 +171,12 @@ class BenchNode(Node):
             self._announced = True
             self._ready_timer.cancel()
             self._ready_pub.publish(String(data=self.get_name()))
+            phases.mark("ready", self.get_name(), self.run.get("out"))
             self.on_ready()
 
     def _on_done(self, msg: UInt64) -> None:
         if not self.finished:
+            phases.mark("done_received", self.get_name(), self.run.get("out"))
             self.on_done(int(msg.data))
 
 
@@ -219,6 +222,9 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
         for node in nodes:
             node.failed = node.failed or f"a callback raised {err!r}"
     finally:
+        if phases.enabled():
+            for node in nodes:
+                phases.mark("spin_end", names[id(node)], node.run.get("out"))
         for node in nodes:
             close = getattr(node, "close", None)
             if close is not None:
@@ -236,6 +242,7 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
 
 def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int:
     """Entry point of a node process: ``python -m MODULE --name NAME --config RUN_CONFIG [--ros-args ...]``."""
+    imported = time.time()
     argv = sys.argv[1:] if argv is None else argv
     ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
     own = argv[: len(argv) - len(ros_args)]
@@ -245,13 +252,20 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
     parser.add_argument("--executor", default="events", choices=["events", "single"])
     args = parser.parse_args(own)
     rclpy.init(args=["node"] + ros_args, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    initialised = time.time()
     try:
         run = load_run_config(args.config)
+        if phases.enabled():
+            phases.mark("proc_start", args.name, run.get("out"), t=phases.process_start_time())
+            phases.mark("imported", args.name, run.get("out"), t=imported)
+            phases.mark("rclpy_init", args.name, run.get("out"), t=initialised)
         node = node_class(args.name, run)
+        phases.mark("node_created", args.name, run.get("out"))
     except (ScenarioError, KeyError, ValueError, OSError) as err:
         print(f"[{args.name}] error: {err}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     code = spin_nodes([node], args.executor, parent_pid=os.getppid())
     rclpy.try_shutdown()
+    phases.mark("exit", args.name, run.get("out"))
     return code

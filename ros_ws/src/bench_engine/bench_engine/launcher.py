@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from bench_engine import plugins
+from bench_engine import phases, plugins
 from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
                                  select_variant)
 from bench_engine.domains import DomainInUse, reserve
@@ -124,6 +124,7 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
             procs[spec.name] = subprocess.Popen(
                 [sys.executable, "-m", spec.node.split(":")[0], "--name", spec.name, "--config", str(plan.config_path)],
                 env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        phases.mark("spawned", "launcher", plan.out)
         return _supervise(plan, procs, interrupted, timeout_s, quiet)
     finally:
         for s, handler in previous.items():
@@ -151,7 +152,9 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
         time.sleep(0.05)
     if first or interrupted or time.monotonic() > deadline:
         _stop_all(procs)
+    phases.mark("nodes_exited", "launcher", plan.out)
     _recover_bag(plan)
+    phases.mark("bag_checked", "launcher", plan.out)
     if interrupted:
         print(f"[launcher] interrupted; bag closed at {plan.bag_dir}", file=sys.stderr)
         return 128 + interrupted[0]
@@ -243,12 +246,17 @@ def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", 
 
     from bench_engine.bench_node import spin_nodes
 
+    phases.mark("spawned", "launcher", plan.out)
     if pin:
         pin_to_one_cpu(domain_id)
     os.environ.update(local_dds_env(domain_id))
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     try:
+        phases.mark("rclpy_init", "launcher", plan.out)
         nodes = [node_class(spec.node)(spec.name, plan.run) for spec in plan.graph.start_order()]
-        return spin_nodes(nodes, executor)
+        phases.mark("node_created", "launcher", plan.out)
+        code = spin_nodes(nodes, executor)
+        phases.mark("nodes_exited", "launcher", plan.out)
+        return code
     finally:
         rclpy.try_shutdown()

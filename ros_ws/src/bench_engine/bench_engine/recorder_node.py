@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from bench_engine import phases
 from bench_engine.bag import BagWriter
 from bench_engine.bench_node import DATA_QOS, BenchNode, node_main
 from bench_engine.graph import CLOCK_TOPIC
@@ -68,7 +69,12 @@ class RecorderNode(BenchNode):
 
     def close(self) -> None:
         """Close the bag (idempotent; also called on SIGINT/SIGTERM)."""
+        first = not self.bag.closed
+        if first:
+            phases.mark("bag_close_start", self.get_name(), self.run.get("out"))
         self.bag.close()
+        if first:
+            phases.mark("bag_closed", self.get_name(), self.run.get("out"))
 
 
 

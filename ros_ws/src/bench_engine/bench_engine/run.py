@@ -16,6 +16,7 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per process: see launcher.local_dds_env
 
+from bench_engine import phases  # noqa: E402
 from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
 from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
 from bench_engine.timegrid import build_time  # noqa: E402
@@ -43,6 +44,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
 def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     """Validate, run and time the graph of ``args``; returns (exit code, plan)."""
     out = Path(args.out or f"runs/{Path(args.scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
+    phases.mark_process_start("launcher", out.resolve())
     filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
     try:
         plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
@@ -50,9 +52,11 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2, None
+    phases.mark("validated", "launcher", plan.out)
     started = time.monotonic()
     code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin)
     wall = time.monotonic() - started
+    phases.mark("run_end", "launcher", plan.out)
     timing = plan.out / "timing.json"
     if timing.exists():
         t = json.loads(timing.read_text())

@@ -15,6 +15,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
+from bench_engine import phases
 from bench_engine.bench_node import DATA_QOS, FLUSH_TIMEOUT_S, LATCHED_QOS, BenchNode, node_main, ns_to_stamp
 from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, node_kinds
 from bench_engine.lockstep import Pacer
@@ -67,6 +68,7 @@ class SourceNode(BenchNode):
     def _maybe_start(self) -> None:
         if self._started is None and self._announced and not self._waiting_for:
             self._started = time.monotonic()
+            phases.mark("stepping_start", self.get_name(), self.run.get("out"))
             self._watchdog.cancel()
             self.get_logger().info(f"all nodes ready after {self._started - self._created:.2f} s; "
                                    f"stepping {self.steps} steps")
@@ -92,10 +94,12 @@ class SourceNode(BenchNode):
     def _finish_run(self) -> None:
         self._done_sent = True
         stepping = time.monotonic() - self._started
+        phases.mark("stepping_end", self.get_name(), self.run.get("out"))
         self.done_pub.publish(UInt64(data=self.steps - 1))
         # every node must hear "done" before this node (the only publisher of it) goes away
         if not self.done_pub.wait_for_all_acked(Duration(seconds=FLUSH_TIMEOUT_S)):
             self.get_logger().warning(f"{DONE_TOPIC}: not every node acknowledged it in time")
+        phases.mark("done_acked", self.get_name(), self.run.get("out"))
         timing = {"startup_s": round(self._started - self._created, 3), "stepping_s": round(stepping, 3),
                   "steps": self.steps}
         self.get_logger().info(f"{self.steps} steps in {stepping:.2f} s "

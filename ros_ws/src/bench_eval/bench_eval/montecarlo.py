@@ -1,5 +1,8 @@
 """Monte Carlo of one scenario: N seeded runs through the graph (bench_engine.batch), scored together (RMSE
-per time step over the runs, paper 000 eq. 35), with score.json and a report."""
+per time step over the runs, paper 000 eq. 35), with score.json and a report.
+
+Runs go to the local executor or a Dask cluster (``scheduler``); with ``resume`` the complete runs already in
+OUT (same configuration and seed) are kept and only the others are made."""
 from __future__ import annotations
 
 import json
@@ -8,7 +11,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_engine.batch import RunSpec, run_batch
+from bench_engine import phases
+from bench_engine.batch import RunSpec, reusable_run, run_batch
 from bench_engine.launcher import prepare_run
 
 
@@ -27,34 +31,59 @@ class MonteCarlo:
         return [RunSpec(self.scenario, self.out / f"run_{i:03d}", self.seed0 + i, self.filters, self.variant,
                         list(self.overrides), self.multiprocess) for i in range(self.runs)]
 
-    def validate(self) -> None:
-        """Resolve and check the scenario once before N runs start (ScenarioError naming the bad key)."""
+    def validate(self) -> dict:
+        """Resolve and check the scenario once before N runs start (ScenarioError naming the bad key); returns
+        the resolved scenario of run 0."""
         filters = self.filters.split(",") if self.filters else None
-        prepare_run(self.scenario, self.out / "validate", filters, self.seed0, self.overrides, self.variant,
-                    record=False)
+        return prepare_run(self.scenario, self.out / "validate", filters, self.seed0, self.overrides, self.variant,
+                           record=False).run["scenario"]
+
+    def pending(self, resolved: dict, resume: bool = False) -> list[RunSpec]:
+        """The runs still to make: all of them, or with ``resume`` those without a complete bag of the same
+        configuration and seed in OUT (bench_engine.batch.reusable_run; raises ScenarioError if a run
+        directory exists without ``resume``, or holds another configuration)."""
+        return [s for s in self.specs() if not reusable_run(s.out, {**resolved, "seed": s.seed}, resume)]
 
     def bags(self) -> list[Path]:
         return [s.bag for s in self.specs() if (s.bag / "metadata.yaml").is_file()]
 
 
-def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = None) -> tuple[dict, list[str]]:
+def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = None, scheduler: str | None = None,
+                   resume: bool = False, retries: int = 2) -> tuple[dict, list[str]]:
     """Run, score and report a Monte Carlo; returns (scores with runs_per_minute, failure messages). Writes
-    OUT/score.json and OUT/report/. Raises ScenarioError before any run for a bad scenario or override."""
+    OUT/score.json and OUT/report/. Raises ScenarioError before any run for a bad scenario or override, or
+    for run directories already in OUT (unless ``resume``). ``scheduler``: a Dask scheduler address or
+    ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times."""
     from bench_eval.report import write_report
     from bench_eval.scoring import score_bags
     mc.out.mkdir(parents=True, exist_ok=True)
-    mc.validate()
+    pending = mc.pending(mc.validate(), resume)
+    phases.mark("validated", "montecarlo", mc.out.resolve())
+    if len(pending) < mc.runs:
+        print(f"[montecarlo] resuming: {mc.runs - len(pending)} complete runs kept, {len(pending)} to run",
+              file=sys.stderr)
     started = time.monotonic()
-    results = run_batch(mc.specs(), jobs, domains, desc=Path(mc.scenario).stem)
+    results = run_batch(pending, jobs, domains, desc=Path(mc.scenario).stem, scheduler=scheduler,
+                        retries=retries) if pending else []
     wall = time.monotonic() - started
-    failures = [f"{r.spec.out} (exit {r.code}, log {r.spec.log})" for r in results if not r.ok]
-    print(f"[montecarlo] {mc.runs} runs in {wall:.0f} s ({60 * mc.runs / wall:.1f} runs/min)", file=sys.stderr)
+    phases.mark("runs_done", "montecarlo", mc.out.resolve())
+    failures = [f"{r.spec.out} (exit {r.code}{', ' + r.error if r.error else ''}, log {r.spec.log})"
+                for r in results if not r.ok]
+    for r in results:
+        for note in r.reruns:
+            print(f"[montecarlo] {note}", file=sys.stderr)
+    if results:
+        print(f"[montecarlo] {len(results)} runs in {wall:.0f} s ({60 * len(results) / wall:.1f} runs/min)",
+              file=sys.stderr)
     bags = mc.bags()
     if not bags:
         raise RuntimeError("no run produced a bag")
     scored, series = score_bags(bags, with_series=True)
-    scored["runs_per_minute"] = round(60 * mc.runs / wall, 2)
+    if results:
+        scored["runs_per_minute"] = round(60 * len(results) / wall, 2)
     (mc.out / "score.json").write_text(json.dumps(scored, indent=1))
+    phases.mark("scored", "montecarlo", mc.out.resolve())
     write_report(mc.out / "report", {scored["scenario"]: scored["filters"]},
                  {scored["scenario"]: series} if series else {})
+    phases.mark("reported", "montecarlo", mc.out.resolve())
     return scored, failures

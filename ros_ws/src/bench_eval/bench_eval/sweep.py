@@ -35,10 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench_engine.batch import RunResult, RunSpec, crosstalk, run_batch
+from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
 from bench_engine.graph import filter_config, resolve_filters
-from bench_engine.timegrid import build_time
 from bench_eval.metrics import json_ready
 from bench_eval.study import study
 
@@ -235,26 +234,17 @@ def cell_record(grid: Grid, cell: Cell) -> dict:
 
 
 def reusable(out: Path, grid: Grid, runs: int, seed0: int, resume: bool) -> set[tuple[str, int]]:
-    """(cell id, run) of the complete runs already in ``out`` (resume); raises ScenarioError if a run there
-    was made with another configuration or holds foreign messages, or if ``out`` holds runs without resume."""
-    import yaml
+    """(cell id, run) of the complete runs already in ``out`` (resume; an incomplete run there is removed to
+    be run again: bench_engine.batch.reusable_run); raises ScenarioError if a run there was made with another
+    configuration or holds foreign messages, or if ``out`` holds runs without resume."""
     done = set()
     for cell in grid.cells:
         for i in range(runs):
-            path = run_dir(out, cell, i)
-            if not path.exists():
-                continue
-            if not resume:
-                raise ScenarioError(f"{path} already exists: choose another --out, remove it, or give --resume")
-            config = path / "bag" / "run_config.yaml"
-            if not (path / "bag" / "metadata.yaml").is_file() or not config.is_file():
-                raise ScenarioError(f"{path} is an incomplete run: remove it to run it again")
-            if yaml.safe_load(config.read_text())["scenario"] != {**cell.cfg, "seed": seed0 + i}:
-                raise ScenarioError(f"{path} was run with another configuration than cell {cell.id}, seed "
-                                    f"{seed0 + i}: remove it or choose another --out")
-            if crosstalk(path / "bag", build_time(cell.cfg).steps):
-                raise ScenarioError(f"{path} holds messages of another graph: remove it to run it again")
-            done.add((cell.id, i))
+            try:
+                if reusable_run(run_dir(out, cell, i), {**cell.cfg, "seed": seed0 + i}, resume):
+                    done.add((cell.id, i))
+            except ScenarioError as err:
+                raise ScenarioError(f"cell {cell.id}, run {i}: {err}") from err
     return done
 
 
@@ -300,17 +290,22 @@ class SweepRun:
         cell_id = next(cid for (cid, _), spec in self.specs.items() if spec is result.spec)
         self.reruns += result.reruns
         if not result.ok:
-            self.failures.append(f"{result.spec.out} (exit {result.code}, log {result.spec.log})")
+            error = f", {result.error}" if result.error else ""
+            self.failures.append(f"{result.spec.out} (exit {result.code}{error}, log {result.spec.log})")
         self.remaining[cell_id] -= 1
         if self.remaining[cell_id] == 0:
             self.score(next(c for c in self.grid.cells if c.id == cell_id))
 
-    def run(self, jobs: int, domains: list[int] | None = None) -> None:
+    def run(self, jobs: int, domains: list[int] | None = None, scheduler: str | None = None,
+            retries: int = 2) -> None:
+        """Run the remaining runs with the local executor, or on a Dask cluster (``scheduler``: an address or
+        ``"local"``; bench_engine.executors)."""
         for cell in self.grid.cells:
             if self.remaining[cell.id] == 0:
                 self.score(cell)
-        run_batch(list(self.specs.values()), jobs, domains, f"{self.grid.scenario}/{self.grid.name}",
-                  on_done=self._finished)
+        if self.specs:
+            run_batch(list(self.specs.values()), jobs, domains, f"{self.grid.scenario}/{self.grid.name}",
+                      on_done=self._finished, scheduler=scheduler, retries=retries)
 
 
 def write_outputs(sweep_run: SweepRun, header: dict) -> dict:

@@ -1,0 +1,114 @@
+"""The Dask executor of the one Monte Carlo runner (bench_engine.executors) against the local one, on a
+LocalCluster on 127.0.0.1: the same seeds give the same bags and scores, a run whose worker is killed is run
+again, and --resume keeps the complete runs. Short leo_radar passes (20 s of sim time) keep it quick."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import cloudpickle
+import pytest
+from dask.distributed import LocalCluster
+
+from bench_engine.batch import RunSpec, complete
+from bench_engine.executors import run_dask, run_task
+from graph_helpers import SHORT_PASS, script
+from test_bag_digests import digests
+
+RUNS = ["--runs", "2", "--jobs", "2", *SHORT_PASS]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def local_mc(tmp_path_factory) -> Path:
+    """A 2-run Monte Carlo with the default local executor."""
+    out = tmp_path_factory.mktemp("local") / "mc"
+    res = script("montecarlo.py", "leo_radar", *RUNS, "--out", str(out), "--json")
+    assert res.returncode == 0, res.stderr[-2000:]
+    return out
+
+
+def test_montecarlo_on_a_dask_cluster_equals_the_local_executor_and_runs_alone(cluster, local_mc, tmp_path):
+    out = tmp_path / "dask"
+    res = script("montecarlo.py", "leo_radar", *RUNS, "--out", str(out), "--scheduler", cluster.scheduler_address)
+    assert res.returncode == 0, res.stderr[-2000:]
+    dask_scores = json.loads((out / "score.json").read_text())
+    local_scores = json.loads((local_mc / "score.json").read_text())
+    assert dask_scores["runs"] == 2 and dask_scores["filters"] == local_scores["filters"]
+    for run in ("run_000", "run_001"):
+        assert digests(out / run / "bag") == digests(local_mc / run / "bag")
+    # run 1 (seed 2) alone, one process per node, records the same messages as in either batch
+    alone = tmp_path / "alone"
+    res = script("launch.py", "leo_radar", "--seed", "2", *SHORT_PASS, "--out", str(alone), "--no-score")
+    assert res.returncode == 0, res.stderr[-2000:]
+    found = digests(alone / "bag")
+    assert found == digests(out / "run_001" / "bag") and found["/truth/state"][1] == 201
+    assert found != digests(out / "run_000" / "bag")  # a different seed: other messages
+
+
+def kill_worker_on_first_attempt(spec: RunSpec):
+    """Dask task: on its first attempt the run starts, then its worker process is killed (SIGKILL) once the
+    run's bag directory exists; later attempts run normally."""
+    marker = spec.out.with_name(spec.out.name + ".killed")
+    if marker.exists():
+        return run_task(spec)
+    marker.write_text(str(os.getpid()))
+
+    def kill_when_the_bag_exists():
+        while not (spec.out / "bag").exists():
+            time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_when_the_bag_exists, daemon=True)
+    killer.start()
+    run_task(spec)
+    killer.join()  # the worker dies before this returns
+
+
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+def test_a_run_whose_worker_is_killed_is_run_again(cluster, local_mc, tmp_path):
+    specs = [RunSpec("leo_radar", tmp_path / f"run_{i:03d}", 1 + i, overrides=SHORT_PASS[1:]) for i in range(2)]
+    results = run_dask(specs, cluster.scheduler_address, task=kill_worker_on_first_attempt)
+    assert sorted(r.spec.out.name for r in results) == ["run_000", "run_001"]
+    assert all(r.spec is next(s for s in specs if s.out == r.spec.out) for r in results)  # the caller's specs
+    for r in results:
+        assert r.ok, (r.code, r.error, r.spec.log.read_text()[-2000:])
+        assert (tmp_path / f"{r.spec.out.name}.killed").is_file()
+        # the retry found the killed attempt's partial output and removed it before running again
+        assert any("lost with its worker" in note for note in r.reruns), r.reruns
+        assert digests(r.spec.bag) == digests(local_mc / r.spec.out.name / "bag")
+
+
+def test_resume_keeps_complete_runs_and_makes_the_others(local_mc, tmp_path):
+    out = tmp_path / "mc"
+    shutil.copytree(local_mc, out)
+    kept = (out / "run_000" / "bag" / "metadata.yaml").stat().st_mtime_ns
+    (out / "run_001" / "bag" / "metadata.yaml").unlink()  # run 1 as a lost worker or a crash leaves it
+    res = script("montecarlo.py", "leo_radar", *RUNS, "--out", str(out), "--json")
+    assert res.returncode == 2 and "run_000 already exists" in res.stderr and "--resume" in res.stderr
+    res = script("montecarlo.py", "leo_radar", *RUNS[:1], "3", *RUNS[2:], "--out", str(out), "--resume",
+                 "--json", "--scheduler", "local")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "1 complete runs kept, 2 to run" in res.stderr
+    assert (out / "run_000" / "bag" / "metadata.yaml").stat().st_mtime_ns == kept
+    assert all(complete(out / f"run_{i:03d}") for i in range(3))
+    assert digests(out / "run_001" / "bag") == digests(local_mc / "run_001" / "bag")
+    assert json.loads((out / "score.json").read_text())["runs"] == 3
+    # another configuration in OUT is not silently mixed in
+    res = script("montecarlo.py", "leo_radar", *RUNS, "--set", "sensors.radar.p_detect=0.5", "--out", str(out),
+                 "--resume")
+    assert res.returncode == 2 and "another configuration" in res.stderr
