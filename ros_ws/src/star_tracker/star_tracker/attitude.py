@@ -1,0 +1,140 @@
+"""Attitude from star directions: TRIAD (two stars, as in the paper) and the least-squares solution of Wahba's
+problem over all stars (SVD), with their attitude-error covariances.
+
+Convention (used by every module of the package and by the published attitude estimates):
+- The attitude matrix A is camera(body)-from-ICRS: a star with ICRS unit vector r is seen along b = A r in
+  the camera frame (camera.py).
+- The quaternion q = (qw, qx, qy, qz), scalar first, Hamilton product, is the rotation whose matrix is A:
+  A = R(q) = ``scipy.spatial.transform.Rotation.from_quat(q, scalar_first=True).as_matrix()``, i.e. it
+  rotates ICRS coordinates into camera coordinates (the same convention as tetra3rs'
+  ``SolveResult.quaternion`` / ``rotation_matrix_icrs_to_camera``). The sign is fixed by qw >= 0.
+- The attitude error of an estimate Â is the small rotation δθ (camera frame) with Â = exp(−[δθ×]) A, i.e.
+  Â Aᵀ ≈ I − [δθ×]; its angle |δθ| = arccos((tr(Â Aᵀ) − 1)/2) (the paper's eq. 20 measures the angle between
+  true and estimated attitude; this is the angle of the error rotation). Covariances are of δθ, in the camera
+  frame, rad².
+
+Wahba's problem: minimise Σ w_i |b_i − A r_i|². With B = Σ w_i b_i r_iᵀ = U S Vᵀ, the optimum is
+A = U diag(1, 1, det U det V) Vᵀ (Markley 1988). For centroid noise of σ_i rad per axis on b_i (the QUEST
+measurement model, Shuster & Oh 1981), w_i = 1/σ_i² and the error covariance is
+P = (Σ (I − b_i b_iᵀ)/σ_i²)⁻¹ (camera frame).
+
+TRIAD (Black 1964; Shuster & Oh 1981): the triads t1 = b1, t2 = (b1 × b2)/|b1 × b2|, t3 = t1 × t2 and the same
+from r1, r2 give A = [t_b][t_r]ᵀ. The first (anchor) star fixes two axes exactly; the second only the rotation
+about the first. Its first-order covariance, for σ1, σ2 rad per axis on b1, b2 (the form of Shuster & Oh 1981,
+derived here by linearising the triads; tests/test_star_attitude.py checks it by Monte Carlo), is
+P = σ1² I + |b1×b2|⁻² [σ1² (b1·b2)(b1 b2ᵀ + b2 b1ᵀ) + (σ2² − σ1²) b1 b1ᵀ].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+ARCSEC = np.pi / (180.0 * 3600.0)
+
+
+@dataclass
+class AttitudeSolution:
+    """An attitude estimate: matrix, quaternion and error covariance."""
+
+    matrix: np.ndarray
+    """(3, 3) camera-from-ICRS attitude matrix A."""
+    covariance: np.ndarray
+    """(3, 3) covariance of the attitude error δθ (rad², camera frame)."""
+    n_stars: int
+    residuals: np.ndarray
+    """(n_stars,) angle (rad) between each b_i and A r_i."""
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """(qw, qx, qy, qz) of A (module docstring)."""
+        return quaternion_from_matrix(self.matrix)
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """[v×], the cross-product matrix."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def quaternion_from_matrix(A: np.ndarray) -> np.ndarray:
+    """(qw, qx, qy, qz), qw >= 0, of a rotation matrix (module docstring)."""
+    q = Rotation.from_matrix(np.asarray(A, dtype=float)).as_quat(scalar_first=True)
+    return q if q[0] >= 0 else -q
+
+
+def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a scalar-first quaternion (normalised first)."""
+    return Rotation.from_quat(np.asarray(q, dtype=float), scalar_first=True).as_matrix()
+
+
+def error_angle(A_est: np.ndarray, A_true: np.ndarray) -> float:
+    """Angle (rad) of the rotation between two attitudes, arccos((tr(Â Aᵀ) − 1)/2), computed stably."""
+    return float(Rotation.from_matrix(np.asarray(A_est) @ np.asarray(A_true).T).magnitude())
+
+
+def error_vector(A_est: np.ndarray, A_true: np.ndarray) -> np.ndarray:
+    """Attitude error δθ (rad, camera frame) with Â = exp(−[δθ×]) A (module docstring)."""
+    return -Rotation.from_matrix(np.asarray(A_est) @ np.asarray(A_true).T).as_rotvec()
+
+
+def residuals(A: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Angles (rad) between observed directions b (N, 3) and the predicted A r (N, 3)."""
+    d = np.asarray(b) - np.asarray(r) @ np.asarray(A).T
+    return 2.0 * np.arcsin(np.clip(np.linalg.norm(d, axis=1) / 2.0, 0.0, 1.0))
+
+
+def wahba_matrix(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """The A minimising Σ w_i |b_i − A r_i|² (SVD solution, module docstring); b, r (N, 3), N >= 2."""
+    b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
+    w = np.ones(len(b)) if w is None else np.asarray(w, dtype=float)
+    B = (b * w[:, None]).T @ r
+    U, _, Vt = np.linalg.svd(B)
+    if np.linalg.det(U @ Vt) < 0:  # the proper rotation: flip the axis of the smallest singular value
+        U = U * np.array([1.0, 1.0, -1.0])
+    return U @ Vt
+
+
+def wahba(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray) -> AttitudeSolution:
+    """Least-squares attitude over all stars with per-star angular noise σ (rad, scalar or (N,)); the
+    covariance is the QUEST measurement model's (Σ (I − b bᵀ)/σ²)⁻¹ (module docstring)."""
+    b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
+    if len(b) < 2:
+        raise ValueError("Wahba's problem needs at least two stars")
+    s2 = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (len(b),))
+    A = wahba_matrix(b, r, 1.0 / s2)
+    F = np.einsum("n,nij->ij", 1.0 / s2, np.eye(3)[None] - b[:, :, None] * b[:, None, :])
+    return AttitudeSolution(A, np.linalg.inv(F), len(b), residuals(A, b, r))
+
+
+def triad_matrix(b1: np.ndarray, b2: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """TRIAD attitude matrix, anchored on the first star (module docstring)."""
+    def triad(v1: np.ndarray, v2: np.ndarray) -> np.ndarray:
+        t1 = v1 / np.linalg.norm(v1)
+        t2 = np.cross(v1, v2)
+        t2 = t2 / np.linalg.norm(t2)
+        return np.column_stack([t1, t2, np.cross(t1, t2)])
+    return triad(np.asarray(b1, float), np.asarray(b2, float)) @ triad(np.asarray(r1, float),
+                                                                        np.asarray(r2, float)).T
+
+
+def triad(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray, pair: tuple[int, int] | None = None
+          ) -> AttitudeSolution:
+    """TRIAD from two of the stars (b, r (N, 3), N >= 2), as the paper computes the attitude. ``pair`` picks
+    them (anchor first); by default the pair with the largest separation, whose |b1 × b2| is largest, anchored
+    on the first star of the list. The residuals are of all N stars against the TRIAD attitude."""
+    b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
+    if len(b) < 2:
+        raise ValueError("TRIAD needs two stars")
+    if pair is None:
+        i = 0
+        j = int(np.argmin(b[1:] @ b[0])) + 1
+    else:
+        i, j = pair
+    s = np.broadcast_to(np.asarray(sigma, dtype=float), (len(b),))
+    A = triad_matrix(b[i], b[j], r[i], r[j])
+    b1, b2 = b[i], b[j]
+    c = np.cross(b1, b2)
+    P = s[i] ** 2 * np.eye(3) + (s[i] ** 2 * (b1 @ b2) * (np.outer(b1, b2) + np.outer(b2, b1))
+                                 + (s[j] ** 2 - s[i] ** 2) * np.outer(b1, b1)) / (c @ c)
+    return AttitudeSolution(A, P, 2, residuals(A, b, r))

@@ -1,0 +1,282 @@
+"""Lost-in-space star identification with the Pyramid algorithm (Mortari, Samaan, Bruccoleri & Junkins 2004,
+"The Pyramid star identification technique"), the identification the paper uses on its first frame.
+
+1. Triangles. The observed stars (brightest first) are taken three at a time in Mortari's order (for
+   dj = 1 …, dk = 1 …, i = 1 …: j = i + dj, k = j + dk), which changes all three stars between consecutive
+   triangles so that one false star does not spoil a long run of them; first among the brightest
+   ``max_stars``, then, if those are exhausted (false stars among the brightest), adding the next
+   ``max_stars`` and so on, up to ``max_triangles`` triangles in all. For each side the k-vector (kvector.py)
+   returns every catalogue pair whose angle is within ε of the observed one; the three candidate pair lists
+   are joined on their shared stars into catalogue triangles (a, b, c) with angle(a, b) ≈ θ_ij,
+   angle(a, c) ≈ θ_ik, angle(b, c) ≈ θ_jk, and a triangle must have the handedness of the observed one (sign
+   of the triple product; a mirror image is not a rotation).
+2. Pyramid. A candidate triangle is confirmed by a fourth star: the attitude of the triangle predicts the
+   direction of every other observed star; the nearest catalogue star there must have all three angles to a,
+   b, c within ε of the observed ones. False stars fail this; a wrong triangle almost always does too.
+3. Attitude and the rest of the frame. The confirmed stars give a least-squares attitude (attitude.wahba);
+   every observed star is then matched to the nearest catalogue star within the match radius (one catalogue
+   star per centroid: the closest wins), the attitude is re-solved over all of them and the matching repeated.
+4. Verification. The attitude is reported only if every identified star's residual is within the match radius
+   and the number of identified stars m could not plausibly be a chance: with p the probability that a random
+   direction has a catalogue star within the match radius (the local catalogue density times the radius'
+   area), the probability of m − 3 or more chance matches among the n − 3 stars outside the triangle,
+   P(X >= m − 3), X ~ Binomial(n − 3, p), must be at most ``max_false_alarm``. Otherwise the search goes on
+   and, when the triangles run out, the result is a failure with its reason; it never guesses.
+
+Tolerances (σ = centroid noise in pixels, ifov = rad per pixel): a star direction has σ_θ = σ·ifov per axis,
+an inter-star angle ≈ √2 σ_θ, so ε = ``pair_sigmas``·√2·σ_θ + ``floor`` (the floor absorbs catalogue and
+pinhole-scale errors), and the match radius is ``match_sigmas``·σ_θ + ``floor``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterator
+
+import numpy as np
+from scipy.stats import binom
+
+from star_tracker.attitude import AttitudeSolution, wahba, wahba_matrix
+from star_tracker.camera import Camera
+from star_tracker.catalogue import ARCSEC, StarCatalogue, angle_between, chord
+from star_tracker.kvector import PairTable
+
+UNIDENTIFIED = -1
+
+
+@dataclass
+class Identification:
+    """The outcome of identifying one frame: identities and attitude, or a failure with its reason."""
+
+    ok: bool
+    reason: str
+    """Why it failed ('' on success)."""
+    index: np.ndarray
+    """(N,) catalogue index of each centroid, UNIDENTIFIED (−1) for a centroid not identified."""
+    attitude: AttitudeSolution | None = None
+    triangles: int = 0
+    """Triangles tried."""
+    false_alarm: float = 1.0
+    """Probability that the identified count is a chance (step 4); 1 on failure."""
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def n_identified(self) -> int:
+        return int(np.sum(self.index >= 0))
+
+
+def triangle_order(n: int) -> Iterator[tuple[int, int, int]]:
+    """Mortari's triangle sequence over n stars (module docstring, step 1)."""
+    for dj in range(1, n - 1):
+        for dk in range(1, n - dj):
+            for i in range(0, n - dj - dk):
+                yield i, i + dj, i + dj + dk
+
+
+def triple_product(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """a · (b × c) along the last axis."""
+    a, b, c = np.asarray(a), np.asarray(b), np.asarray(c)
+    return (a[..., 0] * (b[..., 1] * c[..., 2] - b[..., 2] * c[..., 1])
+            + a[..., 1] * (b[..., 2] * c[..., 0] - b[..., 0] * c[..., 2])
+            + a[..., 2] * (b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0]))
+
+
+class PyramidIdentifier:
+    """Lost-in-space identification of a frame's centroids against a catalogue (module docstring)."""
+
+    def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float = 0.2,
+                 pair_sigmas: float = 4.0, match_sigmas: float = 6.0, floor_arcsec: float = 2.0,
+                 max_stars: int = 12, max_triangles: int = 1000, max_false_alarm: float = 1e-6,
+                 pair_table: PairTable | None = None) -> None:
+        if sigma_px < 0:
+            raise ValueError(f"sigma_px must be >= 0, got {sigma_px}")
+        if max_stars < 4:
+            raise ValueError(f"max_stars must be >= 4, got {max_stars}")
+        self.catalogue = catalogue
+        self.camera = camera
+        sigma = camera.pixel_sigma_to_angle(sigma_px)
+        self.sigma = sigma
+        self.epsilon = pair_sigmas * np.sqrt(2.0) * sigma + floor_arcsec * ARCSEC
+        self.match_radius = match_sigmas * sigma + floor_arcsec * ARCSEC
+        self.max_stars = int(max_stars)
+        self.max_triangles = int(max_triangles)
+        self.max_false_alarm = float(max_false_alarm)
+        self.pairs = pair_table if pair_table is not None else PairTable(catalogue, camera.max_separation)
+        cone = camera.half_diagonal
+        self._cone_radius = cone
+        self._cone_solid_angle = 2.0 * np.pi * (1.0 - np.cos(cone))
+
+    # ------------------------------------------------------------------------------------------------ API
+    def identify(self, uv: np.ndarray, magnitudes: np.ndarray | None = None) -> Identification:
+        """Identify the centroids uv (N, 2) (pixels); ``magnitudes`` orders them brightest first for the
+        triangles (the given order otherwise). Never raises on a frame's content."""
+        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+        finite = np.all(np.isfinite(uv), axis=1)
+        index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
+        b = self.camera.unproject(np.where(finite[:, None], uv, 0.0))
+        order = np.arange(len(uv)) if magnitudes is None else np.argsort(np.asarray(magnitudes, float),
+                                                                           kind="stable")
+        order = order[finite[order]]
+        result = self.identify_vectors(b[order])
+        index[order] = result.index
+        result.index = index
+        return result
+
+    def identify_vectors(self, b: np.ndarray) -> Identification:
+        """Identify camera-frame unit vectors b (N, 3), brightest first."""
+        b = np.asarray(b, dtype=float).reshape(-1, 3)
+        n = len(b)
+        none = np.full(n, UNIDENTIFIED, dtype=np.int64)
+        if n < 4:
+            return Identification(False, f"too few stars: {n} centroids, the Pyramid needs 4", none)
+        theta = angle_between(b[:, None, :], b[None, :, :])
+        cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        tried, candidates = 0, 0
+        for i, j, k in self._triangles(n):
+            if tried >= self.max_triangles:
+                return Identification(False, f"no confirmed triangle within the limit of {self.max_triangles} "
+                                      f"triangles ({candidates} catalogue candidates tested)", none, triangles=tried)
+            tried += 1
+            for a, bb, c in self._triangle_candidates(b, theta, i, j, k, cache):
+                candidates += 1
+                result = self._confirm(b, theta, (i, j, k), (a, bb, c))
+                if result is not None:
+                    result.triangles = tried
+                    result.stats["candidates"] = candidates
+                    return result
+        return Identification(False, f"no confirmed triangle among the {tried} triangles of the {n} centroids "
+                              f"({candidates} catalogue candidates tested)", none, triangles=tried)
+
+    def _triangles(self, n: int) -> Iterator[tuple[int, int, int]]:
+        """Triangles of the brightest ``max_stars`` in Mortari's order, then, if none was confirmed (false
+        stars among the brightest), those of the next ``max_stars`` stars that were not tried yet, and so on."""
+        done = 0
+        size = min(n, self.max_stars)
+        while True:
+            for tri in triangle_order(size):
+                if tri[2] >= done:
+                    yield tri
+            if size == n:
+                return
+            done, size = size, min(n, size + self.max_stars)
+
+    def match(self, b: np.ndarray, attitude: np.ndarray, radius: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Catalogue index of the nearest catalogue star within ``radius`` (default: the match radius) of each
+        observed direction b (N, 3) mapped to ICRS by the camera-from-ICRS ``attitude`` (−1 where none), each
+        catalogue star going to its closest centroid only; and the angular distances (inf where none). This
+        identifies the stars of a frame once the attitude is known (new stars entering the field too)."""
+        radius = self.match_radius if radius is None else radius
+        b = np.asarray(b, dtype=float).reshape(-1, 3)
+        index = np.full(len(b), UNIDENTIFIED, dtype=np.int64)
+        dist = np.full(len(b), np.inf)
+        if len(b) == 0:
+            return index, dist
+        r = b @ np.asarray(attitude, dtype=float)  # rows: Aᵀ b
+        d, idx = self.catalogue.tree.query(r, k=1, distance_upper_bound=chord(radius))
+        hit = np.isfinite(d)
+        if hit.any():
+            rows = np.flatnonzero(hit)
+            rows = rows[np.argsort(d[rows], kind="stable")]
+            _, first = np.unique(idx[rows], return_index=True)  # closest centroid of each catalogue star
+            keep = rows[first]
+            index[keep] = idx[keep]
+            dist[keep] = 2.0 * np.arcsin(np.clip(d[keep] / 2.0, 0.0, 1.0))
+        return index, dist
+
+    # --------------------------------------------------------------------------------------------- steps
+    def _side(self, theta: np.ndarray, i: int, j: int, cache: dict) -> tuple[np.ndarray, ...]:
+        """Directed candidate pairs (x, y) of observed side (i, j) — every catalogue pair {x, y} whose angle is
+        within ε of θ_ij, both ways round — sorted by x, with the start and count of each catalogue star's
+        run in x (a CSR index, so that joins need no search)."""
+        key = (i, j)
+        if key not in cache:
+            f, s = self.pairs.lookup(theta[i, j], self.epsilon)
+            x, y = np.concatenate([f, s]), np.concatenate([s, f])
+            order = np.argsort(x, kind="stable")
+            x, y = x[order], y[order]
+            count = np.bincount(x, minlength=self.pairs.n_stars)
+            cache[key] = (x, y, np.cumsum(count) - count, count)
+        return cache[key]
+
+    def _triangle_candidates(self, b: np.ndarray, theta: np.ndarray, i: int, j: int, k: int,
+                             cache: dict) -> np.ndarray:
+        """(M, 3) catalogue triangles (a, b, c) matching observed (i, j, k) (module docstring, step 1): the
+        candidate pairs of sides (i, j) and (i, k) joined on their common star a, then the third side's angle
+        θ_jk checked directly on the catalogue vectors."""
+        x1, y1, _, _ = self._side(theta, i, j, cache)
+        _, y2, start2, count2 = self._side(theta, i, k, cache)
+        if len(x1) == 0 or len(y2) == 0:
+            return np.empty((0, 3), dtype=np.int64)
+        cnt = count2[x1]
+        total = int(cnt.sum())
+        if total == 0:
+            return np.empty((0, 3), dtype=np.int64)
+        rows = np.repeat(np.arange(len(x1)), cnt)
+        pos = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(start2[x1], cnt)
+        ta, tb, tc = x1[rows], y1[rows], y2[pos]
+        v = self.catalogue.vectors
+        cos_bc = np.einsum("ij,ij->i", v[tb], v[tc])
+        t = theta[j, k]
+        ok = (tb != tc) & (cos_bc >= np.cos(min(t + self.epsilon, np.pi))) & \
+            (cos_bc <= np.cos(max(t - self.epsilon, 0.0)))
+        if not ok.any():
+            return np.empty((0, 3), dtype=np.int64)
+        tri = np.stack([ta[ok], tb[ok], tc[ok]], axis=1).astype(np.int64)
+        # handedness: a rotation keeps the sign of the triple product (skip the test for a flat triangle)
+        s_obs = triple_product(b[i], b[j], b[k])
+        if abs(s_obs) > 4.0 * self.epsilon * max(theta[i, j], theta[i, k]):
+            s_cat = triple_product(v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
+            tri = tri[np.sign(s_cat) == np.sign(s_obs)]
+        return tri
+
+    def _confirm(self, b: np.ndarray, theta: np.ndarray, obs: tuple[int, int, int],
+                 cat: tuple[int, int, int]) -> Identification | None:
+        """Steps 2–4 for one catalogue triangle; None when it is not confirmed."""
+        v = self.catalogue.vectors
+        obs_i, cat_i = list(obs), list(cat)
+        A = wahba_matrix(b[obs_i], v[cat_i])
+        others = np.ones(len(b), dtype=bool)
+        others[obs_i] = False
+        others = np.flatnonzero(others)
+        if len(others) == 0:
+            return None
+        # step 2: nearest catalogue star to each other star's predicted direction, then the pyramid test
+        d, idx = self.catalogue.tree.query(b[others] @ A, k=1, distance_upper_bound=chord(50.0 * self.match_radius))
+        hit = np.isfinite(d)
+        if not hit.any():
+            return None
+        rows, cands = others[hit], idx[hit]
+        cat_ang = np.arccos(np.clip(v[cands] @ v[cat_i].T, -1.0, 1.0))          # (M, 3)
+        confirmed = np.all(np.abs(theta[np.ix_(rows, obs_i)] - cat_ang) <= self.epsilon, axis=1)
+        confirmed &= (cands != cat_i[0]) & (cands != cat_i[1]) & (cands != cat_i[2])
+        if not confirmed.any():
+            return None
+        # step 3: attitude from the pyramid, then every star matched, twice
+        rows_c, cands_c = rows[confirmed], cands[confirmed]
+        A = wahba_matrix(np.vstack([b[obs_i], b[rows_c]]), np.vstack([v[cat_i], v[cands_c]]))
+        for _ in range(2):
+            index, dist = self.match(b, A)
+            m = int(np.sum(index >= 0))
+            if m < 4:
+                return None
+            ident = index >= 0
+            A = wahba_matrix(b[ident], v[index[ident]])
+        index, dist = self.match(b, A)
+        ident = index >= 0
+        m = int(ident.sum())
+        if m < 4:
+            return None
+        solution = wahba(b[ident], v[index[ident]], self.sigma if self.sigma > 0 else ARCSEC)
+        if np.any(solution.residuals > self.match_radius):
+            return None
+        # step 4: could this many matches be chance?
+        n = len(b)
+        density = len(self.catalogue.cone(solution.matrix[2], self._cone_radius)) / self._cone_solid_angle
+        p = min(1.0, density * np.pi * self.match_radius ** 2)
+        false_alarm = float(binom.sf(m - 3 - 1, n - 3, p))
+        if false_alarm > self.max_false_alarm:
+            return None
+        full = np.full(n, UNIDENTIFIED, dtype=np.int64)
+        full[ident] = index[ident]
+        return Identification(True, "", full, solution, false_alarm=false_alarm,
+                              stats={"pyramid_confirmations": int(confirmed.sum())})
