@@ -1,0 +1,262 @@
+"""Recursive star tracking after identification: the paper's SNA baseline and its JPDAF (Table 2).
+
+Both follow identified stars (tracks keyed by catalogue index) from frame to frame on the image plane.
+
+Star Neighbourhood Approach (SNA; Samaan, Mortari & Junkins 2005, the paper's baseline): each star's centroid
+in the previous frame is carried to the current one with the known body rate (:func:`predict_centroids`), and
+the measurement inside the Euclidean gate of radius 3√2·σ around the prediction is taken as the star's new
+position, unfiltered. When two measurements fall inside, the nearer is taken; a measurement goes to at most one
+star (the nearer one); a star with none is missed and coasts on its prediction.
+
+JPDAF (paper Table 2): each star has a Kalman state [x ẋ y ẏ] under a motion model (motion.py); per frame
+
+    1. X_r = F X_r,  P_r = F P_r Fᵀ + Q                                        prediction
+    2. ẑ_r = H X_r,  S_r = H P_r Hᵀ + R                                        (eqs. 6–7)
+    3. gating d²_rj <= δ (tracker_filters.association.MahalanobisHypothesiser, eq. 5)
+    4. β_rj from the feasible joint events, clustered (jpdaf.py, eqs. 8–12)
+    5. ν_rj = z_j − ẑ_r,   ν_r = Σ_j β_rj ν_rj                                  combined innovation
+    6. K_r = P_r Hᵀ S_r⁻¹,  X_r += K_r ν_r
+    7. P_r = P_r − (Σ_j β_rj) K_r S_r K_rᵀ + K_r [Σ_j β_rj ν_rj ν_rjᵀ − ν_r ν_rᵀ] K_rᵀ   (spread of innovations)
+
+The filtered positions H X_r are the star centroids handed to the attitude solver. With one target, no
+clutter (λ = 0) and P_D = 1 the weights are one-hot and the JPDAF is a Kalman filter
+(tests/test_star_tracking.py).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+from star_tracker.camera import Camera
+from star_tracker.jpdaf import JointProbabilisticAssociator
+from star_tracker.motion import H, MotionModel, measurement_noise
+from tracker_filters.association import MahalanobisHypothesiser, MeasurementPrediction
+
+MISSED = -1
+
+
+def predict_centroids(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: float) -> np.ndarray:
+    """Where the stars at pixels uv (N, 2) are seen dt later when the camera turns at the body rate
+    ``omega_body`` (rad/s, camera frame): an inertial direction seen along b is seen along
+    b' = exp(−[ω×] dt) b after the turn."""
+    b = camera.unproject(uv)
+    turn = Rotation.from_rotvec(-np.asarray(omega_body, dtype=float) * dt)
+    return camera.project(turn.apply(b))
+
+
+def image_velocity(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: float = 1e-3) -> np.ndarray:
+    """(N, 2) image velocity (px/s) of the stars at uv for the body rate ``omega_body`` (central difference)."""
+    ahead = predict_centroids(camera, uv, omega_body, dt)
+    behind = predict_centroids(camera, uv, omega_body, -dt)
+    return (ahead - behind) / (2.0 * dt)
+
+
+class ImagePlaneMeasurement:
+    """z = H X for the hypothesiser (tracker_filters.association): plain differences as residuals."""
+
+    labels = ("x", "y")
+    angle_indices: tuple[int, ...] = ()
+
+    def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return np.asarray(x)[..., [0, 2]]
+
+    def jacobian(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+        return H
+
+    def residual(self, z: np.ndarray, z_ref: np.ndarray) -> np.ndarray:
+        return np.asarray(z) - np.asarray(z_ref)
+
+
+# ------------------------------------------------------------------------------------------------------ SNA
+
+def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.ndarray:
+    """(T,) index into Z of the measurement each predicted centroid (T, 2) takes inside its Euclidean gate of
+    ``radius`` pixels (MISSED where none): the nearest, each measurement to the nearest star only."""
+    predicted, Z = np.asarray(predicted, float).reshape(-1, 2), np.asarray(Z, float).reshape(-1, 2)
+    T, N = len(predicted), len(Z)
+    out = np.full(T, MISSED, dtype=np.int64)
+    if T == 0 or N == 0:
+        return out
+    d = np.linalg.norm(predicted[:, None, :] - Z[None, :, :], axis=2)
+    d = np.where(np.isfinite(d), d, np.inf)
+    near = np.argmin(d, axis=1)
+    dn = d[np.arange(T), near]
+    inside = np.flatnonzero(dn <= radius)
+    inside = inside[np.argsort(dn[inside], kind="stable")]
+    taken = np.zeros(N, dtype=bool)
+    for r in inside:            # conflicts only: nearest pair first
+        j = near[r]
+        if not taken[j]:
+            taken[j] = True
+            out[r] = j
+    return out
+
+
+@dataclass
+class SNATracker:
+    """The paper's baseline (module docstring)."""
+
+    camera: Camera
+    sigma_px: float
+    max_misses: int = 3
+    ids: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    uv: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    misses: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+
+    @property
+    def radius(self) -> float:
+        """The Euclidean gate 3√2·σ (pixels)."""
+        return 3.0 * np.sqrt(2.0) * self.sigma_px
+
+    def start(self, ids: np.ndarray, uv: np.ndarray) -> None:
+        """Add stars (catalogue indices) at their identified centroids; a star already tracked is skipped."""
+        ids, uv = np.asarray(ids, dtype=np.int64), np.asarray(uv, dtype=float).reshape(-1, 2)
+        new = ~np.isin(ids, self.ids)
+        self.ids = np.concatenate([self.ids, ids[new]])
+        self.uv = np.vstack([self.uv, uv[new]])
+        self.misses = np.concatenate([self.misses, np.zeros(int(new.sum()), dtype=np.int64)])
+
+    def step(self, Z: np.ndarray, dt: float, omega_body: np.ndarray) -> np.ndarray:
+        """Associate one frame's centroids Z (N, 2): returns (T,) the index into Z taken by each track (MISSED
+        where none); tracks missed more than ``max_misses`` times in a row, or predicted out of the image,
+        are dropped after the call (the returned array refers to the tracks before dropping)."""
+        predicted = predict_centroids(self.camera, self.uv, omega_body, dt) if len(self.ids) else self.uv
+        taken = sna_associate(predicted, Z, self.radius)
+        hit = taken >= 0
+        Z = np.asarray(Z, float).reshape(-1, 2)
+        self.uv = np.where(hit[:, None], Z[np.maximum(taken, 0)] if len(Z) else predicted, predicted)
+        self.misses = np.where(hit, 0, self.misses + 1)
+        self._drop((self.misses <= self.max_misses) & self.camera.in_image(self.uv))
+        return taken
+
+    def _drop(self, keep: np.ndarray) -> None:
+        self.ids, self.uv, self.misses = self.ids[keep], self.uv[keep], self.misses[keep]
+
+
+# ---------------------------------------------------------------------------------------------------- JPDAF
+
+@dataclass
+class JPDAFStep:
+    """One frame of the JPDAF."""
+
+    detection: np.ndarray
+    """(T,) most probable detection of each track (MISSED for a miss), tracks as before any drop."""
+    weights: np.ndarray
+    """(T, N + 1) β: [miss, detection 0 … N − 1] per track."""
+    ids: np.ndarray
+    """(T,) catalogue index of each track."""
+
+
+class JPDAFTracker:
+    """JPDAF over the identified stars (module docstring)."""
+
+    def __init__(self, motion: MotionModel, sigma_px: float, p_detect: float = 0.95,
+                 clutter_density: float | None = None, gate: float | None = None,
+                 max_events: int = 20000, max_misses: int = 3, camera: Camera | None = None) -> None:
+        """``gate`` is the threshold δ on d² (default: the 99.9 % chi-square gate for 2-D, δ = 13.8);
+        ``clutter_density`` per square pixel (None: the non-parametric form of jpdaf.py); ``camera``, when
+        given, drops tracks predicted out of its image."""
+        if sigma_px <= 0:
+            raise ValueError(f"sigma_px must be > 0, got {sigma_px}")
+        self.motion = motion
+        self.sigma_px = float(sigma_px)
+        self.R = measurement_noise(sigma_px)
+        gate = float(chi2.ppf(0.999, 2)) if gate is None else float(gate)
+        if gate <= 0:
+            raise ValueError(f"gate must be > 0, got {gate}")
+        self.gate = gate
+        self.hypothesiser = MahalanobisHypothesiser(float(chi2.cdf(gate, 2)))
+        self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
+        self.model = ImagePlaneMeasurement()
+        self.max_misses = int(max_misses)
+        self.camera = camera
+        self.ids = np.empty(0, dtype=np.int64)
+        self.x = np.empty((0, 4))
+        self.P = np.empty((0, 4, 4))
+        self.misses = np.empty(0, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(T, 2) filtered centroids H X."""
+        return self.x[:, [0, 2]]
+
+    def start(self, ids: np.ndarray, uv: np.ndarray, velocity: np.ndarray | None = None,
+              velocity_sigma: float = 1.0) -> None:
+        """Start tracks for stars (catalogue indices) at centroids uv (N, 2), with image velocities (N, 2)
+        (px/s, e.g. image_velocity from the body rate; zero if None) known to ``velocity_sigma`` px/s; the
+        position variance is the measurement's σ². A star already tracked is skipped."""
+        ids, uv = np.asarray(ids, dtype=np.int64), np.asarray(uv, dtype=float).reshape(-1, 2)
+        vel = np.zeros_like(uv) if velocity is None else np.asarray(velocity, dtype=float).reshape(-1, 2)
+        new = ~np.isin(ids, self.ids)
+        n = int(new.sum())
+        x = np.column_stack([uv[new, 0], vel[new, 0], uv[new, 1], vel[new, 1]])
+        P0 = np.diag([self.sigma_px ** 2, velocity_sigma ** 2, self.sigma_px ** 2, velocity_sigma ** 2])
+        self.ids = np.concatenate([self.ids, ids[new]])
+        self.x = np.vstack([self.x, x])
+        self.P = np.concatenate([self.P, np.broadcast_to(P0, (n, 4, 4))])
+        self.misses = np.concatenate([self.misses, np.zeros(n, dtype=np.int64)])
+
+    def drop(self, keep: np.ndarray) -> None:
+        """Keep only the tracks where ``keep`` is True."""
+        self.ids, self.x, self.P, self.misses = self.ids[keep], self.x[keep], self.P[keep], self.misses[keep]
+
+    def predict(self, dt: float, motion: MotionModel | None = None) -> None:
+        """Step 1 for every track (``motion`` replaces the tracker's model for this and later frames)."""
+        if motion is not None:
+            self.motion = motion
+        F, Q = self.motion.transition(dt)
+        self.x = self.x @ F.T
+        self.P = F @ self.P @ F.T + Q
+
+    def update(self, Z: np.ndarray) -> JPDAFStep:
+        """Steps 2–7 with the frame's centroids Z (N, 2); then tracks missed more than ``max_misses`` times
+        in a row (or out of the camera's image) are dropped."""
+        Z = np.asarray(Z, dtype=float).reshape(-1, 2)
+        T, N = len(self.ids), len(Z)
+        ids = self.ids.copy()
+        if T == 0:
+            return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids)
+        Pzz = self.P[:, [0, 2]][:, :, [0, 2]]                                     # H P Hᵀ
+        zhat = self.positions
+        S = Pzz + self.R
+        if N == 0:
+            beta = np.zeros((T, 1))
+            beta[:, 0] = 1.0
+            detection = np.full(T, MISSED, dtype=np.int64)
+        else:
+            predictions = [MeasurementPrediction(zhat[r], Pzz[r]) for r in range(T)]
+            hyp = self.hypothesiser.hypothesise(predictions, Z, np.broadcast_to(self.R, (N, 2, 2)), self.model)
+            assoc = self.associator.associate(hyp)
+            beta = np.array([a.weights for a in assoc])
+            detection = np.array([a.detection for a in assoc], dtype=np.int64)
+        PHt = self.P[:, :, [0, 2]]                                                # P Hᵀ (T, 4, 2)
+        K = PHt @ np.linalg.inv(S)                                                # (T, 4, 2)
+        if N:
+            nu = Z[None, :, :] - zhat[:, None, :]                                 # (T, N, 2)
+            b = beta[:, 1:]
+            nu_c = np.einsum("tn,tnd->td", b, nu)                                 # combined innovation
+            spread = np.einsum("tn,tnd,tne->tde", b, nu, nu) - nu_c[:, :, None] * nu_c[:, None, :]
+        else:
+            nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
+        detected = 1.0 - beta[:, 0]
+        self.x = self.x + np.einsum("tij,tj->ti", K, nu_c)
+        KSKt = K @ S @ K.transpose(0, 2, 1)
+        self.P = self.P - detected[:, None, None] * KSKt + K @ spread @ K.transpose(0, 2, 1)
+        self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
+        self.misses = np.where(detection >= 0, 0, self.misses + 1)
+        keep = self.misses <= self.max_misses
+        if self.camera is not None:
+            keep &= self.camera.in_image(self.positions)
+        self.drop(keep)
+        return JPDAFStep(detection, beta, ids)
+
+    def step(self, Z: np.ndarray, dt: float, motion: MotionModel | None = None) -> JPDAFStep:
+        """predict(dt) then update(Z)."""
+        self.predict(dt, motion)
+        return self.update(Z)
