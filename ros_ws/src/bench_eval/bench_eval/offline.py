@@ -72,7 +72,7 @@ def _measurement_series(data: BagData, source: str) -> tuple[np.ndarray, np.ndar
     return steps, np.array([data.truth[int(k)][0] for k in steps]), np.array([meas[int(k)] for k in steps])
 
 
-def _differentiation_check(keys: dict[str, type]) -> Callable[[dict, str, dict], None]:
+def _differentiation_check(keys: dict[str, type | tuple[type, ...]]) -> Callable[[dict, str, dict], None]:
     def check(cfg: dict, source: str, params: dict) -> None:
         names = list((cfg.get("sensors") or {})) + list((cfg.get("derived_measurements") or {}))
         if source not in names:
@@ -88,8 +88,8 @@ def _differentiation_check(keys: dict[str, type]) -> Callable[[dict, str, dict],
             raise ScenarioError(f"'scoring.offline' params.max_gap must be a positive number of seconds, got {gap!r}")
         for key, kind in keys.items():
             if not isinstance(params[key], kind) or isinstance(params[key], bool) or params[key] < 1:
-                raise ScenarioError(f"'scoring.offline' params.{key} must be a positive {kind.__name__}, "
-                                    f"got {params[key]!r}")
+                raise ScenarioError(f"'scoring.offline' params.{key} must be a positive "
+                                    f"{'integer' if kind is int else 'number'}, got {params[key]!r}")
     return check
 
 
@@ -113,12 +113,19 @@ def _newton_run(data: BagData, source: str, params: dict) -> Estimates:
 
 
 def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
-    """Savitzky-Golay: least-squares polynomial of ``polyorder`` over ``window`` samples."""
+    """Savitzky-Golay: least-squares polynomial of ``polyorder`` over a window of ``window_s`` seconds (the
+    largest odd number of samples it holds at the series' median spacing, at least polyorder + 2), so the
+    window keeps its length in time whatever the sampling interval."""
     from tracker_filters.differentiation import savgol_derivative
     gap = float(params.get("max_gap", np.inf))
-    return _differentiated(data, source, params,
-                           lambda t, z: savgol_derivative(t, z, params["window"], params["polyorder"], gap))
+
+    def derivative(t: np.ndarray, z: np.ndarray) -> np.ndarray:
+        spacing = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+        n = int(params["window_s"] / spacing) + 1
+        window = max(n if n % 2 else n - 1, params["polyorder"] + 2 + params["polyorder"] % 2)
+        return savgol_derivative(t, z, window, params["polyorder"], gap)
+    return _differentiated(data, source, params, derivative)
 
 
 NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check({"order": int}))
-SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window": int, "polyorder": int}))
+SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window_s": (int, float), "polyorder": int}))

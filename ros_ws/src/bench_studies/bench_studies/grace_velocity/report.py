@@ -35,19 +35,31 @@ def _paper_rows(paper: Mapping) -> list[list[str]]:
     return rows
 
 
+def _rolling_rms(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """RMS of x over consecutive windows of ``window_s`` seconds: (window centres, values)."""
+    bins = np.floor((t - t[0]) / window_s).astype(int)
+    sums, counts = np.bincount(bins, x * x), np.bincount(bins)
+    keep = counts > 0
+    return t[0] + (np.flatnonzero(keep) + 0.5) * window_s, np.sqrt(sums[keep] / counts[keep])
+
+
 def _draw_residuals(series: Mapping):
     def draw(fig: Figure) -> None:
-        axs = fig.subplots(2, 1, sharex=True)
+        top, bottom = fig.subplots(2, 1)
         for name, s in series.items():
-            cut = thin(np.asarray(s["t"]))
-            for ax, key in zip(axs, ("kbr", "truth")):
-                ax.plot(np.asarray(s["t"])[cut] / 3600.0, np.asarray(s[key])[cut] * MM, lw=0.6, label=name)
-        axs[0].set_ylabel("estimate − KBR [mm/s]")
-        axs[1].set_ylabel("estimate − truth [mm/s]")
-        axs[1].set_xlabel("time [h]")
-        for ax in axs:
-            ax.grid(True, alpha=0.3)
-        axs[0].legend(fontsize=7, ncol=3)
+            t, r = np.asarray(s["t"]), np.asarray(s["kbr"])
+            tc, rms = _rolling_rms(t, r, 1800.0)
+            top.plot(tc / 3600.0, rms * MM, lw=1.0, marker=".", ms=3, label=name)
+            zoom = t <= t[0] + 3 * 3600.0
+            bottom.plot(t[zoom] / 3600.0, r[zoom] * MM, lw=0.6, label=name)
+        top.set_yscale("log")
+        top.set_ylabel("RMS over 30 min [mm/s]")
+        top.set_xlabel("time [h]")
+        bottom.set_ylabel("estimate − KBR [mm/s]")
+        bottom.set_xlabel("time [h] (first 3 h)")
+        for ax in (top, bottom):
+            ax.grid(True, which="both", alpha=0.3)
+        top.legend(fontsize=7, ncol=4)
     return draw
 
 
@@ -58,15 +70,97 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
     text = ("Range rate from each estimator's baseline (paper 002 eq. 27: ρ̇ = Δr·Δv/|Δr|) minus the KBR range "
             f"rate, in mm/s, after the filters' start-up. The KBR's own noise (std {_mm(floor)} mm/s here) is the "
             "floor of any residual against it; 'vs truth' removes it. Estimators: kf_a / kf_b the white-jerk "
-            "Kalman filter on GNSS baselines without / with Newton velocities (variants a, b), *_rts its "
-            "fixed-interval smoothing, newton / savgol numerical differentiation of the same baselines, kf_pair "
-            "the difference of the filters run on each satellite.")
+            "Kalman filter on GNSS baselines without / with Newton velocities (variants a, b), *_lag its fixed-lag "
+            "smoothing inside the graph, *_rts its fixed-interval smoothing over the run, newton / savgol numerical "
+            "differentiation of the same baselines, kf_pair the difference of the filters run on each satellite."
+            "\n\nWhy the filter loses here (README, grace_velocity): in ECI the baseline turns with the orbit, so its "
+            "jerk (n³|b| ≈ 3e-4 m/s³) forces a large white-jerk q, which passes GNSS noise into the velocity along "
+            "the baseline, the only component the range rate sees.")
     if paper:
         text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
     header = ["estimator", "runs", "std", "mean", "max", "min", "std vs truth", "mean vs truth",
               "velocity RMSE (3D)"]
     rows = [_row(n, b) for n, b in scored.items() if "rr_kbr" in b] + _paper_rows(paper or {})
     table = Table("Range-rate residual against the KBR [mm/s] (Table 1), and against the truth", header, rows)
-    plots = [Plot(f"{scenario}_residuals.png", "Range-rate residual over the day (first run): against the KBR and "
-                  "against the truth", _draw_residuals(series), (11.0, 6.0))] if series else []
+    plots = [Plot(f"{scenario}_residuals.png", "Range-rate residual against the KBR (first run): its RMS over "
+                  "30-minute windows through the day, and the residual itself over the first three hours",
+                  _draw_residuals(series), (11.0, 7.0))] if series else []
     return [Section(scenario, text, [table], plots)]
+
+
+SWEEP_ORDER = ("kf_a", "kf_b", "kf_a_lag", "kf_a_rts", "newton", "savgol")
+
+
+def _cell_axes(cell: Mapping) -> tuple[float, float]:
+    """(fix interval [s], GNSS sigma [m]) of a sweep cell, from its overrides."""
+    values = dict(o.split("=", 1) for o in cell["overrides"])
+    return float(values["sensors.gnss1.interval"]), float(values["sensors.gnss1.sigma_position"])
+
+
+def _methods(cells: list) -> list[str]:
+    present = set().union(*(c["score"]["filters"] for c in cells if c.get("score")))
+    return [m for m in SWEEP_ORDER if m in present] + sorted(present - set(SWEEP_ORDER))
+
+
+def _std_cell(block: Mapping | None) -> str:
+    if not block:
+        return "—"
+    runs = block["rr_kbr_runs"]["std"]
+    spread = f" ± {np.std(runs, ddof=1) / np.sqrt(len(runs)) * MM:.2g}" if len(runs) > 1 else ""
+    return f"{block['rr_kbr']['std'] * MM:.3g}{spread}"
+
+
+def sweep_tables(sweep: Mapping) -> list[Table]:
+    """Per cell (interval x sigma): each method's residual std (mean ± standard error over runs), its mean
+    (bias) and the winner."""
+    cells = [c for c in sweep["cells"] if c.get("score")]
+    methods = _methods(cells)
+    rows_std, rows_mean = [], []
+    for cell in sorted(cells, key=_cell_axes):
+        interval, sigma = _cell_axes(cell)
+        scores = cell["score"]["filters"]
+        best = min((m for m in methods if m in scores), key=lambda m: scores[m]["rr_kbr"]["std"])
+        label = [f"{interval:g} s", f"{sigma * 100:g} cm"]
+        rows_std.append(label + [_std_cell(scores.get(m)) for m in methods] + [best])
+        rows_mean.append(label + [_mm(scores[m]["rr_kbr"]["mean"]) if m in scores else "—" for m in methods])
+    head = ["fix interval", "GNSS σ"]
+    return [Table("Range-rate residual std against the KBR [mm/s], mean ± standard error over the runs",
+                  head + list(methods) + ["best"], rows_std),
+            Table("Mean range-rate residual (bias) [mm/s]", head + list(methods), rows_mean)]
+
+
+def _draw_sweep(sweep: Mapping):
+    cells = [c for c in sweep["cells"] if c.get("score")]
+    methods = _methods(cells)
+    sigmas = sorted({_cell_axes(c)[1] for c in cells})
+
+    def draw(fig: Figure) -> None:
+        axs = fig.subplots(1, len(sigmas), sharey=True, squeeze=False)[0]
+        for ax, sigma in zip(axs, sigmas):
+            row = sorted((c for c in cells if _cell_axes(c)[1] == sigma), key=_cell_axes)
+            x = [_cell_axes(c)[0] for c in row]
+            for m in methods:
+                y = [c["score"]["filters"].get(m, {}).get("rr_kbr", {}).get("std", np.nan) * MM for c in row]
+                ax.plot(x, y, marker="o", ms=3, lw=1.0, label=m)
+            ax.set_yscale("log")
+            ax.set_xlabel("GNSS fix interval [s]")
+            ax.set_title(f"σ = {sigma * 100:g} cm per axis")
+            ax.grid(True, which="both", alpha=0.3)
+        axs[0].set_ylabel("range-rate residual std [mm/s]")
+        axs[0].legend(fontsize=7)
+    return draw
+
+
+def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown: str = "") -> Path:
+    """``table.md`` of a grace_velocity sweep (sweep.json content) with its plot; returns its path."""
+    from bench_eval.report import render
+    text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
+            f"{sweep['runs_per_cell']} runs (seeds {sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}, the "
+            f"same in every cell), one day each; wall time {sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\n"
+            f"Command: `{sweep['command']}`")
+    if sweep.get("failures"):
+        text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
+    plot = Plot(f"{sweep['scenario']}_{sweep['grid']}.png", "Range-rate residual std per method against the fix "
+                "interval, one panel per GNSS noise", _draw_sweep(sweep), (12.0, 4.5))
+    section = Section(f"{sweep['scenario']} — sweep '{sweep['grid']}'", text, sweep_tables(sweep), [plot])
+    return render(Path(out_dir), [section], f"Sweep {sweep['scenario']} / {sweep['grid']}", filename="table.md")
