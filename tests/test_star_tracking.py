@@ -12,7 +12,7 @@ from star_tracker.camera import DEFAULT_CAMERA
 from star_tracker.jpdaf import JointProbabilisticAssociator, clusters, gate_volume
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn
 from star_tracker.tracking import (MISSED, ImagePlaneMeasurement, JPDAFTracker, SNATracker, image_velocity,
-                                   predict_centroids, sna_associate)
+                                   linear_hypotheses, predict_centroids, sna_associate)
 from tracker_filters.association import MahalanobisHypothesiser, MeasurementPrediction
 
 GATE = 4.0
@@ -65,6 +65,57 @@ def test_jpda_weights_equal_the_hand_computed_two_target_case(p_d, lam):
     got = np.array([a.weights for a in assoc])
     np.testing.assert_allclose(got, by_hand(p_d, lam), rtol=1e-10)
     np.testing.assert_allclose(got.sum(axis=1), 1.0)
+
+
+@pytest.mark.parametrize("lam", [0.05, None])
+def test_single_target_weights_are_the_pda_ones_whichever_path_computes_them(lam):
+    """One target, three gated detections: by hand, through the vectorised single-target path, and through
+    the event enumeration of a cluster."""
+    preds = [MeasurementPrediction(np.array([10.0, 10.0]), np.eye(2))]
+    Z = np.array([[10.5, 10.0], [9.0, 10.8], [10.2, 8.9], [30.0, 30.0]])
+    R = np.broadcast_to(np.eye(2), (4, 2, 2))
+    hyp = MahalanobisHypothesiser(0.99).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    p_d, p_g = 0.8, 0.99
+    S = 2.0 * np.eye(2)
+    nu = Z[:3] - 10.0
+    N = np.exp(-0.5 * np.einsum("ni,ij,nj->n", nu, np.linalg.inv(S), nu)) / (2 * pi * np.sqrt(np.linalg.det(S)))
+    density = lam if lam is not None else 3 / gate_volume(S, chi2.ppf(0.99, 2))   # non-parametric: λ = m/V
+    w = np.concatenate([[density * (1 - p_d * p_g)], p_d * N])
+    want = np.concatenate([w / w.sum(), [0.0]])
+    jpda = JointProbabilisticAssociator(p_d, lam)
+    np.testing.assert_allclose(jpda.associate(hyp)[0].weights, want, rtol=1e-10)
+    np.testing.assert_allclose(jpda._cluster(hyp, np.array([0]), np.array([0, 1, 2]))[0], want[:4], rtol=1e-10)
+
+
+def test_singletons_and_a_shared_cluster_in_one_frame_get_their_own_weights():
+    preds = [MeasurementPrediction(np.array([0.0, 0.0]), 0.5 * np.eye(2)),
+             MeasurementPrediction(np.array([40.0, 40.0]), 0.5 * np.eye(2)),
+             MeasurementPrediction(np.array([2.0, 0.0]), 0.5 * np.eye(2))]
+    Z = np.array([[1.0, 0.0], [40.3, 39.8], [-0.5, 0.5], [2.2, -0.3]])
+    R = np.broadcast_to(0.5 * np.eye(2), (4, 2, 2))
+    hyp = MahalanobisHypothesiser(chi2.cdf(GATE, 2)).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    got = np.array([a.weights for a in JointProbabilisticAssociator(0.9, 0.02).associate(hyp)])
+    pair = by_hand(0.9, 0.02)                                # columns: miss, z0, z1, z2 of the two-target case
+    np.testing.assert_allclose(got[0, [0, 1, 3, 4]], pair[0], rtol=1e-10)
+    np.testing.assert_allclose(got[2, [0, 1, 3, 4]], pair[1], rtol=1e-10)
+    assert got[0, 2] == got[2, 2] == 0.0 and got[1, [1, 3, 4]].tolist() == [0.0, 0.0, 0.0]
+    assert got[1, 2] > 0.9
+
+
+def test_the_vectorised_hypotheses_equal_the_tracker_filters_hypothesiser():
+    rng = np.random.default_rng(12)
+    zhat = rng.uniform(0, 100, (7, 2))
+    A = rng.normal(size=(7, 2, 2))
+    Pzz = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(2)
+    Z = rng.uniform(0, 100, (9, 2))
+    R = np.array([[0.3, 0.05], [0.05, 0.2]])
+    want = MahalanobisHypothesiser(0.995).hypothesise([MeasurementPrediction(z, P) for z, P in zip(zhat, Pzz)],
+                                                       Z, np.broadcast_to(R, (9, 2, 2)), ImagePlaneMeasurement())
+    got = linear_hypotheses(zhat, Pzz, Z, R, 0.995)
+    for name in ("z_pred", "nu", "S", "d2", "log_likelihood"):
+        np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-10, atol=1e-12, err_msg=name)
+    assert got.gate == want.gate and got.gate_probability == want.gate_probability
+    np.testing.assert_array_equal(got.gated, want.gated)
 
 
 def test_gate_volume_is_eq_11():

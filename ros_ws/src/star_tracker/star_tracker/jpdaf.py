@@ -91,28 +91,68 @@ class JointProbabilisticAssociator:
         if N == 0 or T == 0:
             return [Association(NO_DETECTION, w) for w in weights]
         gated = hypotheses.gated & np.isfinite(hypotheses.log_likelihood)
-        for targets, detections in clusters(gated):
-            if len(detections) == 0:
-                continue
-            self.largest_cluster = max(self.largest_cluster, len(targets))
-            n_events = float(np.prod(1.0 + gated[np.ix_(targets, detections)].sum(axis=1)))
-            if n_events > self.max_events:
-                self.approximated += 1
-                for r in targets:
-                    own = np.flatnonzero(gated[r])
+        # a target whose gated detections are in no other target's gate is a cluster of its own: its weights
+        # are the single-target PDA's, computed for all such targets at once
+        shared = gated.sum(axis=0) > 1
+        alone = ~np.any(gated & shared[None, :], axis=1)
+        self._singletons(hypotheses, gated, np.flatnonzero(alone & gated.any(axis=1)), weights)
+        rest = ~alone
+        if rest.any():
+            rows = np.flatnonzero(rest)
+            for targets, detections in clusters(gated[rows]):
+                targets = rows[targets]
+                if len(detections) == 0:
+                    continue
+                self.largest_cluster = max(self.largest_cluster, len(targets))
+                n_events = float(np.prod(1.0 + gated[np.ix_(targets, detections)].sum(axis=1)))
+                if n_events > self.max_events:
+                    self.approximated += 1
+                    for r in targets:
+                        own = np.flatnonzero(gated[r])
+                        weights[r] = 0.0
+                        weights[r, np.r_[0, own + 1]] = self._cluster(hypotheses, np.array([r]), own)[0]
+                    continue
+                beta = self._cluster(hypotheses, targets, detections)
+                cols = np.r_[0, detections + 1]
+                for row, r in enumerate(targets):
                     weights[r] = 0.0
-                    weights[r, np.r_[0, own + 1]] = self._cluster(hypotheses, np.array([r]), own)[0]
-                continue
-            beta = self._cluster(hypotheses, targets, detections)
-            cols = np.r_[0, detections + 1]
-            for row, r in enumerate(targets):
-                weights[r] = 0.0
-                weights[r, cols] = beta[row]
+                    weights[r, cols] = beta[row]
         out = []
         for w in weights:
             j = int(np.argmax(w)) - 1
             out.append(Association(j, w))
         return out
+
+    def _singletons(self, hyp: Hypotheses, gated: np.ndarray, targets: np.ndarray, weights: np.ndarray) -> None:
+        """The weights of every single-target cluster at once (the events: missed, or one of its m gated
+        detections, the others clutter), the same numbers :meth:`_cluster` gives for one target:
+
+            β_j ∝ P_D N_j · c(m − 1),   β_0 ∝ (1 − P_D P_G) · c(m),
+            c(φ) = λ^φ (parametric) or φ!/V^φ (non-parametric, V the target's gate volume)."""
+        if len(targets) == 0:
+            return
+        self.largest_cluster = max(self.largest_cluster, 1)
+        P_D, P_G = self.p_detect, hyp.gate_probability
+        g = gated[targets]
+        m = g.sum(axis=1)
+        ll = np.where(g, hyp.log_likelihood[targets], -np.inf)
+        log_det = np.log(P_D) + ll                                             # (K, N)
+        log_miss = np.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -np.inf
+        if self.clutter_density is None:
+            first = np.argmax(g, axis=1)
+            S = hyp.S[targets, first]                                          # (K, d, d)
+            n = S.shape[-1]
+            c = UNIT_BALL.get(n, pi ** (n / 2) / np.exp(lgamma(n / 2 + 1)))
+            log_v = np.log(c * hyp.gate ** (n / 2) * np.sqrt(np.linalg.det(S)))
+            # c(m − 1)/c(m) = V/m: relative to the miss, a detection is weighed by V/m
+            log_ratio = log_v - np.log(m)
+        else:
+            log_ratio = -np.log(max(self.clutter_density, TINY_DENSITY))      # c(m − 1)/c(m) = 1/λ
+        logs = np.concatenate([np.full((len(targets), 1), log_miss), log_det + log_ratio[..., None]
+                               if np.ndim(log_ratio) else log_det + log_ratio], axis=1)
+        top = logs.max(axis=1, keepdims=True)
+        p = np.exp(logs - top)
+        weights[targets] = p / p.sum(axis=1, keepdims=True)
 
     def _cluster(self, hyp: Hypotheses, targets: np.ndarray, detections: np.ndarray) -> np.ndarray:
         """(len(targets), 1 + len(detections)) weights [β_r0, β_r(detections)…] of one cluster."""

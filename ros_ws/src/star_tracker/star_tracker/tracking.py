@@ -12,7 +12,8 @@ JPDAF (paper Table 2): each star has a Kalman state [x ẋ y ẏ] under a motion
 
     1. X_r = F X_r,  P_r = F P_r Fᵀ + Q                                        prediction
     2. ẑ_r = H X_r,  S_r = H P_r Hᵀ + R                                        (eqs. 6–7)
-    3. gating d²_rj <= δ (tracker_filters.association.MahalanobisHypothesiser, eq. 5)
+    3. gating d²_rj <= δ (the hypotheses of tracker_filters.association, computed for all tracks at once:
+       linear_hypotheses, eq. 5)
     4. β_rj from the feasible joint events, clustered (jpdaf.py, eqs. 8–12)
     5. ν_rj = z_j − ẑ_r,   ν_r = Σ_j β_rj ν_rj                                  combined innovation
     6. K_r = P_r Hᵀ S_r⁻¹,  X_r += K_r ν_r
@@ -33,7 +34,7 @@ from scipy.stats import chi2
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
 from star_tracker.motion import H, MotionModel, measurement_noise
-from tracker_filters.association import MahalanobisHypothesiser, MeasurementPrediction
+from tracker_filters.association import Hypotheses
 
 MISSED = -1
 
@@ -68,6 +69,28 @@ class ImagePlaneMeasurement:
 
     def residual(self, z: np.ndarray, z_ref: np.ndarray) -> np.ndarray:
         return np.asarray(z) - np.asarray(z_ref)
+
+
+def linear_hypotheses(zhat: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
+                      gate_probability: float) -> Hypotheses:
+    """tracker_filters.association's Hypotheses of Z (N, 2) against T tracks' predicted centroids zhat (T, 2)
+    with covariances Pzz (T, 2, 2), for one noise covariance R (2, 2): the same quantities as
+    MahalanobisHypothesiser (ν, S = Pzz + R, d², log N(ν; 0, S), the chi-square gate) computed for every
+    track at once with the closed-form 2 × 2 inverse (tests/test_star_tracking.py checks the two agree)."""
+    zhat, Z = np.asarray(zhat, float).reshape(-1, 2), np.asarray(Z, float).reshape(-1, 2)
+    T, N = len(zhat), len(Z)
+    S1 = np.asarray(Pzz, float).reshape(-1, 2, 2) + np.asarray(R, float)            # (T, 2, 2)
+    det = S1[:, 0, 0] * S1[:, 1, 1] - S1[:, 0, 1] * S1[:, 1, 0]
+    a, b, d = S1[:, 1, 1] / det, -S1[:, 0, 1] / det, S1[:, 0, 0] / det             # S⁻¹ (symmetric)
+    nu = Z[None, :, :] - zhat[:, None, :]                                          # (T, N, 2)
+    x, y = nu[..., 0], nu[..., 1]
+    d2 = a[:, None] * x * x + 2.0 * b[:, None] * x * y + d[:, None] * y * y
+    finite = np.isfinite(d2)
+    d2 = np.where(finite, d2, np.inf)
+    loglik = -0.5 * (d2 + np.log(det)[:, None] + 2.0 * np.log(2.0 * np.pi))
+    S = np.broadcast_to(S1[:, None], (T, N, 2, 2))
+    gate = float(chi2.ppf(gate_probability, 2)) if N else np.inf
+    return Hypotheses(zhat.copy(), nu, S, d2, loglik, gate, float(gate_probability))
 
 
 # ------------------------------------------------------------------------------------------------------ SNA
@@ -129,10 +152,11 @@ class SNATracker:
         Z = np.asarray(Z, float).reshape(-1, 2)
         self.uv = np.where(hit[:, None], Z[np.maximum(taken, 0)] if len(Z) else predicted, predicted)
         self.misses = np.where(hit, 0, self.misses + 1)
-        self._drop((self.misses <= self.max_misses) & self.camera.in_image(self.uv))
+        self.drop((self.misses <= self.max_misses) & self.camera.in_image(self.uv))
         return taken
 
-    def _drop(self, keep: np.ndarray) -> None:
+    def drop(self, keep: np.ndarray) -> None:
+        """Keep only the tracks where ``keep`` is True."""
         self.ids, self.uv, self.misses = self.ids[keep], self.uv[keep], self.misses[keep]
 
 
@@ -148,6 +172,8 @@ class JPDAFStep:
     """(T, N + 1) β: [miss, detection 0 … N − 1] per track."""
     ids: np.ndarray
     """(T,) catalogue index of each track."""
+    positions: np.ndarray
+    """(T, 2) filtered centroids H X after the update (before any drop)."""
 
 
 class JPDAFTracker:
@@ -168,9 +194,8 @@ class JPDAFTracker:
         if gate <= 0:
             raise ValueError(f"gate must be > 0, got {gate}")
         self.gate = gate
-        self.hypothesiser = MahalanobisHypothesiser(float(chi2.cdf(gate, 2)))
+        self.gate_probability = float(chi2.cdf(gate, 2))
         self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
-        self.model = ImagePlaneMeasurement()
         self.max_misses = int(max_misses)
         self.camera = camera
         self.ids = np.empty(0, dtype=np.int64)
@@ -206,12 +231,20 @@ class JPDAFTracker:
         """Keep only the tracks where ``keep`` is True."""
         self.ids, self.x, self.P, self.misses = self.ids[keep], self.x[keep], self.P[keep], self.misses[keep]
 
-    def predict(self, dt: float, motion: MotionModel | None = None) -> None:
-        """Step 1 for every track (``motion`` replaces the tracker's model for this and later frames)."""
+    def predict(self, dt: float, motion: MotionModel | None = None, displacement: np.ndarray | None = None) -> None:
+        """Step 1 for every track (``motion`` replaces the tracker's model for this and later frames).
+        ``displacement`` (T, 2), when given, is a known motion of each star over dt added to the predicted
+        position as a control input — the rate-aided prediction: with the image motion the known body rate
+        causes given this way (predict_centroids(p) − p), the velocity states hold only the motion the rate
+        does not explain (zero for a perfect rate), and the filter averages the centroid noise over frames."""
         if motion is not None:
             self.motion = motion
         F, Q = self.motion.transition(dt)
         self.x = self.x @ F.T
+        if displacement is not None and len(self.x):
+            d = np.asarray(displacement, dtype=float).reshape(-1, 2)
+            self.x[:, 0] += d[:, 0]
+            self.x[:, 2] += d[:, 1]
         self.P = F @ self.P @ F.T + Q
 
     def update(self, Z: np.ndarray) -> JPDAFStep:
@@ -221,7 +254,7 @@ class JPDAFTracker:
         T, N = len(self.ids), len(Z)
         ids = self.ids.copy()
         if T == 0:
-            return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids)
+            return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids, np.empty((0, 2)))
         Pzz = self.P[:, [0, 2]][:, :, [0, 2]]                                     # H P Hᵀ
         zhat = self.positions
         S = Pzz + self.R
@@ -230,8 +263,7 @@ class JPDAFTracker:
             beta[:, 0] = 1.0
             detection = np.full(T, MISSED, dtype=np.int64)
         else:
-            predictions = [MeasurementPrediction(zhat[r], Pzz[r]) for r in range(T)]
-            hyp = self.hypothesiser.hypothesise(predictions, Z, np.broadcast_to(self.R, (N, 2, 2)), self.model)
+            hyp = linear_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability)
             assoc = self.associator.associate(hyp)
             beta = np.array([a.weights for a in assoc])
             detection = np.array([a.detection for a in assoc], dtype=np.int64)
@@ -250,13 +282,15 @@ class JPDAFTracker:
         self.P = self.P - detected[:, None, None] * KSKt + K @ spread @ K.transpose(0, 2, 1)
         self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
         self.misses = np.where(detection >= 0, 0, self.misses + 1)
+        positions = self.positions.copy()
         keep = self.misses <= self.max_misses
         if self.camera is not None:
-            keep &= self.camera.in_image(self.positions)
+            keep &= self.camera.in_image(positions)
         self.drop(keep)
-        return JPDAFStep(detection, beta, ids)
+        return JPDAFStep(detection, beta, ids, positions)
 
-    def step(self, Z: np.ndarray, dt: float, motion: MotionModel | None = None) -> JPDAFStep:
-        """predict(dt) then update(Z)."""
-        self.predict(dt, motion)
+    def step(self, Z: np.ndarray, dt: float, motion: MotionModel | None = None,
+             displacement: np.ndarray | None = None) -> JPDAFStep:
+        """predict(dt, motion, displacement) then update(Z)."""
+        self.predict(dt, motion, displacement)
         return self.update(Z)

@@ -1,0 +1,217 @@
+"""The star tracker's per-frame core: lost-in-space identification, recursive tracking, attitude.
+
+Per frame (centroids uv, magnitudes, time t, known body rate ω in the camera frame):
+
+1. Not locked: Pyramid lost-in-space identification (pyramid.py). On success the identified stars start tracks
+   (SNA or JPDAF, tracking.py) at their centroids, with the image velocity the body rate gives, and the
+   frame's attitude is solved from them; on failure the frame has no attitude and the reason is reported.
+2. Locked: the tracker follows its stars to this frame (SNA: prediction with ω and the 3√2σ gate; JPDAF:
+   the motion model and the clustered joint association). The JPDAF's prediction is either the paper's —
+   the motion model alone on image velocities (constant velocity, or the coordinated turn at the image's
+   rotation rate −ω_z), ``rate_aided=False`` — or rate-aided (default): the image motion the known body rate
+   causes is a control input and the velocity states hold only what the rate does not explain
+   (JPDAFTracker.predict). The rate ω passed with a frame is the body rate over the interval since the
+   previous frame (what a gyro integrates). The stars it updated this frame (SNA: a measurement in the gate; JPDAF: the
+   most probable hypothesis is a detection) give the attitude from their positions (SNA: the measurement;
+   JPDAF: the filtered position) and their catalogue vectors.
+3. Verification, before anything is reported: a least-squares fit over those stars; a star whose residual
+   exceeds the verification radius (its track took a false star or a neighbour) is dropped from the fit and
+   from the tracker, and the fit is repeated. With fewer than ``min_stars`` stars left the lock is lost and
+   the same frame goes back to step 1: a wrong attitude is never reported as valid.
+4. New stars: centroids no track took are matched to the catalogue with the frame's attitude
+   (PyramidIdentifier.match) and handed to the tracker — no new lost-in-space solve.
+
+The reported attitude is the chosen solver's — ``"wahba"`` (SVD over all the stars, attitude.wahba) or
+``"triad"`` (two stars, as in the paper, attitude.triad) — over the same stars; each star's direction is
+taken with the centroid noise σ (the filtered positions of the JPDAF are more precise than that; the
+covariance is then conservative).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import numpy as np
+
+from star_tracker.attitude import AttitudeSolution, residuals, triad, wahba, wahba_matrix
+from star_tracker.camera import Camera
+from star_tracker.catalogue import ARCSEC, StarCatalogue
+from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
+from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier
+from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, predict_centroids
+
+TRACKERS = ("sna", "jpdaf")
+SOLVERS = ("wahba", "triad")
+MOTIONS = ("constant_velocity", "coordinated_turn")
+
+
+@dataclass
+class FrameResult:
+    """One frame's outcome."""
+
+    ok: bool
+    reason: str
+    """Why there is no attitude ('' when there is one)."""
+    mode: str
+    """'lost_in_space' or 'tracking': how the frame's stars were identified."""
+    attitude: AttitudeSolution | None
+    index: np.ndarray
+    """(N,) catalogue index of each centroid (−1: not identified, or a false star)."""
+    star_ids: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    """Catalogue indices of the stars the attitude was solved from."""
+    star_uv: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    """Their image positions (measured for SNA and lost-in-space, filtered for the JPDAF)."""
+
+
+class StarTrackerPipeline:
+    """Identification, tracking and attitude, frame after frame (module docstring)."""
+
+    def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float, tracker: str = "jpdaf",
+                 solver: str = "wahba", motion: str = "constant_velocity", sigma_a: float = 0.5,
+                 p_detect: float = 0.95, clutter_density: float | None = None, gate: float | None = None,
+                 min_stars: int = 3, verify_sigmas: float = 6.0, max_misses: int = 3, rate_aided: bool = True,
+                 identifier: PyramidIdentifier | None = None) -> None:
+        if tracker not in TRACKERS:
+            raise ValueError(f"tracker must be one of {TRACKERS}, got {tracker!r}")
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        if motion not in MOTIONS:
+            raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
+        if min_stars < 3:
+            raise ValueError(f"min_stars must be >= 3 (a fit that can be checked), got {min_stars}")
+        self.catalogue, self.camera = catalogue, camera
+        self.sigma_px = float(sigma_px)
+        self.sigma = camera.pixel_sigma_to_angle(sigma_px)
+        self.tracker_kind, self.solver, self.motion_kind = tracker, solver, motion
+        self.sigma_a = float(sigma_a)
+        self.p_detect, self.clutter_density, self.gate = p_detect, clutter_density, gate
+        self.min_stars = int(min_stars)
+        self.verify_radius = verify_sigmas * self.sigma + 2.0 * ARCSEC
+        self.max_misses = int(max_misses)
+        self.rate_aided = bool(rate_aided)
+        self.identifier = identifier if identifier is not None else PyramidIdentifier(catalogue, camera, sigma_px)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the lock: the next frame is a lost-in-space one."""
+        self.locked = False
+        self.t_prev: float | None = None
+        self.tracker = self._new_tracker()
+
+    def _new_tracker(self) -> SNATracker | JPDAFTracker:
+        if self.tracker_kind == "sna":
+            return SNATracker(self.camera, self.sigma_px, max_misses=self.max_misses)
+        return JPDAFTracker(ConstantVelocity(self.sigma_a), self.sigma_px, p_detect=self.p_detect,
+                            clutter_density=self.clutter_density, gate=self.gate, max_misses=self.max_misses,
+                            camera=self.camera)
+
+    def motion_for(self, omega_body: np.ndarray) -> MotionModel:
+        """The JPDAF's motion model for a body rate: constant velocity, or the turn at the image's rotation
+        rate −ω_z (the sky turns opposite to the camera). Rate-aided, the velocity states hold the motion the
+        rate does not explain, which does not turn: constant velocity either way."""
+        if self.motion_kind == "coordinated_turn" and not self.rate_aided:
+            return CoordinatedTurn(-float(omega_body[2]), self.sigma_a)
+        return ConstantVelocity(self.sigma_a)
+
+    # ------------------------------------------------------------------------------------------------ frame
+    def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float,
+                omega_body: np.ndarray) -> FrameResult:
+        """One frame (module docstring). Never raises on a frame's content."""
+        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+        finite = np.all(np.isfinite(uv), axis=1)
+        if not finite.all():   # a centroid that is not a number is no measurement
+            result = self.process(uv[finite], None if magnitudes is None else np.asarray(magnitudes)[finite],
+                                  t, omega_body)
+            index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
+            index[finite] = result.index
+            result.index = index
+            return result
+        omega_body = np.asarray(omega_body, dtype=float)
+        reason = ""
+        if self.locked and self.t_prev is not None and t > self.t_prev:
+            result = self._track(uv, t - self.t_prev, omega_body)
+            if result.ok:
+                self.t_prev = t
+                return result
+            reason = f"lock lost ({result.reason}); "
+        self.reset()
+        result = self._acquire(uv, magnitudes, omega_body)
+        if result.ok:
+            self.locked, self.t_prev = True, t
+        else:
+            result.reason = reason + result.reason
+        return result
+
+    def _acquire(self, uv: np.ndarray, magnitudes: np.ndarray | None, omega_body: np.ndarray) -> FrameResult:
+        ident = self.identifier.identify(uv, magnitudes)
+        if not ident.ok:
+            return FrameResult(False, f"lost-in-space: {ident.reason}", "lost_in_space", None, ident.index)
+        rows = np.flatnonzero(ident.index >= 0)
+        ids = ident.index[rows]
+        self._start(ids, uv[rows], omega_body)
+        solution = self._solve(uv[rows], ids)
+        return FrameResult(True, "", "lost_in_space", solution, ident.index, ids, uv[rows])
+
+    def _start(self, ids: np.ndarray, uv: np.ndarray, omega_body: np.ndarray) -> None:
+        if self.tracker_kind == "sna":
+            self.tracker.start(ids, uv)
+        else:
+            if self.rate_aided:
+                self.tracker.start(ids, uv, None, velocity_sigma=self.sigma_px)
+            else:
+                self.tracker.start(ids, uv, image_velocity(self.camera, uv, omega_body), velocity_sigma=1.0)
+
+    def _track(self, uv: np.ndarray, dt: float, omega_body: np.ndarray) -> FrameResult:
+        index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
+        if self.tracker_kind == "sna":
+            ids = self.tracker.ids.copy()
+            taken = self.tracker.step(uv, dt, omega_body)
+            hit = taken >= 0
+            ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
+        else:
+            shift = None
+            if self.rate_aided:
+                p = self.tracker.positions
+                shift = predict_centroids(self.camera, p, omega_body, dt) - p
+            step = self.tracker.step(uv, dt, self.motion_for(omega_body), shift)
+            hit = step.detection >= 0
+            ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
+        # verification: drop the stars the fit rejects, one at a time (worst first)
+        keep = np.ones(len(ids), dtype=bool)
+        while keep.sum() >= self.min_stars:
+            b = self.camera.unproject(pos[keep])
+            r = self.catalogue.vectors[ids[keep]]
+            res = residuals(wahba_matrix(b, r), b, r)
+            if res.max() <= self.verify_radius:
+                break
+            keep[np.flatnonzero(keep)[int(np.argmax(res))]] = False
+        if keep.sum() < self.min_stars:
+            return FrameResult(False, f"{int(keep.sum())} verified tracked stars, fewer than {self.min_stars}",
+                               "tracking", None, index)
+        if not keep.all():
+            self._forget(ids[~keep])
+        ids, rows, pos = ids[keep], rows[keep], pos[keep]
+        index[rows] = ids
+        solution = self._solve(pos, ids)
+        # new stars: the centroids no track took, identified from the attitude
+        free = np.flatnonzero(index == UNIDENTIFIED)
+        if len(free):
+            A = wahba_matrix(self.camera.unproject(pos), self.catalogue.vectors[ids])
+            new, _ = self.identifier.match(self.camera.unproject(uv[free]), A, self.verify_radius)
+            fresh = (new >= 0) & ~np.isin(new, self.tracker.ids) & ~np.isin(new, ids)
+            if fresh.any():
+                self._start(new[fresh], uv[free[fresh]], omega_body)
+                index[free[fresh]] = new[fresh]
+        return FrameResult(True, "", "tracking", solution, index, ids, pos)
+
+    def _forget(self, ids: np.ndarray) -> None:
+        keep = ~np.isin(self.tracker.ids, ids)
+        if self.tracker_kind == "sna":
+            self.tracker.drop(keep)
+        else:
+            self.tracker.drop(keep)
+
+    def _solve(self, uv: np.ndarray, ids: np.ndarray) -> AttitudeSolution:
+        b = self.camera.unproject(uv)
+        r = self.catalogue.vectors[ids]
+        sigma = self.sigma if self.sigma > 0 else ARCSEC
+        return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)
+
