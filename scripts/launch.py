@@ -13,6 +13,7 @@ Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from bench_engine import phases
@@ -35,4 +36,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # every file is closed: skip the interpreter's teardown of numpy, scipy and rclpy

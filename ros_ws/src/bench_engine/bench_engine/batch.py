@@ -1,7 +1,10 @@
 """The one Monte Carlo runner: many seeded runs of a scenario through the graph, in parallel, every bag kept.
 
 Each run is one launcher process (``python -m bench_engine.run``: the graph in one process, real DDS) on a
-ROS domain of its own (a free one reserved by bench_engine.domains, or ``domains`` given by the caller), so
+ROS domain of its own. The local executor forks each run's process from a fork server that has imported
+everything a run needs once (bench_engine.preload; multiprocessing's forkserver), so a run does not pay the
+interpreter start and the imports again: the same code runs in a fresh process, and the bag is the same as
+that of a run made alone (TRACKING_BENCH_NO_FORK=1 starts fresh interpreters instead) (a free one reserved by bench_engine.domains, or ``domains`` given by the caller), so
 parallel runs never hear each other. A run whose bag holds another number of truth messages than its steps
 received messages from a foreign graph on its domain (a process that is not a bench run): it is set aside
 (``RUN.crosstalkK``) and run again. Used by montecarlo.py, sweep.py, demo.py and the studies' scripts.
@@ -12,9 +15,11 @@ bench_engine.executors). Either way a run is the same subprocess, and its bag la
 """
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,6 +98,54 @@ def recorded_steps(bag: Path) -> int:
     return build_time(yaml.safe_load((bag / "run_config.yaml").read_text())["scenario"]).steps
 
 
+PRELOAD = "bench_engine.preload"
+_fork_lock = threading.Lock()
+_fork_context = None
+
+
+def _forked_run(argv: list[str], log: str) -> None:
+    """A run in a process forked from the fork server: ``python -m bench_engine.run ARGV > LOG 2>&1``."""
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    from bench_engine.run import main
+    code = main(argv)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    sys.exit(code)
+
+
+def fork_context():
+    """The forkserver context whose server has imported PRELOAD (None where runs cannot be forked)."""
+    global _fork_context
+    from bench_engine.launcher import NO_FORK_ENV
+    if os.environ.get(NO_FORK_ENV) == "1" or sys.platform != "linux":
+        return None
+    with _fork_lock:
+        if _fork_context is None:
+            import multiprocessing
+            os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+            _fork_context = multiprocessing.get_context("forkserver")
+            _fork_context.set_forkserver_preload([PRELOAD])
+    return _fork_context
+
+
+def launch_run(cmd: list[str], log: Path, **popen) -> int:
+    """Run ``python -m bench_engine.run ...`` (``cmd``, as RunSpec.command gives it) with its output to
+    ``log``; forked from the fork server unless ``popen`` asks for a subprocess's own settings (the Dask
+    executor) or runs cannot be forked. Returns the exit code (-N: killed by signal N)."""
+    context = None if popen else fork_context()
+    if context is None:
+        with open(log, "w") as f:
+            return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, **popen).returncode
+    process = context.Process(target=_forked_run, args=(cmd[3:], str(log)), name=f"run {log.stem}")
+    process.start()
+    process.join()
+    return process.exitcode
+
+
 def run_one(spec: RunSpec, domain: int | None, **popen) -> RunResult:
     """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log. ``popen``:
     extra subprocess arguments (the Dask executor's environment)."""
@@ -100,8 +153,7 @@ def run_one(spec: RunSpec, domain: int | None, **popen) -> RunResult:
     result = RunResult(spec, CROSSTALK_EXIT)
     for attempt in range(1 + CROSSTALK_RETRIES):
         phases.mark("run_spawn", "batch", spec.out.resolve())
-        with open(spec.log, "w") as log:
-            code = subprocess.run(spec.command(domain), stdout=log, stderr=subprocess.STDOUT, **popen).returncode
+        code = launch_run(spec.command(domain), spec.log, **popen)
         phases.mark("run_exited", "batch", spec.out.resolve())
         if code != 0 or not (spec.bag / "metadata.yaml").is_file() \
                 or not crosstalk(spec.bag, recorded_steps(spec.bag)):

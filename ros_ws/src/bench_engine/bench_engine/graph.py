@@ -24,6 +24,9 @@ CLOCK_TOPIC = "/clock"
 ACK_TOPIC = "/sim/ack"
 READY_TOPIC = "/sim/ready"
 DONE_TOPIC = "/sim/done"
+TOTALS_TOPIC = "/sim/totals"
+"""The source's last word (StepAck, transient-local, before /sim/done): every data topic's final message count,
+so the recorder closes the bag as soon as it holds them all."""
 
 TRUTH_TYPE = "bench_msgs/msg/TruthState"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"

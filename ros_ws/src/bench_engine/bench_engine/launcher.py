@@ -107,22 +107,111 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
     return RunPlan(out, run, graph, config_path)
 
 
-def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False) -> int:
-    """One process per node; returns 0 on success, non-zero (naming the failed node) otherwise."""
+class ForkedNode:
+    """A node process forked from the launcher, with the part of subprocess.Popen's interface the supervisor
+    uses (poll, wait, send_signal, kill, returncode)."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            if deadline is not None and time.monotonic() > deadline:
+                raise subprocess.TimeoutExpired(f"node process {self.pid}", timeout)
+            time.sleep(0.01)
+        return self.returncode
+
+    def send_signal(self, signum: int) -> None:
+        if self.poll() is None:
+            os.kill(self.pid, signum)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+
+NO_FORK_ENV = "TRACKING_BENCH_NO_FORK"
+"""Set to 1 to start every node and every Monte Carlo run as a fresh interpreter instead of forking it."""
+
+
+def can_fork() -> bool:
+    """Whether processes may be forked from this one: fork exists, no Python thread but this one, rclpy never
+    initialised here (its DDS threads), and NO_FORK_ENV unset. (The only native threads then are LTTng-UST's
+    two idle listener threads, started when rclpy's tracing library loads; a child has none of them.)"""
+    import threading
+    if not hasattr(os, "fork") or os.environ.get(NO_FORK_ENV) == "1" or threading.active_count() != 1:
+        return False
+    rclpy = sys.modules.get("rclpy")
+    return rclpy is None or not rclpy.ok()
+
+
+def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Path) -> ForkedNode:
+    """Start node ``name`` (``python -m module`` equivalent) as a child forked from this process, which has
+    already imported the node's module: the child skips the interpreter start and the imports (numpy, scipy,
+    rclpy, the cores' modules), which dominate a node process's start-up. Its own session, environment and
+    log, as with subprocess.Popen(start_new_session=True)."""
+    node_module = importlib.import_module(module)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid:
+        return ForkedNode(pid)
+    code = 1
+    try:  # the child: never returns into the launcher's code
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.setsid()
+        fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.dup2(fd, 1)
+        os.dup2(fd, 2)
+        os.close(fd)
+        os.environ.clear()
+        os.environ.update(env)
+        sys.argv = [module, "--name", name, "--config", str(config)]
+        code = node_module.main()
+    except SystemExit as exit_:
+        code = exit_.code if isinstance(exit_.code, int) else 1
+    except BaseException:  # noqa: B036 - report anything, then leave the child
+        import traceback
+        traceback.print_exc()
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False,
+                     fork: bool = False) -> int:
+    """One process per node, each a fresh interpreter, or with ``fork`` forked from this one when it can
+    (``fork_node``: faster start-up, but the nodes' command lines are the launcher's); returns 0 on success,
+    non-zero (naming the failed node) otherwise."""
     env = local_dds_env(domain_id)
     plan.logs.mkdir(exist_ok=True)
-    procs: dict[str, subprocess.Popen] = {}
+    procs: dict[str, subprocess.Popen | ForkedNode] = {}
     interrupted = []
 
     def forward(signum, _frame):
         interrupted.append(signum)
 
+    fork = fork and can_fork()
     previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         for spec in plan.graph.start_order():
-            log = open(plan.logs / f"{spec.name}.log", "w")
+            module, log_path = spec.node.split(":")[0], plan.logs / f"{spec.name}.log"
+            if fork:
+                procs[spec.name] = fork_node(module, spec.name, plan.config_path, env, log_path)
+                continue
+            log = open(log_path, "w")
             procs[spec.name] = subprocess.Popen(
-                [sys.executable, "-m", spec.node.split(":")[0], "--name", spec.name, "--config", str(plan.config_path)],
+                [sys.executable, "-m", module, "--name", spec.name, "--config", str(plan.config_path)],
                 env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         phases.mark("spawned", "launcher", plan.out)
         return _supervise(plan, procs, interrupted, timeout_s, quiet)
@@ -203,7 +292,7 @@ def _stop_all(procs: dict) -> None:
 
 
 def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
-              tag: str = "launch", pin: bool = True) -> int:
+              tag: str = "launch", pin: bool = True, fork_nodes: bool = False) -> int:
     """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it."""
     try:
         reservation = reserve(domain_id)
@@ -215,7 +304,7 @@ def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, execut
     try:
         if single_process:
             return run_single_process(plan, reservation.domain, executor, pin)
-        return run_multiprocess(plan, reservation.domain)
+        return run_multiprocess(plan, reservation.domain, fork=fork_nodes)
     finally:
         reservation.release()
 

@@ -1,8 +1,8 @@
 """Recorder node: writes every data topic of the run, as serialized CDR, to a rosbag2-style MCAP bag.
 
 Subscribes with ``raw=True`` (no deserialisation) to every topic the graph's nodes publish. On ``/sim/done``
-it drains what is still in flight (until the other nodes have left, or nothing arrived for a while) and
-closes the bag; SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
+it drains what is still in flight and closes the bag as soon as every topic holds the final count the source
+announced on ``/sim/totals`` (without them, once the other nodes have left and nothing arrived for a while); SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
 FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
 killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
 """
@@ -17,8 +17,9 @@ import yaml
 
 from bench_engine import phases
 from bench_engine.bag import BagWriter
-from bench_engine.bench_node import DATA_QOS, BenchNode, node_main
-from bench_engine.graph import CLOCK_TOPIC
+from bench_msgs.msg import StepAck
+from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
+from bench_engine.graph import CLOCK_TOPIC, TOTALS_TOPIC
 from bench_engine.msg_schema import message_class
 from bench_engine.timegrid import build_time
 
@@ -39,6 +40,8 @@ class RecorderNode(BenchNode):
         self._flush_every = max(1, round(FLUSH_SIM_S / build_time(self.cfg).dt))
         self._last_rx = time.monotonic()
         self._drain_started = None
+        self._totals: dict[str, int] | None = None
+        self.create_subscription(StepAck, TOTALS_TOPIC, self._on_totals, LATCHED_QOS)
         for topic, type_name in sorted(self.spec.subscribes.items()):
             self.bag.add_topic(topic, type_name, DATA_QOS)
             self.counts[topic] = 0
@@ -51,19 +54,41 @@ class RecorderNode(BenchNode):
         self._last_rx = time.monotonic()
         if topic == CLOCK_TOPIC and self.counts[topic] % self._flush_every == 0:
             self.bag.flush()
+        if self._drain_started is not None and self._totals is not None:
+            self._check_drained()
+
+    def _on_totals(self, msg: StepAck) -> None:
+        self._totals = dict(zip(msg.topics, (int(n) for n in msg.published)))
+        if self._drain_started is not None:
+            self._check_drained()
 
     def on_done(self, last_step: int) -> None:
         self._drain_started = time.monotonic()
         self.create_timer(0.1, self._check_drained)
+        self._check_drained()
+
+    def _has_everything(self) -> bool:
+        """Every recorded topic holds the count the source reported as final (/sim/totals)."""
+        return self._totals is not None and all(n >= self._totals.get(t, 0) for t, n in self.counts.items())
 
     def _check_drained(self) -> None:
+        """Close the bag once it holds every message of the run; without the totals (or if they never add up),
+        once the other nodes are gone and nothing came for IDLE_AFTER_DONE_S, or after a longer silence."""
         if self.finished:
+            return
+        if self._has_everything():
+            self.get_logger().info(f"every message of the run is in ({sum(self.counts.values())}): bag closed")
+            self.close()
+            self.finished = True
             return
         now = time.monotonic()
         idle = now - self._last_rx
         others_gone = all(self.count_publishers(t) == 0 for t in self.counts)
         if (idle > IDLE_AFTER_DONE_S and others_gone) or idle > 2 * IDLE_AFTER_DONE_S \
                 or now - self._drain_started > MAX_DRAIN_S:
+            missing = {t: self._totals.get(t, 0) - n for t, n in self.counts.items()
+                       if self._totals.get(t, 0) > n} if self._totals is not None else "no totals received"
+            self.get_logger().warning(f"bag closed after {idle:.1f} s without messages; missing: {missing}")
             self.close()
             self.finished = True
 

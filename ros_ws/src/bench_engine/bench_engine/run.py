@@ -37,6 +37,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --single-process: let the process's threads use every CPU")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
+    p.add_argument("--fork-nodes", action="store_true",
+                   help="one process per node, forked from the launcher: they skip the interpreter start and the "
+                        "imports (faster start-up); their command lines are then the launcher's")
     p.add_argument("--executor", choices=["events", "single"], default="events",
                    help="rclpy executor (events = rclpy.experimental.EventsExecutor)")
 
@@ -54,7 +57,8 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
         return 2, None
     phases.mark("validated", "launcher", plan.out)
     started = time.monotonic()
-    code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin)
+    code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin,
+                     fork_nodes=args.fork_nodes)
     wall = time.monotonic() - started
     phases.mark("run_end", "launcher", plan.out)
     timing = plan.out / "timing.json"
@@ -73,4 +77,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # the bag and every file are closed: skip the interpreter's teardown of the loaded modules

@@ -10,14 +10,13 @@ import sys
 import time
 from pathlib import Path
 
-from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
 from bench_engine import phases
-from bench_engine.bench_node import DATA_QOS, FLUSH_TIMEOUT_S, LATCHED_QOS, BenchNode, node_main, ns_to_stamp
-from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, node_kinds
+from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, delivered, node_main, ns_to_stamp
+from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, TOTALS_TOPIC, node_kinds
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
 from bench_engine.msg_schema import message_class
@@ -39,6 +38,9 @@ class SourceNode(BenchNode):
         self._ready_deadline = time.monotonic() + float(self.run.get("ready_timeout_s", 60.0))
         self.clock_pub = self.data_publisher(Clock, CLOCK_TOPIC)
         self.done_pub = self.create_publisher(UInt64, DONE_TOPIC, LATCHED_QOS)
+        self.totals_pub = self.create_publisher(StepAck, TOTALS_TOPIC, LATCHED_QOS)
+        self._reported: dict[str, int] = {}
+        """Data topic -> the largest published count a paced node reported for it (final once complete)."""
         self.create_subscription(StepAck, ACK_TOPIC, self._on_ack, DATA_QOS)
         self.create_subscription(String, READY_TOPIC, self._on_ready_msg, LATCHED_QOS)
         self._watchdog = self.create_timer(0.5, self._check_start_timeout)
@@ -56,6 +58,7 @@ class SourceNode(BenchNode):
         msg = Clock()
         ns_to_stamp(t_ns, msg.clock)
         self.clock_pub.publish(msg)
+        self.published[CLOCK_TOPIC] += 1
 
     # -- protocol ---------------------------------------------------------------------------------------
     def _on_ready_msg(self, msg: String) -> None:
@@ -80,7 +83,10 @@ class SourceNode(BenchNode):
                       "(did one of them fail at start-up?)")
 
     def _on_ack(self, msg: StepAck) -> None:
-        self.pacer.on_ack(msg.node, msg.count, dict(zip(msg.topics, msg.published)))
+        published = dict(zip(msg.topics, msg.published))
+        self.pacer.on_ack(msg.node, msg.count, published)
+        for topic, count in published.items():
+            self._reported[topic] = max(self._reported.get(topic, 0), int(count))
         if self._started is not None:
             self._pump()
 
@@ -95,9 +101,15 @@ class SourceNode(BenchNode):
         self._done_sent = True
         stepping = time.monotonic() - self._started
         phases.mark("stepping_end", self.get_name(), self.run.get("out"))
+        # Complete: every paced node's last acknowledgement is in, so the counts it reported are final.
+        totals = StepAck(node=self.get_name(), step=self.steps - 1)
+        counts = {**self._reported, **self.published}
+        totals.topics = sorted(counts)
+        totals.published = [counts[t] for t in totals.topics]
+        self.totals_pub.publish(totals)
         self.done_pub.publish(UInt64(data=self.steps - 1))
         # every node must hear "done" before this node (the only publisher of it) goes away
-        if not self.done_pub.wait_for_all_acked(Duration(seconds=FLUSH_TIMEOUT_S)):
+        if delivered([self.done_pub, self.totals_pub]):
             self.get_logger().warning(f"{DONE_TOPIC}: not every node acknowledged it in time")
         phases.mark("done_acked", self.get_name(), self.run.get("out"))
         timing = {"startup_s": round(self._started - self._created, 3), "stepping_s": round(stepping, 3),

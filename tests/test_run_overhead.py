@@ -1,0 +1,96 @@
+"""The per-run overhead cuts keep every run the same: nodes forked from the launcher (--fork-nodes) and Monte
+Carlo runs forked from the preloaded fork server record the same messages as fresh processes; the recorder
+closes the bag on the source's totals (not after a silence); forked nodes still stop when their launcher is
+killed; the phase benchmark (scripts/bench_phases.py) prints every phase. Nothing here asserts a time."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from bench_engine import phases
+from bench_engine.launcher import NO_FORK_ENV
+from graph_helpers import ROOT, SHORT_PASS, read_bag, script
+from test_bag_digests import digests
+
+PHASE_ROWS = ("interpreter + imports", "validation", "process spawn", "node set-up", "discovery + readiness",
+              "stepping", "drain", "bag close", "shutdown", "scoring", "exit")
+
+
+def test_forked_and_fresh_node_processes_record_the_same_bag(tmp_path):
+    found = {}
+    for mode, args, env in (("fresh", [], {NO_FORK_ENV: "1"}), ("forked", ["--fork-nodes"], {}),
+                            ("single", ["--single-process"], {})):
+        out = tmp_path / mode
+        res = script("launch.py", "leo_radar", "--seed", "5", *SHORT_PASS, "--out", str(out), "--no-score", *args,
+                     extra_env=env)
+        assert res.returncode == 0, res.stderr[-2000:]
+        found[mode] = digests(out / "bag")
+        if mode != "single":  # one log per node process, the recorder closed on the source's totals
+            assert sorted(p.name for p in (out / "logs").iterdir()) == [
+                "ekf.log", "radar.log", "recorder.log", "truth.log", "ukf.log"]
+            recorder = (out / "logs" / "recorder.log").read_text()
+            assert "every message of the run is in" in recorder and "without messages" not in recorder
+    assert found["fresh"] == found["forked"] == found["single"]
+    assert found["fresh"]["/truth/state"][1] == 201 and found["fresh"]["/clock"][1] == 201
+
+
+def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path):
+    bags = {}
+    for mode, env in (("fresh", {NO_FORK_ENV: "1"}), ("forked", {})):
+        out = tmp_path / mode
+        res = script("montecarlo.py", "leo_radar", "--runs", "2", "--jobs", "2", *SHORT_PASS, "--out", str(out),
+                     "--seed0", "11", extra_env=env)
+        assert res.returncode == 0, res.stderr[-2000:]
+        bags[mode] = [digests(out / f"run_{i:03d}" / "bag") for i in range(2)]
+        assert "[launch] leo_radar" in (out / "run_000.log").read_text()  # the run's own output, in its log
+    assert bags["fresh"] == bags["forked"] and bags["fresh"][0] != bags["fresh"][1]
+
+
+def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path):
+    out, log = tmp_path / "orphan", tmp_path / "phases.jsonl"
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{phases.ENV: str(log)})
+    proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
+                             "--no-score", "--fork-nodes", "--set", "time.pacing_window=0"],
+                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (log.exists() and "stepping_start" in log.read_text()):
+        assert proc.poll() is None, "the launcher ended before the run started stepping"
+        time.sleep(0.1)
+    time.sleep(1.0)  # some seconds of sim time into the bag
+    nodes = {r["who"]: r["pid"] for r in phases.read(log) if r["event"] == "node_created"}
+    assert sorted(nodes) == ["ekf", "radar", "recorder", "truth", "ukf"] and proc.pid not in nodes.values()
+    proc.kill()
+    proc.wait()
+
+    def alive(pid: int) -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        return state != "Z"  # a zombie has exited (its parent, the launcher, is gone)
+
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(alive(p) for p in nodes.values()):
+        time.sleep(0.2)
+    assert not [n for n, p in nodes.items() if alive(p)], "forked nodes kept running after their launcher died"
+    steps = [m.step for _, m in read_bag(out / "bag")["/truth/state"]]
+    assert steps and steps == list(range(len(steps)))
+
+
+def test_phase_benchmark_prints_every_phase_and_the_ratios(tmp_path):
+    res = script("bench_phases.py", "--modes", "single-process,montecarlo", "--runs", "2", *SHORT_PASS,
+                 timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    lines = res.stdout.splitlines()
+    for row in PHASE_ROWS:
+        assert any(line.startswith(row) for line in lines), row
+    ratio = next(line for line in lines if line.startswith("wall / stepping"))
+    assert float(ratio.split()[-1]) > 1.0  # the wall time holds the stepping and more
+    mc = next(line for line in lines if "Monte Carlo wall / (stepping / jobs)" in line)
+    assert float(mc.split("=")[-1].split(";")[0]) > 1.0
+    assert "usage" in script("bench_phases.py", "--help").stdout
