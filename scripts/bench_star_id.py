@@ -14,12 +14,21 @@ Per solver it prints:
   failures                      frames with no attitude (a failure with its reason, not a guess)
   median / p90 ms per frame     wall time of the identify call, in this process
 and, on the frames both solved, whether they gave the same identities to the centroids they both identified,
-and the ratio of the median times. Nothing is asserted (tests/test_star_pyramid.py and
-tests/test_star_crosscheck.py do that); on a shared machine the times are upper bounds.
+and the ratio of the median times.
+
+With ``--tracking N`` it also runs the per-frame core (star_tracker.pipeline) after the first fix: an N-frame
+sequence at 10 frames/s of a camera fixed in LVLH on the 30°/700 km orbit (zenith boresight: straight drift;
+``--boresight normal``: rotation about the boresight) with boresight jitter ±J °/s held for 10 frames, the
+same noise, P_D and false stars, through SNA and JPDAF × TRIAD and all-star (Wahba) attitude on identical
+frames, and prints per configuration the median and p90 ms per frame, the frames solved, the lost-in-space
+re-acquisitions, the misidentified centroids and the RMS attitude error (arcsec).
+
+Nothing is asserted (tests/test_star_*.py do that); on a shared machine the times are upper bounds.
 
 Example:
   .venv/bin/python scripts/bench_star_id.py --frames 2000
   .venv/bin/python scripts/bench_star_id.py --frames 500 --sigma 0.5 --false-stars 5 --p-detect 0.9
+  .venv/bin/python scripts/bench_star_id.py --frames 200 --tracking 400 --jitter 0.5 --p-detect 0.95
 """
 from __future__ import annotations
 
@@ -34,7 +43,9 @@ from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, load_catalogue
 from star_tracker.crosscheck import Tetra3Solver
 from star_tracker.frames import random_attitude, simulate_frame
+from star_tracker.pipeline import StarTrackerPipeline
 from star_tracker.pyramid import PyramidIdentifier
+from star_tracker.sky_motion import CircularOrbit, orbit_truth
 
 WRONG_ATTITUDE = 300 * ARCSEC
 
@@ -59,6 +70,45 @@ def score(name: str, results: list[tuple[bool, np.ndarray, np.ndarray | None, fl
             "median_ms": float(np.median(ms)), "p90_ms": float(np.percentile(ms, 90)), "max_ms": float(ms.max())}
 
 
+def bench_tracking(args, catalogue, camera, identifier: PyramidIdentifier) -> dict:
+    """The tracking sequence through the four pipeline configurations (module docstring)."""
+    rng = np.random.default_rng(args.seed + 1)
+    truth = orbit_truth(CircularOrbit(raan_deg=30.0, arg_latitude0_deg=50.0), args.tracking, 0.1, args.boresight,
+                        args.jitter, rng)
+    frames = [simulate_frame(catalogue, camera, A, rng, sigma_px=args.sigma, p_detect=args.p_detect,
+                             n_false=args.false_stars) for A in truth.attitude]
+    density = max(args.false_stars, 0.1) / (camera.width * camera.height)
+    print(f"tracking: {args.tracking} frames, boresight {args.boresight}, jitter ±{args.jitter} °/s, median "
+          f"{np.median([len(f) for f in frames]):.0f} centroids per frame")
+    print(f"{'tracker':8s} {'solver':6s} {'median ms':>9s} {'p90 ms':>7s} {'solved':>6s} {'LIS':>4s} {'wrong IDs':>9s} "
+          f"{'RMS arcsec':>10s}")
+    out = {}
+    for tracker in ("sna", "jpdaf"):
+        for solver in ("triad", "wahba"):
+            pipe = StarTrackerPipeline(catalogue, camera, args.sigma, tracker=tracker, solver=solver,
+                                       p_detect=max(min(args.p_detect, 0.99), 0.5), clutter_density=density,
+                                       sigma_a=args.sigma_a, identifier=identifier)
+            ms, errors, lis, wrong, solved = [], [], 0, 0, 0
+            for k, frame in enumerate(frames):
+                t = time.perf_counter()
+                r = pipe.process(frame.uv, frame.magnitudes, truth.t[k], truth.rate[max(k - 1, 0)])
+                ms.append((time.perf_counter() - t) * 1e3)
+                lis += r.mode == "lost_in_space"
+                if r.ok:
+                    solved += 1
+                    ident = r.index >= 0
+                    wrong += int(np.sum(r.index[ident] != frame.truth[ident]))
+                    errors.append(error_angle(r.attitude.matrix, frame.attitude) / ARCSEC)
+            tracked = np.array(ms[1:]) if len(ms) > 1 else np.array(ms)
+            row = {"median_ms": float(np.median(tracked)), "p90_ms": float(np.percentile(tracked, 90)),
+                   "solved": solved, "lost_in_space": lis, "wrong_ids": wrong,
+                   "rms_arcsec": float(np.sqrt(np.mean(np.square(errors)))) if errors else float("nan")}
+            out[f"{tracker}/{solver}"] = row
+            print(f"{tracker:8s} {solver:6s} {row['median_ms']:9.3f} {row['p90_ms']:7.3f} {solved:6d} {lis:4d} "
+                  f"{wrong:9d} {row['rms_arcsec']:10.3f}")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -72,6 +122,10 @@ def main() -> None:
     ap.add_argument("--mag-limit", type=float, default=6.0)
     ap.add_argument("--cache-dir", default=None, help="catalogue and tetra3rs database cache")
     ap.add_argument("--no-tetra3", action="store_true", help="Pyramid only")
+    ap.add_argument("--tracking", type=int, default=0, help="also run an N-frame tracking sequence")
+    ap.add_argument("--boresight", choices=("zenith", "normal"), default="zenith")
+    ap.add_argument("--jitter", type=float, default=0.5, help="boresight jitter amplitude J, °/s")
+    ap.add_argument("--sigma-a", type=float, default=0.05, help="JPDAF process noise, px/s² (default 0.05)")
     ap.add_argument("--json", default=None, help="also write the figures to this file")
     args = ap.parse_args()
 
@@ -115,6 +169,8 @@ def main() -> None:
         report["agreement"] = {"both_solved": both, "same_identities": agree, "median_time_ratio": ratio}
         print(f"agreement: same identities on {agree} of the {both} frames both solved; "
               f"median time ratio pyramid / tetra3rs = {ratio:.1f}")
+    if args.tracking:
+        report["tracking"] = bench_tracking(args, catalogue, camera, solvers["pyramid"])
     if args.json:
         with open(args.json, "w") as f:
             json.dump(report, f, indent=2)
