@@ -102,6 +102,18 @@ def test_the_cache_is_used_and_keyed_by_its_inputs(tmp_path, monkeypatch):
     assert angle_between(other.vectors[0], first.vectors[0]) > 1 * ARCSEC
 
 
+def test_a_changed_source_file_changes_the_key(tmp_path):
+    import shutil
+    copy = tmp_path / "hip2.dat"
+    shutil.copy(cat_mod.hipparcos_path(), copy)
+    key = cat_mod.cache_key(6.0, 2025.0, 140.0, 1.0, copy)
+    assert key == cat_mod.cache_key(6.0, 2025.0, 140.0, 1.0, copy)
+    with open(copy, "a") as f:
+        f.write("\n")
+    assert cat_mod.cache_key(6.0, 2025.0, 140.0, 1.0, copy) != key
+    assert cat_mod.cache_key(6.5, 2025.0, 140.0, 1.0, copy) != cat_mod.cache_key(6.0, 2025.0, 140.0, 1.0, copy)
+
+
 @pytest.mark.parametrize("damage", ["garbage", "truncated", "wrong_arrays"])
 def test_a_corrupt_cache_is_rebuilt_with_a_logged_message(tmp_path, caplog, damage):
     good = load_catalogue(4.0, cache_dir=tmp_path)

@@ -35,6 +35,7 @@ def test_a_noise_free_frame_is_identified_exactly(catalogue, pyramid):
     result = pyramid.identify(uv, catalogue.magnitudes[idx])
     assert result.ok and result.reason == ""
     np.testing.assert_array_equal(result.index, idx)
+    np.testing.assert_array_equal(result.hip(catalogue), catalogue.ids[idx])
     assert error_angle(result.attitude.matrix, A) < 0.01 * ARCSEC
     assert result.false_alarm < 1e-20
 

@@ -21,8 +21,12 @@ Per frame (centroids uv, magnitudes, time t, known body rate ω in the camera fr
 4. New stars: centroids no track took are matched to the catalogue with the frame's attitude
    (PyramidIdentifier.match) and handed to the tracker — no new lost-in-space solve.
 
+A frame whose time is not after the previous one's (out of order, repeated) is solved lost-in-space.
+
 The reported attitude is the chosen solver's — ``"wahba"`` (SVD over all the stars, attitude.wahba) or
-``"triad"`` (two stars, as in the paper, attitude.triad) — over the same stars; each star's direction is
+``"triad"`` (two stars, as in the paper, attitude.triad: anchored on the first star of the list, i.e. the
+brightest star identified at acquisition while it is tracked, and paired with the star farthest from it) —
+over the same stars; each star's direction is
 taken with the centroid noise σ (the filtered positions of the JPDAF are more precise than that; the
 covariance is then conservative).
 """

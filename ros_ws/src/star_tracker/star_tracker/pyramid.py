@@ -63,6 +63,10 @@ class Identification:
     def n_identified(self) -> int:
         return int(np.sum(self.index >= 0))
 
+    def hip(self, catalogue: StarCatalogue) -> np.ndarray:
+        """(N,) HIP number of each centroid's star (−1 where not identified)."""
+        return np.where(self.index >= 0, catalogue.ids[np.maximum(self.index, 0)], -1)
+
 
 def triangle_order(n: int) -> Iterator[tuple[int, int, int]]:
     """Mortari's triangle sequence over n stars (module docstring, step 1)."""
