@@ -25,6 +25,15 @@ def test_pixels_to_directions_and_back_round_trip(camera):
     np.testing.assert_allclose(camera.project(3.7 * v), uv, atol=1e-9)
 
 
+def test_tangent_plane_coordinates_are_the_directions_x_over_z_and_y_over_z():
+    rng = np.random.default_rng(4)
+    uv = rng.uniform(0, 1024, (50, 2))
+    xy = DEFAULT_CAMERA.to_tangent(uv)
+    v = DEFAULT_CAMERA.unproject(uv)
+    np.testing.assert_allclose(xy, v[:, :2] / v[:, 2:], atol=1e-15)
+    np.testing.assert_allclose(DEFAULT_CAMERA.from_tangent(xy), uv, atol=1e-9)
+
+
 def test_the_geometry_follows_the_field_of_view():
     cam = Camera(20.0, 1024, 1024)
     assert cam.focal_px == pytest.approx(512 / np.tan(np.radians(10)))

@@ -83,6 +83,15 @@ class Camera:
         v = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
+    def to_tangent(self, uv: np.ndarray) -> np.ndarray:
+        """Tangent-plane coordinates (x/z, y/z) of pixel coordinates (N, 2) (bench_msgs/StarCentroids'
+        dimensionless positions): ((u, v) − centre) / f."""
+        return (np.asarray(uv, dtype=float) - self.centre) / self.focal_px
+
+    def from_tangent(self, xy: np.ndarray) -> np.ndarray:
+        """Pixel coordinates of tangent-plane coordinates (N, 2); inverse of :meth:`to_tangent`."""
+        return np.asarray(xy, dtype=float) * self.focal_px + self.centre
+
     def in_image(self, uv: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """True where a pixel coordinate lies in the image, at least ``margin`` pixels from its edges."""
         uv = np.asarray(uv, dtype=float)
