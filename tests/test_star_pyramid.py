@@ -68,6 +68,23 @@ def test_noisy_frames_with_false_stars_are_identified_and_the_false_stars_reject
         assert e @ np.linalg.solve(result.attitude.covariance, e) < 30.0       # consistent with its covariance
 
 
+def test_another_camera_and_catalogue_work_the_same_way(tmp_path):
+    from star_tracker.camera import Camera
+    camera = Camera(12.0, 2048, 1536)
+    catalogue = load_catalogue(6.5, cache_dir=tmp_path)
+    pyramid = PyramidIdentifier(catalogue, camera, sigma_px=0.3)
+    rng = np.random.default_rng(31)
+    for _ in range(15):
+        A = random_attitude(rng)
+        frame = simulate_frame(catalogue, camera, A, rng, sigma_px=0.3, n_false=2)
+        result = pyramid.identify(frame.uv, frame.magnitudes)
+        if len(frame) - frame.n_false >= 6:
+            assert result.ok, result.reason
+        if result.ok:
+            ident = result.index >= 0
+            np.testing.assert_array_equal(result.index[ident], frame.truth[ident])
+
+
 def test_missed_stars_and_a_burst_of_false_stars_still_give_the_right_answer_or_none(catalogue, pyramid):
     rng = np.random.default_rng(7)
     solved = 0

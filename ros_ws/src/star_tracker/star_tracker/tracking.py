@@ -10,7 +10,8 @@ star (the nearer one); a star with none is missed and coasts on its prediction.
 
 JPDAF (paper Table 2): each star has a Kalman state [x ẋ y ẏ] under a motion model (motion.py); per frame
 
-    1. X_r = F X_r,  P_r = F P_r Fᵀ + Q                                        prediction
+    1. X_r = F X_r (+ u_r),  P_r = F P_r Fᵀ + Q                                prediction (u_r: the known
+                                                                                 image motion, rate-aided)
     2. ẑ_r = H X_r,  S_r = H P_r Hᵀ + R                                        (eqs. 6–7)
     3. gating d²_rj <= δ (the hypotheses of tracker_filters.association, computed for all tracks at once:
        linear_hypotheses, eq. 5)
