@@ -64,6 +64,7 @@ def test_jitter_is_uniform_within_its_amplitude_and_held_for_ten_frames():
     truth = orbit_truth(ORBIT, 400, 0.1, "zenith", jitter_deg_s=0.5, rng=np.random.default_rng(3))
     np.testing.assert_allclose(np.diff(truth.jitter_angle), rates[:-1] * 0.1)
     np.testing.assert_allclose(truth.rate[:, 2], rates)
+    np.testing.assert_array_equal(truth.jitter_rate, rates)
     calm = orbit_truth(ORBIT, 400, 0.1, "zenith")
     assert np.all(calm.jitter_angle == 0) and np.allclose(calm.rate, [0, ORBIT.mean_motion, 0])
 

@@ -204,6 +204,16 @@ def test_a_miss_keeps_the_prediction_and_a_soft_update_adds_the_spread_of_innova
     assert tracker.P[0][0, 0] > P_pred[0][0, 0] - (1 - w[0]) * (K @ S @ K.T)[0, 0]
 
 
+def test_turning_the_image_turns_positions_velocities_and_covariances():
+    tracker = JPDAFTracker(ConstantVelocity(1.0), 0.5)
+    tracker.start([3, 4], np.array([[612.0, 512.0], [512.0, 400.0]]), velocity=np.array([[2.0, 0.0], [0.0, 1.0]]))
+    tracker.P[0] = np.diag([4.0, 1.0, 0.25, 0.5])
+    tracker.turn_image(np.pi / 2, np.array([512.0, 512.0]))
+    np.testing.assert_allclose(tracker.positions, [[512.0, 612.0], [624.0, 512.0]], atol=1e-9)
+    np.testing.assert_allclose(tracker.x[:, [1, 3]], [[0.0, 2.0], [-1.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(np.diag(tracker.P[0]), [0.25, 0.5, 4.0, 1.0], atol=1e-12)
+
+
 def test_predicted_centroids_follow_a_rotation_about_the_boresight():
     uv = np.array([[700.0, 300.0], [100.0, 900.0], [512.0, 512.0]])
     w, dt = 0.05, 0.1

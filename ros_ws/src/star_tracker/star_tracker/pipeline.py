@@ -6,12 +6,16 @@ Per frame (centroids uv, magnitudes, time t, known body rate ω in the camera fr
    (SNA or JPDAF, tracking.py) at their centroids, with the image velocity the body rate gives, and the
    frame's attitude is solved from them; on failure the frame has no attitude and the reason is reported.
 2. Locked: the tracker follows its stars to this frame (SNA: prediction with ω and the 3√2σ gate; JPDAF:
-   the motion model and the clustered joint association). The JPDAF's prediction is either the paper's —
-   the motion model alone on image velocities (constant velocity, or the coordinated turn at the image's
-   rotation rate −ω_z), ``rate_aided=False`` — or rate-aided (default): the image motion the known body rate
-   causes is a control input and the velocity states hold only what the rate does not explain
-   (JPDAFTracker.predict). The rate ω passed with a frame is the body rate over the interval since the
-   previous frame (what a gyro integrates). The stars it updated this frame (SNA: a measurement in the gate; JPDAF: the
+   the motion model and the clustered joint association). How the JPDAF uses the known rate (``aid``):
+   - ``"rate"`` (default): the image motion the body rate causes is a control input of the prediction and
+     the velocity states hold only what the rate does not explain (JPDAFTracker.predict);
+   - ``"jitter"``: the paper's — the motion model (constant velocity, or the coordinated turn at the image's
+     rotation rate −(ω_z − j)) carries the stars on image velocities and only the measured boresight jitter
+     rate j is compensated: the tracks' positions, velocities and covariances are turned with the image by
+     −j·Δt about its centre (eq. 18; JPDAFTracker.turn_image) before the prediction;
+   - ``"none"``: the motion model alone, on image velocities (the coordinated turn at −ω_z).
+   The rate ω (and j) passed with a frame is the body rate over the interval since the previous frame (what
+   a gyro integrates). The stars it updated this frame (SNA: a measurement in the gate; JPDAF: the
    most probable hypothesis is a detection) give the attitude from their positions (SNA: the measurement;
    JPDAF: the filtered position) and their catalogue vectors.
 3. Verification, before anything is reported: a least-squares fit over those stars; a star whose residual
@@ -45,6 +49,7 @@ from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, pred
 TRACKERS = ("sna", "jpdaf")
 SOLVERS = ("wahba", "triad")
 MOTIONS = ("constant_velocity", "coordinated_turn")
+AIDS = ("rate", "jitter", "none")
 
 
 @dataclass
@@ -71,7 +76,7 @@ class StarTrackerPipeline:
     def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float, tracker: str = "jpdaf",
                  solver: str = "wahba", motion: str = "constant_velocity", sigma_a: float = 0.5,
                  p_detect: float = 0.95, clutter_density: float | None = None, gate: float | None = None,
-                 min_stars: int = 3, verify_sigmas: float = 6.0, max_misses: int = 3, rate_aided: bool = True,
+                 min_stars: int = 3, verify_sigmas: float = 6.0, max_misses: int = 3, aid: str = "rate",
                  identifier: PyramidIdentifier | None = None) -> None:
         if tracker not in TRACKERS:
             raise ValueError(f"tracker must be one of {TRACKERS}, got {tracker!r}")
@@ -79,6 +84,8 @@ class StarTrackerPipeline:
             raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
         if motion not in MOTIONS:
             raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
+        if aid not in AIDS:
+            raise ValueError(f"aid must be one of {AIDS}, got {aid!r}")
         if min_stars < 3:
             raise ValueError(f"min_stars must be >= 3 (a fit that can be checked), got {min_stars}")
         self.catalogue, self.camera = catalogue, camera
@@ -90,7 +97,7 @@ class StarTrackerPipeline:
         self.min_stars = int(min_stars)
         self.verify_radius = verify_sigmas * self.sigma + 2.0 * ARCSEC
         self.max_misses = int(max_misses)
-        self.rate_aided = bool(rate_aided)
+        self.aid = aid
         self.identifier = identifier if identifier is not None else PyramidIdentifier(catalogue, camera, sigma_px)
         self.reset()
 
@@ -98,6 +105,7 @@ class StarTrackerPipeline:
         """Forget the lock: the next frame is a lost-in-space one."""
         self.locked = False
         self.t_prev: float | None = None
+        self._jitter = 0.0
         self.tracker = self._new_tracker()
 
     def _new_tracker(self) -> SNATracker | JPDAFTracker:
@@ -107,28 +115,39 @@ class StarTrackerPipeline:
                             clutter_density=self.clutter_density, gate=self.gate, max_misses=self.max_misses,
                             camera=self.camera)
 
-    def motion_for(self, omega_body: np.ndarray) -> MotionModel:
+    def motion_for(self, omega_body: np.ndarray, jitter_rate: float = 0.0) -> MotionModel:
         """The JPDAF's motion model for a body rate: constant velocity, or the turn at the image's rotation
-        rate −ω_z (the sky turns opposite to the camera). Rate-aided, the velocity states hold the motion the
-        rate does not explain, which does not turn: constant velocity either way."""
-        if self.motion_kind == "coordinated_turn" and not self.rate_aided:
-            return CoordinatedTurn(-float(omega_body[2]), self.sigma_a)
+        rate (the sky turns opposite to the camera) less what ``aid`` compensates: −(ω_z − j) with
+        ``"jitter"``, −ω_z with ``"none"``; rate-aided, the velocity states hold the motion the rate does not
+        explain, which does not turn."""
+        if self.motion_kind == "coordinated_turn" and self.aid != "rate":
+            compensated = jitter_rate if self.aid == "jitter" else 0.0
+            return CoordinatedTurn(-(float(omega_body[2]) - compensated), self.sigma_a)
         return ConstantVelocity(self.sigma_a)
 
+    def _model_rate(self, omega_body: np.ndarray, jitter_rate: float) -> np.ndarray:
+        """The part of the body rate the motion model carries (image velocities), the rest being compensated."""
+        if self.aid == "jitter":
+            return omega_body - np.array([0.0, 0.0, jitter_rate])
+        return omega_body
+
     # ------------------------------------------------------------------------------------------------ frame
-    def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float,
-                omega_body: np.ndarray) -> FrameResult:
-        """One frame (module docstring). Never raises on a frame's content."""
+    def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float, omega_body: np.ndarray,
+                jitter_rate: float = 0.0) -> FrameResult:
+        """One frame (module docstring): ``omega_body`` the body rate (rad/s, camera frame) and ``jitter_rate``
+        its measured boresight jitter part (rad/s; used by ``aid="jitter"`` only). Never raises on a frame's
+        content."""
         uv = np.asarray(uv, dtype=float).reshape(-1, 2)
         finite = np.all(np.isfinite(uv), axis=1)
         if not finite.all():   # a centroid that is not a number is no measurement
             result = self.process(uv[finite], None if magnitudes is None else np.asarray(magnitudes)[finite],
-                                  t, omega_body)
+                                  t, omega_body, jitter_rate)
             index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
             index[finite] = result.index
             result.index = index
             return result
         omega_body = np.asarray(omega_body, dtype=float)
+        self._jitter = float(jitter_rate)
         reason = ""
         if self.locked and self.t_prev is not None and t > self.t_prev:
             result = self._track(uv, t - self.t_prev, omega_body)
@@ -158,10 +177,11 @@ class StarTrackerPipeline:
         if self.tracker_kind == "sna":
             self.tracker.start(ids, uv)
         else:
-            if self.rate_aided:
+            if self.aid == "rate":
                 self.tracker.start(ids, uv, None, velocity_sigma=self.sigma_px)
             else:
-                self.tracker.start(ids, uv, image_velocity(self.camera, uv, omega_body), velocity_sigma=1.0)
+                velocity = image_velocity(self.camera, uv, self._model_rate(omega_body, self._jitter))
+                self.tracker.start(ids, uv, velocity, velocity_sigma=1.0)
 
     def _track(self, uv: np.ndarray, dt: float, omega_body: np.ndarray) -> FrameResult:
         index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
@@ -172,10 +192,12 @@ class StarTrackerPipeline:
             ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
         else:
             shift = None
-            if self.rate_aided:
+            if self.aid == "rate":
                 p = self.tracker.positions
                 shift = predict_centroids(self.camera, p, omega_body, dt) - p
-            step = self.tracker.step(uv, dt, self.motion_for(omega_body), shift)
+            elif self.aid == "jitter":   # the image turns by −j dt about the boresight's pixel (eq. 18)
+                self.tracker.turn_image(-self._jitter * dt, self.camera.centre)
+            step = self.tracker.step(uv, dt, self.motion_for(omega_body, self._jitter), shift)
             hit = step.detection >= 0
             ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
         # verification: drop the stars the fit rejects, one at a time (worst first)

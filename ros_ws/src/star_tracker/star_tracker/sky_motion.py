@@ -101,6 +101,8 @@ class AttitudeTruth:
     """(K, 3) body rate at each frame (rad/s, camera frame)."""
     jitter_angle: np.ndarray
     """(K,) φ (rad)."""
+    jitter_rate: np.ndarray
+    """(K,) φ̇ (rad/s) over the interval from frame k to k + 1 (the boresight part of ``rate``)."""
 
     @property
     def quaternions(self) -> np.ndarray:
@@ -126,4 +128,4 @@ def orbit_truth(orbit: CircularOrbit, n_frames: int, frame_dt: float, boresight:
     A = turn @ A
     w = np.einsum("kij,kj->ki", turn, w)
     w[:, 2] += rates
-    return AttitudeTruth(t, A, w, phi)
+    return AttitudeTruth(t, A, w, phi, rates)

@@ -248,6 +248,18 @@ class JPDAFTracker:
             self.x[:, 2] += d[:, 1]
         self.P = F @ self.P @ F.T + Q
 
+    def turn_image(self, angle: float, centre: np.ndarray) -> None:
+        """Turn every track by ``angle`` (rad, +x towards +y) about the image point ``centre``: positions
+        about the centre, velocities and covariances with them (X ← T X + shift, P ← T P Tᵀ) — the paper's
+        eq. 18 compensation of a measured rotation of the image (boresight jitter)."""
+        c, s = np.cos(angle), np.sin(angle)
+        T = np.array([[c, 0.0, -s, 0.0], [0.0, c, 0.0, -s], [s, 0.0, c, 0.0], [0.0, s, 0.0, c]])
+        centre = np.asarray(centre, dtype=float)
+        self.x[:, [0, 2]] -= centre
+        self.x = self.x @ T.T
+        self.x[:, [0, 2]] += centre
+        self.P = T @ self.P @ T.T
+
     def update(self, Z: np.ndarray) -> JPDAFStep:
         """Steps 2–7 with the frame's centroids Z (N, 2); then tracks missed more than ``max_misses`` times
         in a row (or out of the camera's image) are dropped."""
