@@ -6,7 +6,9 @@ P_G = chi2.cdf(δ, n_z) is the probability that the gate holds the target's own 
 
 Clusters. Targets are linked when their gates share a detection; each connected group of targets with the
 detections in their gates is a cluster, and the joint events of different clusters are independent, so the
-events are enumerated per cluster: the cost stays bounded by the largest cluster, not the frame. A cluster
+events are enumerated per cluster: the cost stays bounded by the largest cluster, not the frame. A target
+alone in its cluster (the common case for stars) has the single-target PDA weights, computed for all such
+targets at once without enumeration (``_singletons``; the tests check both paths give the same weights). A cluster
 whose event count Π_r (1 + n_r) (n_r: detections in target r's gate) exceeds ``max_events`` is not enumerated:
 each of its targets gets its single-target PDA weights instead (the mutual exclusion is dropped), and the
 count of such clusters is kept in ``approximated``.

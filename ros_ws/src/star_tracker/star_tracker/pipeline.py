@@ -71,7 +71,13 @@ class FrameResult:
 
 
 class StarTrackerPipeline:
-    """Identification, tracking and attitude, frame after frame (module docstring)."""
+    """Identification, tracking and attitude, frame after frame (module docstring).
+
+    ``sigma_px``: centroid noise (px per axis) assumed by the identifier, the SNA gate and the JPDAF's R;
+    ``sigma_a``: the JPDAF motion model's process noise (constant velocity: acceleration σ in px/s², the
+    paper's discrete form; coordinated turn: √q of its white acceleration); ``p_detect``, ``clutter_density``
+    (per px², None: non-parametric) and ``gate`` (δ on d²): the JPDA's (jpdaf.py); ``verify_sigmas``: the
+    verification radius in σ; ``max_misses``: frames a track may coast before it is dropped."""
 
     def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float, tracker: str = "jpdaf",
                  solver: str = "wahba", motion: str = "constant_velocity", sigma_a: float = 0.5,
