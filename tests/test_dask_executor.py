@@ -58,6 +58,20 @@ def test_montecarlo_on_a_dask_cluster_equals_the_local_executor_and_runs_alone(c
     assert found != digests(out / "run_000" / "bag")  # a different seed: other messages
 
 
+def test_a_sweep_on_a_dask_cluster_is_resumed_by_the_local_executor(cluster, tmp_path):
+    from test_sweep import scenario_with
+    grid = scenario_with(tmp_path, {"tiny": {"axes": {"rho": {"1km": [], "10km": ["size10km"]}}}})
+    out = tmp_path / "sweep"
+    args = ["sweep.py", str(grid), "--grid", "tiny", "--runs", "1", "--out", str(out), "--set", "time.duration=60"]
+    res = script(*args, "--scheduler", cluster.scheduler_address)
+    assert res.returncode == 0, res.stderr[-2000:]
+    cells = json.loads((out / "sweep.json").read_text())["cells"]
+    assert [c["id"] for c in cells] == ["rho-1km", "rho-10km"] and all(c["runs_ok"] == 1 for c in cells)
+    resumed = script(*args, "--resume")
+    assert resumed.returncode == 0 and "(2 reused)" in resumed.stderr, resumed.stderr[-2000:]
+    assert [c["score"] for c in json.loads((out / "sweep.json").read_text())["cells"]] == [c["score"] for c in cells]
+
+
 def kill_worker_on_first_attempt(spec: RunSpec):
     """Dask task: on its first attempt the run starts, then its worker process is killed (SIGKILL) once the
     run's bag directory exists; later attempts run normally."""

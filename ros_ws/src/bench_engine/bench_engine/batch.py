@@ -99,6 +99,9 @@ def recorded_steps(bag: Path) -> int:
 
 
 PRELOAD = "bench_engine.preload"
+EXIT_LINE = "[batch] exit code "
+"""The last line a forked run writes to its log: its exit code, should the fork server lose it (multiprocessing
+then reports 255, as when the fork server itself is gone)."""
 _fork_lock = threading.Lock()
 _fork_context = None
 
@@ -111,8 +114,8 @@ def _forked_run(argv: list[str], log: str) -> None:
     os.close(fd)
     from bench_engine.run import main
     code = main(argv)
+    print(f"{EXIT_LINE}{code}", file=sys.stderr, flush=True)
     sys.stdout.flush()
-    sys.stderr.flush()
     sys.exit(code)
 
 
@@ -143,6 +146,10 @@ def launch_run(cmd: list[str], log: Path, **popen) -> int:
     process = context.Process(target=_forked_run, args=(cmd[3:], str(log)), name=f"run {log.stem}")
     process.start()
     process.join()
+    if process.exitcode == 255:  # the status never came back: the run's own last word, if it got that far
+        lines = log.read_text(errors="replace").splitlines() if log.exists() else []
+        if lines and lines[-1].startswith(EXIT_LINE):
+            return int(lines[-1][len(EXIT_LINE):])
     return process.exitcode
 
 
