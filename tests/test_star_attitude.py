@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from star_tracker.attitude import (error_angle, error_vector, matrix_from_quaternion, quaternion_from_matrix,
-                                   residuals, triad, triad_matrix, wahba, wahba_matrix)
+from star_tracker.attitude import (davenport_quaternion, error_angle, error_components, error_vector,
+                                   matrix_from_quaternion, quaternion_from_matrix, residuals, triad, triad_matrix,
+                                   wahba, wahba_matrix)
 
 
 def star_field(rng, n, half_width=0.15):
@@ -47,6 +48,26 @@ def test_triad_and_wahba_recover_a_known_rotation_exactly(seed):
     sol = wahba(b, r, 1e-5)
     assert error_angle(sol.matrix, A) < 1e-10 and np.max(sol.residuals) < 1e-10
     np.testing.assert_allclose(np.abs(sol.quaternion), np.abs(quaternion_from_matrix(A)), atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_svd_solution_equals_davenports_q_method_under_noise(seed):
+    rng = np.random.default_rng(seed)
+    A = Rotation.random(random_state=rng).as_matrix()
+    b = star_field(rng, 12)
+    r = b @ A
+    w = rng.uniform(0.5, 2.0, 12)
+    bn = noisy(rng, b, 1e-3)
+    q_svd = quaternion_from_matrix(wahba_matrix(bn, r, w))
+    np.testing.assert_allclose(davenport_quaternion(bn, r, w), q_svd, atol=1e-9)
+    np.testing.assert_allclose(davenport_quaternion(b, r), quaternion_from_matrix(A), atol=1e-12)
+
+
+def test_error_components_split_the_boresight_pointing_from_the_roll():
+    A = Rotation.random(random_state=5).as_matrix()
+    A_est = Rotation.from_rotvec([-3e-5, -4e-5, -7e-5]).as_matrix() @ A          # δθ = (3, 4, 7)·1e-5
+    cross, roll = error_components(A_est, A)
+    assert cross == pytest.approx(5e-5, rel=1e-6) and roll == pytest.approx(7e-5, rel=1e-6)
 
 
 def test_wahba_with_two_stars_equals_the_rotation_and_refuses_one():

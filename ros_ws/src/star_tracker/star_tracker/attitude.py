@@ -78,6 +78,34 @@ def error_vector(A_est: np.ndarray, A_true: np.ndarray) -> np.ndarray:
     return -Rotation.from_matrix(np.asarray(A_est) @ np.asarray(A_true).T).as_rotvec()
 
 
+def error_components(A_est: np.ndarray, A_true: np.ndarray) -> tuple[float, float]:
+    """(cross-boresight, roll) parts of the attitude error (rad): |(δθ_x, δθ_y)| — the pointing error of the
+    boresight — and |δθ_z|, the rotation about it (δθ in the camera frame, :func:`error_vector`)."""
+    e = error_vector(A_est, A_true)
+    return float(np.hypot(e[0], e[1])), float(abs(e[2]))
+
+
+def davenport_quaternion(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """Davenport's q-method for Wahba's problem, an independent check of :func:`wahba_matrix`. With
+    B = Σ w b rᵀ, σ = tr B and z = (B23 − B32, B31 − B13, B12 − B21), the optimum is the eigenvector of the
+    largest eigenvalue of K = [[σ, zᵀ], [z, B + Bᵀ − σ I]] (Davenport 1968; Markley & Crassidis 2014, §5.3),
+    a quaternion of the attitude-matrix convention A = (q0² − |q|²) I + 2 q qᵀ − 2 q0 [q×], which is the
+    conjugate of the rotation quaternion used here: its vector part is negated on return, giving
+    (qw, qx, qy, qz) with A = R(q), qw >= 0."""
+    b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
+    w = np.ones(len(b)) if w is None else np.asarray(w, dtype=float)
+    B = (b * w[:, None]).T @ r
+    sigma = np.trace(B)
+    z = np.array([B[1, 2] - B[2, 1], B[2, 0] - B[0, 2], B[0, 1] - B[1, 0]])
+    K = np.zeros((4, 4))
+    K[0, 0], K[0, 1:], K[1:, 0] = sigma, z, z
+    K[1:, 1:] = B + B.T - sigma * np.eye(3)
+    _, V = np.linalg.eigh(K)
+    q = V[:, -1]
+    q = np.array([q[0], -q[1], -q[2], -q[3]])
+    return q if q[0] >= 0 else -q
+
+
 def residuals(A: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Angles (rad) between observed directions b (N, 3) and the predicted A r (N, 3)."""
     d = np.asarray(b) - np.asarray(r) @ np.asarray(A).T
