@@ -1,5 +1,6 @@
 """Attitude from star directions: TRIAD (two stars, as in the paper) and the least-squares solution of Wahba's
-problem over all stars (SVD), with their attitude-error covariances.
+problem over all stars (SVD; Davenport's q-method as an independent check), with their attitude-error
+covariances, and the attitude error (angle, vector, cross-boresight and roll parts).
 
 Convention (used by every module of the package and by the published attitude estimates):
 - The attitude matrix A is camera(body)-from-ICRS: a star with ICRS unit vector r is seen along b = A r in
