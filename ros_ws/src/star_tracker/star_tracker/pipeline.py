@@ -30,9 +30,10 @@ A frame whose time is not after the previous one's (out of order, repeated) is s
 The reported attitude is the chosen solver's — ``"wahba"`` (SVD over all the stars, attitude.wahba) or
 ``"triad"`` (two stars, as in the paper, attitude.triad: anchored on the first star of the list, i.e. the
 brightest star identified at acquisition while it is tracked, and paired with the star farthest from it) —
-over the same stars; each star's direction is
-taken with the centroid noise σ (the filtered positions of the JPDAF are more precise than that; the
-covariance is then conservative).
+over the same stars; each star's direction is weighted by its standard deviation: the centroid noise σ
+for measured positions, the filter's √(tr(H P Hᵀ)/2) (at most σ) for the JPDAF's filtered ones, so the
+covariance reflects the filtering (the filtered errors of one star are correlated from frame to frame; between
+stars they are independent as long as the known rate is exact).
 """
 from __future__ import annotations
 
@@ -196,6 +197,7 @@ class StarTrackerPipeline:
             taken = self.tracker.step(uv, dt, omega_body)
             hit = taken >= 0
             ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
+            sig = np.full(len(ids), self.sigma_px)
         else:
             shift = None
             if self.aid == "rate":
@@ -206,6 +208,7 @@ class StarTrackerPipeline:
             step = self.tracker.step(uv, dt, self.motion_for(omega_body, self._jitter), shift)
             hit = step.detection >= 0
             ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
+            sig = np.minimum(step.position_sigma[hit], self.sigma_px)
         # verification: drop the stars the fit rejects, one at a time (worst first)
         keep = np.ones(len(ids), dtype=bool)
         while keep.sum() >= self.min_stars:
@@ -220,9 +223,9 @@ class StarTrackerPipeline:
                                "tracking", None, index)
         if not keep.all():
             self._forget(ids[~keep])
-        ids, rows, pos = ids[keep], rows[keep], pos[keep]
+        ids, rows, pos, sig = ids[keep], rows[keep], pos[keep], sig[keep]
         index[rows] = ids
-        solution = self._solve(pos, ids)
+        solution = self._solve(pos, ids, sig)
         # new stars: the centroids no track took, identified from the attitude
         free = np.flatnonzero(index == UNIDENTIFIED)
         if len(free):
@@ -235,15 +238,14 @@ class StarTrackerPipeline:
         return FrameResult(True, "", "tracking", solution, index, ids, pos)
 
     def _forget(self, ids: np.ndarray) -> None:
-        keep = ~np.isin(self.tracker.ids, ids)
-        if self.tracker_kind == "sna":
-            self.tracker.drop(keep)
-        else:
-            self.tracker.drop(keep)
+        self.tracker.drop(~np.isin(self.tracker.ids, ids))
 
-    def _solve(self, uv: np.ndarray, ids: np.ndarray) -> AttitudeSolution:
+    def _solve(self, uv: np.ndarray, ids: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
+        """The chosen solver over the stars at uv with catalogue indices ids; each star's direction has the
+        standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the ifov."""
         b = self.camera.unproject(uv)
         r = self.catalogue.vectors[ids]
-        sigma = self.sigma if self.sigma > 0 else ARCSEC
+        px = np.full(len(ids), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
+        sigma = np.maximum(px * self.camera.ifov, 1e-3 * ARCSEC)
         return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)
 

@@ -175,6 +175,8 @@ class JPDAFStep:
     """(T,) catalogue index of each track."""
     positions: np.ndarray
     """(T, 2) filtered centroids H X after the update (before any drop)."""
+    position_sigma: np.ndarray
+    """(T,) standard deviation per axis of each filtered centroid, √(tr(H P Hᵀ)/2) after the update."""
 
 
 class JPDAFTracker:
@@ -267,7 +269,7 @@ class JPDAFTracker:
         T, N = len(self.ids), len(Z)
         ids = self.ids.copy()
         if T == 0:
-            return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids, np.empty((0, 2)))
+            return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids, np.empty((0, 2)), np.empty(0))
         Pzz = self.P[:, [0, 2]][:, :, [0, 2]]                                     # H P Hᵀ
         zhat = self.positions
         S = Pzz + self.R
@@ -296,11 +298,12 @@ class JPDAFTracker:
         self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
         self.misses = np.where(detection >= 0, 0, self.misses + 1)
         positions = self.positions.copy()
+        position_sigma = np.sqrt(0.5 * (self.P[:, 0, 0] + self.P[:, 2, 2]))
         keep = self.misses <= self.max_misses
         if self.camera is not None:
             keep &= self.camera.in_image(positions)
         self.drop(keep)
-        return JPDAFStep(detection, beta, ids, positions)
+        return JPDAFStep(detection, beta, ids, positions, position_sigma)
 
     def step(self, Z: np.ndarray, dt: float, motion: MotionModel | None = None,
              displacement: np.ndarray | None = None) -> JPDAFStep:
