@@ -48,6 +48,8 @@ def test_a_known_pattern_in_any_centroid_order_is_identified(catalogue, pyramid)
     result = pyramid.identify(uv[perm])                       # no magnitudes: the given order is used
     assert result.ok
     np.testing.assert_array_equal(result.index, idx[perm])
+    other = pyramid.identify(uv[perm], np.zeros(3))            # magnitudes that do not fit are ignored
+    np.testing.assert_array_equal(other.index, idx[perm])
 
 
 @pytest.mark.parametrize("seed", range(3))

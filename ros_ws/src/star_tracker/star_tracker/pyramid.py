@@ -117,8 +117,10 @@ class PyramidIdentifier:
         finite = np.all(np.isfinite(uv), axis=1)
         index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
         b = self.camera.unproject(np.where(finite[:, None], uv, 0.0))
-        order = np.arange(len(uv)) if magnitudes is None else np.argsort(np.asarray(magnitudes, float),
-                                                                           kind="stable")
+        mags = None if magnitudes is None else np.asarray(magnitudes, dtype=float).ravel()
+        if mags is not None and len(mags) != len(uv):   # not one magnitude per centroid: ignore them
+            mags = None
+        order = np.arange(len(uv)) if mags is None else np.argsort(mags, kind="stable")
         order = order[finite[order]]
         result = self.identify_vectors(b[order])
         index[order] = result.index
