@@ -128,8 +128,10 @@ def fork_context():
     with _fork_lock:
         if _fork_context is None:
             import multiprocessing
+            from bench_engine.preload import WARM_ENV
             os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+            os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything
             _fork_context = multiprocessing.get_context("forkserver")
             _fork_context.set_forkserver_preload([PRELOAD])
     return _fork_context

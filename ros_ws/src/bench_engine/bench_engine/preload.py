@@ -2,21 +2,30 @@
 and then forks every run from itself, so a run skips the interpreter start and the imports (numpy, scipy,
 rclpy, every registered component) that otherwise take longer than the rest of its start-up.
 
-Importing this module has no other effect: rclpy is imported but never initialised here, and no Python thread
-is started (one BLAS thread: bench_engine.run sets it before numpy loads). The only threads are the two idle
-listener threads LTTng-UST starts when rclpy's tracing library loads; a forked child has none of them.
+The warm-up happens only where WARM_ENV is set (batch sets it for its fork server): anywhere else importing this
+module loads nothing but the engine (bench_engine imports nothing above itself). In the fork server rclpy is
+imported but never initialised, and no Python thread is started (one BLAS thread: bench_engine.run sets it
+before numpy loads); the only other threads are the two idle listener threads LTTng-UST starts when rclpy's
+tracing library loads, and a forked child has none of them.
 """
 from __future__ import annotations
 
-import bench_engine.run  # noqa: F401  (first: sets the environment before numpy loads)
-import rclpy  # noqa: F401
-from bench_engine import bench_node, player_node, plugins, recorder_node, source_node, stage_node  # noqa: F401
+import importlib
+import os
 
+WARM_ENV = "TRACKING_BENCH_FORK_SERVER"
+MODULES = ("bench_engine.run", "rclpy", "bench_engine.bench_node", "bench_engine.source_node",
+           "bench_engine.stage_node", "bench_engine.recorder_node", "bench_engine.player_node")
+"""bench_engine.run first: it sets the environment before numpy loads."""
 GROUPS = ("node_kinds", "sections", "codecs", "sensors", "estimators", "dynamics", "initialisers", "truth_models",
           "metrics", "offline")
 
 
-def _import_registered() -> None:
+def warm() -> None:
+    """Import what a run imports: the engine, rclpy, the node shells and every registered component."""
+    for module in MODULES:
+        importlib.import_module(module)
+    from bench_engine import plugins
     for group in GROUPS:
         try:
             plugins.registered(group)
@@ -24,4 +33,5 @@ def _import_registered() -> None:
             pass
 
 
-_import_registered()
+if os.environ.get(WARM_ENV) == "1":
+    warm()
