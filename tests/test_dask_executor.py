@@ -115,7 +115,7 @@ def test_resume_keeps_complete_runs_and_makes_the_others(local_mc, tmp_path):
     res = script("montecarlo.py", "leo_radar", *RUNS, "--out", str(out), "--json")
     assert res.returncode == 2 and "run_000 already exists" in res.stderr and "--resume" in res.stderr
     res = script("montecarlo.py", "leo_radar", *RUNS[:1], "3", *RUNS[2:], "--out", str(out), "--resume",
-                 "--json", "--scheduler", "local")
+                 "--json")
     assert res.returncode == 0, res.stderr[-2000:]
     assert "1 complete runs kept, 2 to run" in res.stderr
     assert (out / "run_000" / "bag" / "metadata.yaml").stat().st_mtime_ns == kept

@@ -207,8 +207,11 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
         for spec in plan.graph.start_order():
             module, log_path = spec.node.split(":")[0], plan.logs / f"{spec.name}.log"
             if fork:
-                procs[spec.name] = fork_node(module, spec.name, plan.config_path, env, log_path)
-                continue
+                try:
+                    procs[spec.name] = fork_node(module, spec.name, plan.config_path, env, log_path)
+                    continue
+                except ImportError:  # the node's own process reports it, as without --fork-nodes
+                    pass
             log = open(log_path, "w")
             procs[spec.name] = subprocess.Popen(
                 [sys.executable, "-m", module, "--name", spec.name, "--config", str(plan.config_path)],
