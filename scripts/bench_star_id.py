@@ -21,7 +21,8 @@ sequence at 10 frames/s of a camera fixed in LVLH on the 30°/700 km orbit (zeni
 ``--boresight normal``: rotation about the boresight) with boresight jitter ±J °/s held for 10 frames, the
 same noise, P_D and false stars, through SNA and JPDAF (constant velocity for the drift, coordinated turn for
 the rotation; ``--aid``) × TRIAD and all-star (Wahba) attitude on identical frames, and prints per configuration the median and p90 ms per frame, the frames solved, the lost-in-space
-re-acquisitions, the misidentified centroids and the RMS attitude error (arcsec).
+re-acquisitions, the misidentified centroids, the RMS attitude error (arcsec) and the JPDAF's filter restarts
+(pipeline step 3).
 
 Nothing is asserted (tests/test_star_*.py do that); on a shared machine the times are upper bounds.
 
@@ -81,7 +82,7 @@ def bench_tracking(args, catalogue, camera, identifier: PyramidIdentifier) -> di
     print(f"tracking: {args.tracking} frames, boresight {args.boresight}, jitter ±{args.jitter} °/s, median "
           f"{np.median([len(f) for f in frames]):.0f} centroids per frame")
     print(f"{'tracker':8s} {'solver':6s} {'median ms':>9s} {'p90 ms':>7s} {'solved':>6s} {'LIS':>4s} {'wrong IDs':>9s} "
-          f"{'RMS arcsec':>10s}")
+          f"{'RMS arcsec':>10s} {'resets':>6s}")
     out = {}
     for tracker in ("sna", "jpdaf"):
         for solver in ("triad", "wahba"):
@@ -103,11 +104,11 @@ def bench_tracking(args, catalogue, camera, identifier: PyramidIdentifier) -> di
                     errors.append(error_angle(r.attitude.matrix, frame.attitude) / ARCSEC)
             tracked = np.array(ms[1:]) if len(ms) > 1 else np.array(ms)
             row = {"median_ms": float(np.median(tracked)), "p90_ms": float(np.percentile(tracked, 90)),
-                   "solved": solved, "lost_in_space": lis, "wrong_ids": wrong,
+                   "solved": solved, "lost_in_space": lis, "wrong_ids": wrong, "filter_resets": pipe.filter_resets,
                    "rms_arcsec": float(np.sqrt(np.mean(np.square(errors)))) if errors else float("nan")}
             out[f"{tracker}/{solver}"] = row
             print(f"{tracker:8s} {solver:6s} {row['median_ms']:9.3f} {row['p90_ms']:7.3f} {solved:6d} {lis:4d} "
-                  f"{wrong:9d} {row['rms_arcsec']:10.3f}")
+                  f"{wrong:9d} {row['rms_arcsec']:10.3f} {pipe.filter_resets:6d}")
     return out
 
 

@@ -21,7 +21,12 @@ Per frame (centroids uv, magnitudes, time t, known body rate ω in the camera fr
 3. Verification, before anything is reported: a least-squares fit over those stars; a star whose residual
    exceeds the verification radius (its track took a false star or a neighbour) is dropped from the fit and
    from the tracker, and the fit is repeated. With fewer than ``min_stars`` stars left the lock is lost and
-   the same frame goes back to step 1: a wrong attitude is never reported as valid.
+   the same frame goes back to step 1: a wrong attitude is never reported as valid. For the JPDAF the
+   attitude from the filtered positions must also agree with the attitude from the measurements its tracks
+   took this frame (within the latter's uncertainty), in that frame and on average over the last
+   ``BIAS_WINDOW`` frames: a motion model that lags the true motion shifts all its stars together, which no
+   residual shows; then the tracks restart at the measurements and the frame's attitude is taken from those
+   (``filter_resets`` counts it).
 4. New stars: centroids no track took are matched to the catalogue with the frame's attitude
    (PyramidIdentifier.match) and handed to the tracker — no new lost-in-space solve.
 
@@ -40,7 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import numpy as np
 
-from star_tracker.attitude import AttitudeSolution, residuals, triad, wahba, wahba_matrix
+from star_tracker.attitude import AttitudeSolution, error_vector, residuals, triad, wahba, wahba_matrix
 from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, StarCatalogue
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
@@ -51,6 +56,12 @@ TRACKERS = ("sna", "jpdaf")
 SOLVERS = ("wahba", "triad")
 MOTIONS = ("constant_velocity", "coordinated_turn")
 AIDS = ("rate", "jitter", "none")
+BIAS_WINDOW = 10
+"""Frames over which the JPDAF's filtered-versus-measured agreement is averaged (StarTrackerPipeline._unbiased)."""
+BIAS_MEAN = 6.0
+"""Largest mean of that statistic over the window (an unbiased filter's mean is at most 3)."""
+BIAS_SUSPECT = 11.34
+"""χ²₃ at 0.99: above it a frame's filtered attitude is kept with its disagreement added to its covariance."""
 
 
 @dataclass
@@ -105,6 +116,10 @@ class StarTrackerPipeline:
         self.verify_radius = verify_sigmas * self.sigma + 2.0 * ARCSEC
         self.max_misses = int(max_misses)
         self.aid = aid
+        self._jitter = 0.0
+        """The boresight jitter rate of the frame being processed (rad/s)."""
+        self.filter_resets = 0
+        """JPDAF frames whose filtered stars disagreed with their measurements (step 3) and were restarted."""
         self.identifier = identifier if identifier is not None else PyramidIdentifier(catalogue, camera, sigma_px)
         self.reset()
 
@@ -112,7 +127,7 @@ class StarTrackerPipeline:
         """Forget the lock: the next frame is a lost-in-space one."""
         self.locked = False
         self.t_prev: float | None = None
-        self._jitter = 0.0
+        self._bias: list[float] = []
         self.tracker = self._new_tracker()
 
     def _new_tracker(self) -> SNATracker | JPDAFTracker:
@@ -225,7 +240,20 @@ class StarTrackerPipeline:
             self._forget(ids[~keep])
         ids, rows, pos, sig = ids[keep], rows[keep], pos[keep], sig[keep]
         index[rows] = ids
+        inflation = None
+        if self.tracker_kind == "jpdaf":
+            agree, delta = self._unbiased(pos, sig, uv[rows], ids)
+            if not agree:
+                # the filtered stars disagree with this frame's own measurements (a lagging model): restart
+                # the tracks at the measurements and take the attitude from those
+                self.tracker.reseed(ids, uv[rows])
+                self.filter_resets += 1
+                pos, sig = uv[rows], np.full(len(ids), self.sigma_px)
+            elif delta is not None:
+                inflation = np.outer(delta, delta)
         solution = self._solve(pos, ids, sig)
+        if inflation is not None:
+            solution.covariance = solution.covariance + inflation
         # new stars: the centroids no track took, identified from the attitude
         free = np.flatnonzero(index == UNIDENTIFIED)
         if len(free):
@@ -236,6 +264,33 @@ class StarTrackerPipeline:
                 self._start(new[fresh], uv[free[fresh]], omega_body)
                 index[free[fresh]] = new[fresh]
         return FrameResult(True, "", "tracking", solution, index, ids, pos)
+
+    def _unbiased(self, pos: np.ndarray, sig: np.ndarray, measured: np.ndarray, ids: np.ndarray
+                  ) -> tuple[bool, np.ndarray | None]:
+        """Whether the filtered stars agree with the measurements their tracks took (module docstring, step
+        3), and the disagreement δθ to add to the reported covariance (as δθ δθᵀ) when it is suspect.
+
+        With δθ the rotation between the attitude from the filtered positions and the attitude from the
+        measurements, and P_m the latter's covariance, d = δθᵀ P_m⁻¹ δθ has a mean of at most 3 for an
+        unbiased filter (cov(δθ) ≈ P_m − P_f). A frame fails with d > 30 (χ²₃ at 1 − 10⁻⁶), and a run of
+        ``BIAS_WINDOW`` frames fails when the mean of d exceeds ``BIAS_MEAN`` — a lag smaller than one frame's
+        noise, but the same frame after frame. A filter whose model lags the true motion moves all its stars
+        the same way, which no residual of a fit shows. Between, a frame with d above ``BIAS_SUSPECT`` (χ²₃ at
+        0.99) or a window mean above 3 keeps its filtered attitude but reports the covariance P_f + δθ δθᵀ,
+        so that a lag too small to reject is not hidden behind the filter's small P_f."""
+        r = self.catalogue.vectors[ids]
+        filtered = wahba(self.camera.unproject(pos), r, np.maximum(sig * self.camera.ifov, 1e-3 * ARCSEC))
+        own = wahba(self.camera.unproject(measured), r, max(self.sigma, 1e-3 * ARCSEC))
+        delta = error_vector(filtered.matrix, own.matrix)
+        d = float(delta @ np.linalg.solve(own.covariance, delta))
+        self._bias.append(d)
+        del self._bias[:-BIAS_WINDOW]
+        mean = float(np.mean(self._bias))
+        if d > 30.0 or (len(self._bias) == BIAS_WINDOW and mean > BIAS_MEAN):
+            self._bias.clear()
+            return False, None
+        suspect = d > BIAS_SUSPECT or (len(self._bias) == BIAS_WINDOW and mean > 3.0)
+        return True, (delta if suspect else None)
 
     def _forget(self, ids: np.ndarray) -> None:
         self.tracker.drop(~np.isin(self.tracker.ids, ids))

@@ -234,6 +234,16 @@ class JPDAFTracker:
         """Keep only the tracks where ``keep`` is True."""
         self.ids, self.x, self.P, self.misses = self.ids[keep], self.x[keep], self.P[keep], self.misses[keep]
 
+    def reseed(self, ids: np.ndarray, uv: np.ndarray, velocity_sigma: float = 1.0) -> None:
+        """Restart the tracks of ``ids`` at the centroids uv (N, 2): position variance σ², velocity kept with
+        variance ``velocity_sigma``² and no correlation (after a detected filter bias)."""
+        rows = np.flatnonzero(np.isin(self.ids, ids))
+        where = {int(i): k for k, i in enumerate(np.asarray(ids))}
+        uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+        for r in rows:
+            self.x[r, [0, 2]] = uv[where[int(self.ids[r])]]
+            self.P[r] = np.diag([self.sigma_px ** 2, velocity_sigma ** 2, self.sigma_px ** 2, velocity_sigma ** 2])
+
     def predict(self, dt: float, motion: MotionModel | None = None, displacement: np.ndarray | None = None) -> None:
         """Step 1 for every track (``motion`` replaces the tracker's model for this and later frames).
         ``displacement`` (T, 2), when given, is a known motion of each star over dt added to the predicted
