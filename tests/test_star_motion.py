@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
-from star_tracker.motion import B, H, ConstantVelocity, CoordinatedTurn, turn_matrix, van_loan
+from star_tracker.motion import B, H, ConstantVelocity, CoordinatedTurn, turn_matrix, turn_noise, van_loan
 
 
 def test_constant_velocity_discrete_is_the_papers_eq_15():
@@ -28,12 +28,20 @@ def test_constant_velocity_continuous_equals_van_loan_of_the_white_noise_acceler
     np.testing.assert_allclose(Q, Q2, rtol=1e-10, atol=1e-16)
 
 
-@pytest.mark.parametrize("omega", [0.3, -1.2, 5.0])
+@pytest.mark.parametrize("omega", [0.3, -1.2, 5.0, 0.05, -2e-4, 1e-7])
 def test_the_turn_models_transition_is_the_closed_form(omega):
     dt = 0.1
     F, _ = CoordinatedTurn(omega, 1.0).transition(dt)
     np.testing.assert_allclose(F, turn_matrix(omega, dt), atol=1e-12)
     np.testing.assert_allclose(F, expm(CoordinatedTurn(omega, 1.0).A * dt), atol=1e-14)
+
+
+@pytest.mark.parametrize("omega", [2.0, -0.7, 0.09, -1e-3, 1e-6, 0.0])
+def test_the_closed_form_turn_noise_equals_van_loan(omega):
+    dt, q = 0.1, 2.5
+    _, Q = van_loan(CoordinatedTurn(omega, 1.0).A, q * B @ B.T, dt)
+    np.testing.assert_allclose(turn_noise(omega, dt, q), Q, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(CoordinatedTurn(omega, np.sqrt(q)).transition(dt)[1], Q, rtol=1e-9, atol=1e-15)
 
 
 def test_the_turn_models_q_is_the_integral_of_the_papers_q3():

@@ -15,10 +15,12 @@ sky rotating about the boresight at ω moves on circles and its velocity turns a
 
     Ẋ = A X + B W,   A = [[0 1 0 0], [0 0 0 −ω], [0 0 0 1], [0 ω 0 0]],   B = [[0 0], [1 0], [0 0], [0 1]],
 
-discretised exactly: F = e^{AΔt} (scipy.linalg.expm) and Q = ∫_0^Δt e^{Aτ} B diag(q_x, q_y) Bᵀ e^{Aᵀτ} dτ (the
-paper's q3 = q1 q2 q1ᵀ integrated; q2 = diag(0, q_x, 0, q_y)) by Van Loan's method (Van Loan 1978): with
-M = [[−A, B Qc Bᵀ], [0, Aᵀ]] Δt and e^M = [[·, G12], [0, G22]], F = G22ᵀ and Q = F G12. For ω → 0 it tends to
-the continuous constant-velocity model. (The paper's printed A and F carry typesetting slips — a 1 on the
+discretised exactly: F = e^{AΔt} and Q = ∫_0^Δt e^{Aτ} B diag(q, q) Bᵀ e^{Aᵀτ} dτ (the paper's q3 = q1 q2 q1ᵀ
+integrated; q2 = diag(0, q, 0, q)), both in closed form (:func:`turn_matrix`, :func:`turn_noise`; for a
+generic model, :func:`van_loan` gives them from scipy.linalg.expm by Van Loan's method (Van Loan 1978): with
+M = [[−A, B Qc Bᵀ], [0, Aᵀ]] Δt and e^M = [[·, G12], [0, G22]], F = G22ᵀ and Q = F G12; the tests check the
+closed forms against it and against a quadrature of the paper's integral). For ω → 0 it tends to the
+continuous constant-velocity model. (The paper's printed A and F carry typesetting slips — a 1 on the
 diagonal, sign and row mix-ups; the matrices here are the standard coordinated-turn ones, and the tests check
 F against the closed form
 
@@ -107,15 +109,41 @@ class CoordinatedTurn:
         return np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, -w], [0.0, 0.0, 0.0, 1.0], [0.0, w, 0.0, 0.0]])
 
     def transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        return van_loan(self.A, self.sigma_a ** 2 * B @ B.T, dt)
+        """F = e^{AΔt} and Q in closed form (module docstring); tests check both against expm/Van Loan."""
+        return turn_matrix(self.omega, dt), turn_noise(self.omega, dt, self.sigma_a ** 2)
+
+
+def _turn_terms(omega: float, dt: float) -> tuple[float, float, float]:
+    """(x − sin x)/ω³, (x − sin x)/ω², (1 − cos x)/ω² with x = ωΔt, by their series when x is small (the
+    differences cancel) and exactly otherwise."""
+    x = omega * dt
+    if abs(x) < 1e-2:
+        x2 = x * x
+        a = dt ** 3 * (1.0 / 6.0 - x2 / 120.0 + x2 * x2 / 5040.0)          # (x − sin x)/ω³
+        c = dt ** 2 * (0.5 - x2 / 24.0 + x2 * x2 / 720.0)                  # (1 − cos x)/ω²
+        return a, a * omega, c
+    return (x - np.sin(x)) / omega ** 3, (x - np.sin(x)) / omega ** 2, (1.0 - np.cos(x)) / omega ** 2
+
+
+def turn_noise(omega: float, dt: float, q: float) -> np.ndarray:
+    """Q = q ∫_0^Δt g1 g1ᵀ + g2 g2ᵀ dτ of the coordinated turn, g1, g2 the columns of e^{Aτ} for the two
+    velocity inputs: with s3 = (x − sin x)/ω³, s2 = (x − sin x)/ω², c2 = (1 − cos x)/ω², x = ωΔt,
+
+        Q = q [[2 s3, c2, 0, s2], [c2, Δt, −s2, 0], [0, −s2, 2 s3, c2], [s2, 0, c2, Δt]]
+
+    (ω → 0: the continuous constant-velocity Q)."""
+    s3, s2, c2 = _turn_terms(omega, dt)
+    return q * np.array([[2 * s3, c2, 0.0, s2], [c2, dt, -s2, 0.0], [0.0, -s2, 2 * s3, c2], [s2, 0.0, c2, dt]])
 
 
 def turn_matrix(omega: float, dt: float) -> np.ndarray:
-    """The closed-form coordinated-turn F (module docstring); ω = 0 gives constant velocity."""
-    if abs(omega * dt) < 1e-12:
-        return ConstantVelocity(0.0).transition(dt)[0]
-    s, c = np.sin(omega * dt), np.cos(omega * dt)
-    return np.array([[1.0, s / omega, 0.0, -(1.0 - c) / omega],
+    """The closed-form coordinated-turn F (module docstring), written with the terms of :func:`_turn_terms`
+    so that it stays accurate as ω → 0 (ω = 0 gives constant velocity)."""
+    _, s2, c2 = _turn_terms(omega, dt)
+    sin_w = dt - omega * s2                 # sin x / ω
+    cos_1 = omega * c2                      # (1 − cos x) / ω
+    s, c = omega * sin_w, 1.0 - omega * cos_1
+    return np.array([[1.0, sin_w, 0.0, -cos_1],
                      [0.0, c, 0.0, -s],
-                     [0.0, (1.0 - c) / omega, 1.0, s / omega],
+                     [0.0, cos_1, 1.0, sin_w],
                      [0.0, s, 0.0, c]])
