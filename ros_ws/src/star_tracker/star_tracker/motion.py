@@ -6,7 +6,8 @@ Constant velocity (eqs. 14–15): X_{n+1} = F X_n + E W_{n+1},
     F = [[1 Δt 0 0], [0 1 0 0], [0 0 1 Δt], [0 0 0 1]],   E = [[Δt²/2 0], [Δt 0], [0 Δt²/2], [0 Δt]],
 
 with W = [a_x a_y]ᵀ zero-mean, uncorrelated, E[a_x²] = σ_x², E[a_y²] = σ_y² (eq. 17): an acceleration held
-constant over each frame interval, Q = E diag(σ_x², σ_y²) Eᵀ (``kind="discrete"``, the paper's). The
+constant over each frame interval, Q = E diag(σ_x², σ_y²) Eᵀ (``kind="discrete"``, the paper's; its eq. 14
+prints E's Δt²/2 as 1/(2Δt²), a slip: eq. 15 has Δt²/2). The
 continuous white-noise-acceleration variant (``kind="continuous"``, spectral density q per axis) has
 Q = q [[Δt³/3 Δt²/2], [Δt²/2 Δt]] per axis.
 
