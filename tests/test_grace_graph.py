@@ -9,6 +9,7 @@ noise, and Newton's range-rate error is the GNSS noise propagated through its we
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -106,3 +107,38 @@ def test_scores_have_their_known_answers(graph_run) -> None:
         assert abs(block["rr_kbr"]["std"] - block["rr_truth"]["std"]) < 0.05 * block["rr_truth"]["std"] + 2e-6
     # the filters on each satellite see the same fixes as kf_a's baseline: their difference is no better
     assert scores["kf_pair"]["rr_truth"]["std"] > 0.5 * scores["kf_a"]["rr_truth"]["std"]
+
+
+def test_outages_and_gross_outliers_give_a_well_defined_run(tmp_path) -> None:
+    """Variant faults: receiver 1 is out for 10 minutes and 1 % of fixes carry a 30 m error. The run completes,
+    the filters gate the outliers (logged), bridge the outage and resume, and every score stays finite."""
+    out = tmp_path / "faults"
+    res = script("launch.py", "grace_velocity", "--out", str(out), "--domain-id", "67", "--json", "--variant",
+                 "faults", "--set", "time.duration=3600", timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    bag = read_bag(out / "bag")
+    g1 = [m.step for m in msgs(bag, "/gnss1/measurement")]
+    assert not [k for k in g1 if 1800.0 <= 5.0 * k <= 2400.0] and len(g1) == 361 - 61
+    kf_a = [e.step for e in msgs(bag, "/kf_a/estimate")]
+    assert max(kf_a) == 720 and any(5.0 * k > 2400.0 for k in kf_a)
+    log = (out / "logs" / "kf_a.log").read_text()
+    gated = {int(k) for k in re.findall(r"at step (\d+): gated outlier", log)}
+    outliers = {m.step for m in msgs(bag, "/baseline/measurement")
+                if np.max(np.abs(np.asarray(m.value) - _true_baseline(bag, m.step))) > 1.0}
+    assert outliers - {0} and outliers - {0} <= gated         # every gross outlier is gated ...
+    after_outage = sorted(gated - outliers)                   # ... and the others follow the 10-minute gap:
+    assert all(482 <= k <= 490 for k in after_outage), (after_outage, sorted(outliers))  # lock lost across it,
+    if after_outage:                                          # so the filter restarts and says so
+        assert "lost lock and restarts" in log
+    for name, block in json.loads(res.stdout)["filters"].items():
+        assert np.isfinite(block["rr_kbr"]["std"]), name
+    last = msgs(bag, "/kf_a/estimate")[-1]                   # converged again by the end of the hour
+    truth = msgs(bag, "/truth/state")[last.step]
+    v_true = np.asarray(truth.state)[[list(truth.labels).index(c) for c in ("bvx", "bvy", "bvz")]]
+    assert np.linalg.norm(np.asarray(last.state)[3:6] - v_true) < 0.05
+
+
+def _true_baseline(bag: dict, step: int) -> np.ndarray:
+    truth = msgs(bag, "/truth/state")[step]
+    labels = list(truth.labels)
+    return np.asarray(truth.state)[[labels.index(c) for c in ("bx", "by", "bz")]]

@@ -34,7 +34,10 @@ ESTIMATE_TYPE = "bench_msgs/msg/StateEstimate"
 ACK_TYPE = "bench_msgs/msg/StepAck"
 
 ROLES = ("source", "replay", "sensor", "estimator", "recorder")
-PACED_ROLES = ("sensor", "estimator")
+PACED_ROLES = ("sensor", "estimator", "recorder")
+"""Roles whose nodes acknowledge what they consumed, so the source never runs more than the pacing window
+ahead of them. The recorder is one: DDS does not hold every message for a subscriber that falls far behind
+(a busy recorder was measured losing messages under load), so the source waits for it too."""
 
 
 def measurement_topic(sensor: str) -> str:
@@ -105,8 +108,14 @@ class Graph:
         return topics
 
     def paced_inputs(self) -> dict[str, list[str]]:
-        """Paced node -> the data topics it consumes (what bench_engine.lockstep.Pacer counts)."""
-        return {n.name: sorted(n.subscribes) for n in self.of_role(*PACED_ROLES)}
+        """Paced node -> the data topics it consumes (what bench_engine.lockstep.Pacer counts). The recorder's
+        /clock is not counted: the source publishes it after each step's data, and it carries none."""
+        return {n.name: sorted(t for t in n.subscribes if t != CLOCK_TOPIC) for n in self.of_role(*PACED_ROLES)}
+
+    def pacing_weights(self) -> dict[str, int]:
+        """Paced node -> how many windows of backlog it may hold: the recorder reads every data topic, so its
+        window is the pacing window times its number of input topics (the others: one)."""
+        return {n.name: max(1, len(n.subscribes) - 1) for n in self.of_role("recorder")}
 
     def topological(self) -> list[NodeSpec]:
         """Nodes, every publisher before its subscribers (the recorder last)."""

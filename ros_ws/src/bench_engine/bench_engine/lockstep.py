@@ -29,6 +29,8 @@ class Pacer:
     published: dict[str, int] = field(default_factory=dict)
     """Topic -> cumulative messages published (the source's own, counted by it; the others from acks)."""
     consumed: dict[str, int] = field(default_factory=dict)
+    weights: dict[str, int] = field(default_factory=dict)
+    """Paced node -> its window in units of ``window`` (default 1; the recorder reads every topic)."""
 
     def __post_init__(self) -> None:
         if self.window < 0:
@@ -58,7 +60,7 @@ class Pacer:
 
     def can_publish(self) -> bool:
         """Whether the source may publish its next step now."""
-        return all(self.backlog(n) <= self.window for n in self.inputs)
+        return all(self.backlog(n) <= self.window * self.weights.get(n, 1) for n in self.inputs)
 
     def complete(self) -> bool:
         """Every paced node consumed all it was sent (call once the source has published its last step)."""

@@ -30,7 +30,8 @@ class SourceNode(BenchNode):
 
     def setup(self) -> None:
         self._created = time.monotonic()
-        self.pacer = Pacer(self.graph.paced_inputs(), window=build_time(self.cfg).pacing_window)
+        self.pacer = Pacer(self.graph.paced_inputs(), window=build_time(self.cfg).pacing_window,
+                           weights=self.graph.pacing_weights())
         self._waiting_for = {n.name for n in self.graph.nodes if n.name != self.get_name()}
         self._next = 0
         self._started = None

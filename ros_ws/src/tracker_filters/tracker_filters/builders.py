@@ -8,6 +8,7 @@ A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``
     init: {method: first_scan, velocity_sigma: 8000.0}
     params: {alpha: 1.0}      # constructor parameters of the filter type
     gate_probability: 0.9999  # optional NIS gate: reject measurements beyond this chi-square quantile
+    gate_reinit_after: 3      # that many consecutive gated measurements: lock lost, restart from the next one
 """
 from __future__ import annotations
 
@@ -45,6 +46,8 @@ class FilterStack:
     filter: Filter
     sensors: dict[str, Sensor]
     initialise: Initialiser
+    reinit_after_gated: int = 3
+    """Consecutive gated measurements after which the filter has lost lock and restarts from the next one."""
 
 
 def orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
@@ -192,6 +195,7 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     init = build_initialiser(sec.section("init", default_empty=False), cfg, dynamics)
     params = dict(sec.get("params", dict, {}))
     gate = sec.get("gate_probability", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = no gate)")
+    reinit = sec.get("gate_reinit_after", int, 3, lambda v: v >= 1, "an integer >= 1")
     sec.finish()
     if "seed" in registry.filter_parameters(kind) and "seed" not in params:
         # random filters (particle filters) draw from the run's seed, distinct per filter name
@@ -202,7 +206,7 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
     flt.gate_probability = gate
-    return FilterStack(name, flt, {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}, init)
+    return FilterStack(name, flt, {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}, init, reinit)
 
 
 def measurement_source(cfg: dict, name: str, state_labels) -> Sensor | DerivedSource:

@@ -28,6 +28,8 @@ class StepResult:
     """Normalised innovation squared of the update."""
     warnings: list[str] = field(default_factory=list)
     """Recoveries the filter made during this step (e.g. covariance repaired)."""
+    gated: bool = False
+    """Rejected by the NIS gate (the measurement was valid but too far from the prediction)."""
 
 
 @lru_cache(maxsize=64)
@@ -102,7 +104,7 @@ class Filter(ABC):
             self.x, self.P, self.t = saved
             return StepResult(False, f"gated outlier at t={t} s: NIS {nis:.4g} > "
                                      f"{gate_threshold(self.gate_probability, z.shape[0]):.4g} "
-                                     f"(gate probability {self.gate_probability})", nis=nis)
+                                     f"(gate probability {self.gate_probability})", nis=nis, gated=True)
         self.P = self._repaired(self.P, "after update")
         return StepResult(True, nis=nis, warnings=self._warnings)
 

@@ -31,6 +31,7 @@ class FilterStage:
         self.topic = estimate_topic(name)
         self.log = python_log(name)
         self.last_step: dict[str, int] = {}
+        self.gated_in_a_row = 0
 
     def on_input(self, topic: str, m: Measurement) -> Outputs:
         sensor = self.stack.sensors[self.sensor_of[topic]]
@@ -40,21 +41,31 @@ class FilterStage:
                                 f"{m.step} (its last was step {self.last_step[topic]})")
             return []
         self.last_step[topic] = m.step
-        if not flt.initialised:
-            if not (np.all(np.isfinite(m.z)) and np.all(np.isfinite(m.R))):
-                self.log("warning", f"rejected non-finite first measurement at step {m.step}; waiting for the next")
-                return []
-            t = m.t
-            x0, P0 = self.stack.initialise(m.z, m.R, sensor, t)
-            flt.initialise(x0, P0, t)
-            return [self._estimate(m, float("nan"))]
+        if not flt.initialised or self.gated_in_a_row >= self.stack.reinit_after_gated:
+            return self._start(m, sensor)
         result = flt.process(m.t, m.z, m.R, sensor.model)
         for warning in result.warnings:
             self.log("warning", warning)
+        self.gated_in_a_row = self.gated_in_a_row + 1 if result.gated else 0
         if not result.accepted:
             self.log("warning", f"rejected measurement at step {m.step}: {result.reason}")
             return []
         return [self._estimate(m, result.nis)]
+
+    def _start(self, m: Measurement, sensor) -> Outputs:
+        """Initialise from m: the first measurement, or after ``reinit_after_gated`` gated ones in a row (the
+        prediction lost the target, e.g. across a long data gap: every later measurement would be gated too)."""
+        if not (np.all(np.isfinite(m.z)) and np.all(np.isfinite(m.R))):
+            self.log("warning", f"rejected non-finite measurement at step {m.step} while (re)starting; waiting for "
+                                "the next")
+            return []
+        if self.stack.filter.initialised:
+            self.log("warning", f"{self.gated_in_a_row} measurements in a row were gated: the filter lost lock and "
+                                f"restarts from the measurement of step {m.step}")
+        self.gated_in_a_row = 0
+        x0, P0 = self.stack.initialise(m.z, m.R, sensor, m.t)
+        self.stack.filter.initialise(x0, P0, m.t)
+        return [self._estimate(m, float("nan"))]
 
     def _estimate(self, m: Measurement, nis: float) -> tuple[str, Estimate]:
         flt = self.stack.filter

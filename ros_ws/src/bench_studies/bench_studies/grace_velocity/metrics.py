@@ -3,7 +3,9 @@
 Paper 002's yardstick (eq. 27): the range rate implied by an estimated baseline position b and velocity w,
 rho_dot = b . w / |b|, minus the K-band ranging (KBR) range rate of the same step: std, mean, max and min over
 the day. The bench also has the truth, which the paper did not: the same residual against the true range rate
-(the KBR's own noise removed) and the baseline velocity error.
+(the KBR's own noise removed), the baseline velocity error and, for the filters and smoothers, the NEES of the
+baseline position and velocity (``baseline_nees``, 6 dof, with its 95 % band): whether each filter's covariance
+tells the truth about its error.
 
 Options (``scoring`` section): ``kbr`` (the KBR sensor, default "kbr"), ``baseline`` (the six baseline labels,
 position then velocity), ``skip_s`` (the filters' start-up excluded, default 0) and ``pairs`` (name: [second
@@ -12,6 +14,7 @@ satellite's estimator, first's]: a baseline formed from two single-satellite est
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from bench_engine.config import ScenarioError, Section
 from bench_eval.metric_families import Metric, Tracks
@@ -41,8 +44,9 @@ def _columns(labels: list[str], wanted: list[str]) -> list[int] | None:
     return [labels.index(w) for w in wanted] if all(w in labels for w in wanted) else None
 
 
-def baseline_states(data: BagData, name: str, options: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(steps, t, [b w] (K, 6)) of estimator ``name`` (or of a pair's difference), None when it has no baseline."""
+def baseline_states(data: BagData, name: str, options: dict) -> tuple | None:
+    """(steps, t, [b w] (K, 6), covariance (K, 6, 6) or None) of estimator ``name`` (or of a pair's
+    difference, without covariance), None when it has no baseline."""
     if name in options["pairs"]:
         second, first = (data.estimates.get(n) for n in options["pairs"][name])
         if second is None or first is None:
@@ -52,20 +56,24 @@ def baseline_states(data: BagData, name: str, options: dict) -> tuple[np.ndarray
                 for e, suffix in ((second, "2"), (first, "1"))]
         if None in cols:
             return None
-        return common, second.t[i2], second.x[i2][:, cols[0]] - first.x[i1][:, cols[1]]
+        return common, second.t[i2], second.x[i2][:, cols[0]] - first.x[i1][:, cols[1]], None
     est = data.estimates.get(name)
     cols = None if est is None else _columns(est.labels, options["baseline"])
-    return None if cols is None else (est.steps, est.t, est.x[:, cols])
+    if cols is None:
+        return None
+    P = est.P[:, cols][:, :, cols]
+    return est.steps, est.t, est.x[:, cols], (P if np.all(np.isfinite(P)) else None)
 
 
 def residuals(data: BagData, name: str, options: dict) -> dict[str, np.ndarray] | None:
     """Per KBR step with an estimate (after skip_s): t, rho_dot_est - rho_dot_KBR, rho_dot_est - rho_dot_true,
-    baseline velocity error (K, 3)."""
+    baseline velocity error (K, 3) and, for an estimator with a covariance, the baseline NEES (K,) (6 dof:
+    position and velocity)."""
     states = baseline_states(data, name, options)
     kbr = data.measurements.get(options["kbr"], {})
     if states is None or not kbr:
         return None
-    steps, t, bw = states
+    steps, t, bw, P = states
     t0 = min(tt for tt, _ in data.truth.values())
     keep = [i for i, k in enumerate(steps) if int(k) in kbr and t[i] - t0 >= options["skip_s"]]
     if not keep:
@@ -74,8 +82,12 @@ def residuals(data: BagData, name: str, options: dict) -> dict[str, np.ndarray] 
     truth = np.array([data.truth[int(steps[i])][1][truth_cols] for i in keep])
     rr = range_rate(bw[keep, :3], bw[keep, 3:])
     z = np.array([kbr[int(steps[i])][-1] for i in keep])
-    return {"t": t[keep] - t0, "kbr": rr - z, "truth": rr - range_rate(truth[:, :3], truth[:, 3:]),
-            "velocity": bw[keep, 3:] - truth[:, 3:]}
+    out = {"t": t[keep] - t0, "kbr": rr - z, "truth": rr - range_rate(truth[:, :3], truth[:, 3:]),
+           "velocity": bw[keep, 3:] - truth[:, 3:]}
+    if P is not None:
+        err = bw[keep] - truth
+        out["nees"] = np.einsum("ki,ki->k", err, np.linalg.solve(P[keep], err[..., None])[..., 0])
+    return out
 
 
 def _stats(x: np.ndarray) -> dict[str, float]:
@@ -92,6 +104,11 @@ def _score_one(per_run: list[dict]) -> dict:
     vel = [float(np.sqrt(np.mean(np.sum(r["velocity"] ** 2, axis=1)))) for r in per_run]
     out["velocity_rmse"] = float(np.mean(vel))
     out["velocity_rmse_runs"] = vel
+    if all("nees" in r for r in per_run):
+        # the time-averaged baseline NEES; 6 dof, its 95 % band for this many samples (chi-square / samples)
+        samples = sum(len(r["nees"]) for r in per_run)
+        out["baseline_nees"] = float(np.mean(np.concatenate([r["nees"] for r in per_run])))
+        out["baseline_nees_bounds"] = [float(chi2.ppf(q, 6 * samples) / samples) for q in (0.025, 0.975)]
     return out
 
 

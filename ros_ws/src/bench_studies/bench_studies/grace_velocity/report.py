@@ -22,8 +22,10 @@ def _mm(v) -> str:
 
 def _row(name: str, block: Mapping) -> list[str]:
     kbr, truth = block["rr_kbr"], block["rr_truth"]
+    nees = block.get("baseline_nees")
+    nees_cell = "—" if nees is None else f"{fmt(nees)} [{fmt(block['baseline_nees_bounds'])}]"
     return ([name, str(block["runs"])] + [_mm(kbr[s]) for s in ("std", "mean", "max", "min")]
-            + [_mm(truth["std"]), _mm(truth["mean"]), _mm(block["velocity_rmse"])])
+            + [_mm(truth["std"]), _mm(truth["mean"]), _mm(block["velocity_rmse"]), nees_cell])
 
 
 def _paper_rows(paper: Mapping) -> list[list[str]]:
@@ -31,7 +33,7 @@ def _paper_rows(paper: Mapping) -> list[list[str]]:
     for row, numbers in (paper.get("table1") or {}).items():
         method = (paper.get("methods") or {}).get(row, row)
         rows.append([f"paper: {row} ({method})", "1 day"] + [_mm(numbers[s]) for s in ("std", "mean", "max", "min")]
-                    + ["—"] * 3)
+                    + ["—"] * 4)
     return rows
 
 
@@ -79,7 +81,7 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
     if paper:
         text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
     header = ["estimator", "runs", "std", "mean", "max", "min", "std vs truth", "mean vs truth",
-              "velocity RMSE (3D)"]
+              "velocity RMSE (3D)", "baseline NEES, 6 dof [95 % band]"]
     rows = [_row(n, b) for n, b in scored.items() if "rr_kbr" in b] + _paper_rows(paper or {})
     table = Table("Range-rate residual against the KBR [mm/s] (Table 1), and against the truth", header, rows)
     plots = [Plot(f"{scenario}_residuals.png", "Range-rate residual against the KBR (first run): its RMS over "
