@@ -408,20 +408,25 @@ class BagReader:
                 out[channel.topic] = summary.schemas[channel.schema_id].name
         return out
 
-    def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
-        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file."""
+    def messages(self, topics: Iterable[str] | None = None,
+                 file_order: bool = False) -> Iterator[tuple[str, str, int, bytes]]:
+        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file, or in the order
+        the recorder wrote them (``file_order``: no merge of the chunks by time, for readers that index the
+        messages themselves, e.g. by step)."""
         wanted = None if topics is None else list(topics)
         for path in self.files:
             with open(path, "rb") as f:
-                for schema, channel, message in make_reader(f).iter_messages(topics=wanted):
+                for schema, channel, message in make_reader(f).iter_messages(topics=wanted,
+                                                                             log_time_order=not file_order):
                     yield channel.topic, schema.name, message.log_time, message.data
 
-    def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+    def decoded(self, topics: Iterable[str] | None = None,
+                file_order: bool = False) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time_ns, message)`` deserialized into the generated ROS classes (no DDS needed)."""
         from rclpy.serialization import deserialize_message
 
         classes: dict[str, type] = {}
-        for topic, type_name, log_ns, data in self.messages(topics):
+        for topic, type_name, log_ns, data in self.messages(topics, file_order):
             cls = classes.get(type_name)
             if cls is None:
                 cls = classes[type_name] = message_class(type_name)

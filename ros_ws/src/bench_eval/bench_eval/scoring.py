@@ -20,6 +20,7 @@ from bench_engine.config import Section
 from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC
 from bench_engine.stage import codec
 from bench_eval import metrics
+from bench_models.states import error_labels
 
 
 
@@ -74,7 +75,7 @@ class Estimates:
     @classmethod
     def from_messages(cls, msgs: list) -> "Estimates":
         msgs = sorted(msgs, key=lambda m: m.step)
-        n = len(msgs[0].labels)
+        n = len(error_labels(msgs[0].labels))  # a quaternion's covariance is of its 3-component error
         names = sorted({k for m in msgs for k in m.diagnostic_names})
         diag = {k: np.array([dict(zip(m.diagnostic_names, m.diagnostic_values)).get(k, np.nan) for m in msgs])
                 for k in names}
@@ -113,7 +114,8 @@ def load_bag(bag_dir: Path | str) -> BagData:
     reader = BagReader(bag_dir)
     types = reader.topics()
     estimates: dict[str, list] = {}
-    for topic, _t_log, msg in reader.decoded([t for t in types if t != CLOCK_TOPIC]):
+    # file order: everything below is indexed by step, so the chunks need no merge by log time
+    for topic, _t_log, msg in reader.decoded([t for t in types if t != CLOCK_TOPIC], file_order=True):
         if topic == TRUTH_TOPIC:
             data.truth[msg.step] = (_seconds(msg.header.stamp), np.asarray(msg.state, dtype=float))
             data.truth_labels = list(msg.labels)
@@ -138,8 +140,9 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     est = data.estimates[filter_name]
     index = [data.truth_labels.index(lab) for lab in est.labels if lab in data.truth_labels]
     n = len(index)
+    m = len(error_labels(est.labels[:n]))
     x_true = np.array([data.truth[int(k)][1][index] for k in est.steps])
-    return metrics.Track(est.t, est.x[:, :n], est.P[:, :n, :n], x_true, est.labels[:n])
+    return metrics.Track(est.t, est.x[:, :n], est.P[:, :m, :m], x_true, est.labels[:n])
 
 
 class NothingToScore(ValueError):
