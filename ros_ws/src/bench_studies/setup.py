@@ -25,14 +25,17 @@ setup(
             "leo_radar = bench_studies.leo_radar:SCENARIO",
             "formation_pf = bench_studies.formation_pf:SCENARIO",
             "formation_cqkf = bench_studies.formation_cqkf:SCENARIO",
-            "grace_velocity = bench_studies.grace_velocity:SCENARIO"],
+            "grace_velocity = bench_studies.grace_velocity:SCENARIO",
+            "star_tracker = bench_studies.star_tracker:SCENARIO"],
         "tracking_bench.studies": [
             "leo_radar = bench_studies.leo_radar.study:STUDY",
             "formation_pf = bench_studies.formation_pf.study:STUDY",
             "formation_cqkf = bench_studies.formation_cqkf.study:STUDY",
-            "grace_velocity = bench_studies.grace_velocity.study:STUDY"],
+            "grace_velocity = bench_studies.grace_velocity.study:STUDY",
+            "star_tracker = bench_studies.star_tracker.study:STUDY"],
         "tracking_bench.metrics": [
             "radar_convergence = bench_studies.leo_radar.metrics:RADAR_CONVERGENCE",
-            "range_rate = bench_studies.grace_velocity.metrics:RANGE_RATE"]
+            "range_rate = bench_studies.grace_velocity.metrics:RANGE_RATE",
+            "star_attitude = bench_studies.star_tracker.metrics:STAR_ATTITUDE"]
     },
 )

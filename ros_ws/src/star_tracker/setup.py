@@ -1,7 +1,8 @@
 """ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
-The entry points register this package's components with the bench (bench_engine.plugins); the core modules
-of this first version register none yet."""
+The entry points register this package's components with the bench (bench_engine.plugins): the attitude
+truth, the star camera (sensor) and star tracker (estimator) node kinds with their sections, and the codec of
+bench_msgs/StarCentroids."""
 from setuptools import find_packages, setup
 
 PACKAGE = "star_tracker"
@@ -20,5 +21,17 @@ setup(
     maintainer_email="bench@example.org",
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
-    entry_points={},
+    entry_points={
+        "tracking_bench.truth_models": [
+            "lvlh_camera = star_tracker.truth_model:camera_truth"],
+        "tracking_bench.node_kinds": [
+            "star_camera = star_tracker.camera_stage:STAR_CAMERA",
+            "star_tracker = star_tracker.tracker_stage:STAR_TRACKER"],
+        "tracking_bench.sections": [
+            "star_cameras = star_tracker.camera_stage:read_cameras",
+            "star_trackers = star_tracker.tracker_stage:read_trackers",
+            "star_tracker_defaults = star_tracker.tracker_stage:read_trackers"],
+        "tracking_bench.codecs": [
+            "bench_msgs.msg.StarCentroids = star_tracker.messages:STAR_CENTROIDS"]
+    },
 )

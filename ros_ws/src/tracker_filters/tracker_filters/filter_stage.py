@@ -90,5 +90,14 @@ def _check(cfg: dict, name: str) -> None:
     build_filter_stack(cfg, name)
 
 
-FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode", instances=resolve_filters,
+def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
+    """The run's estimator names (``--filters`` or ``default_filters``) less those another estimator kind
+    instantiates itself (e.g. a star tracker named in ``default_filters``)."""
+    from bench_engine.graph import node_kinds
+    others = {n for k in node_kinds().values() if k.role == "estimator" and k.name != "filter"
+              for n in k.instances(cfg, requested)}
+    return [n for n in resolve_filters(cfg, requested) if n not in others]
+
+
+FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
                   spec=_spec, check=_check, stage=FilterStage)

@@ -1,0 +1,151 @@
+"""The star_tracker report: the run's attitude errors next to the paper's Table of the same case, the
+identification and tracking figures, the attitude error per frame, and the sweep report (Tables 3–8: SNA vs
+JPDAF per cell, mean ± standard error over the runs, next to the paper's)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from bench_eval.report import Plot, Section, Table, fmt
+from bench_eval.study import load_paper
+
+PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
+ORDER = ("sna_triad", "jpdaf_triad", "sna_wahba", "jpdaf_wahba")
+SIGMA_VARIANCE = {0.1732050808: "0.03", 0.1414213562: "0.02", 0.1303840481: "0.017", 0.1: "0.01",
+                  0.0707106781: "0.005"}
+"""The camera's sigma_px (std) -> the paper's sigma read as a variance (scenario.yaml)."""
+
+
+def paper_case(cfg: Mapping) -> Mapping | None:
+    """The paper's numbers for a resolved scenario: motion, jitter and sigma (as a variance) -> the table, or
+    None when the case is not one of the paper's."""
+    truth = cfg.get("truth") or {}
+    motion = "rotation" if truth.get("boresight") == "normal" else "linear"
+    jitter = f"{float(truth.get('jitter_deg_s', 0.0)):g}"
+    sigma_px = float(((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px", 0.0))
+    sigma = next((v for k, v in SIGMA_VARIANCE.items() if abs(k - sigma_px) < 1e-6), None)
+    numbers = ((PAPER.get("tables") or {}).get(motion) or {}).get(jitter, {}).get(sigma) if sigma else None
+    if numbers is None:
+        return None
+    return {"table": PAPER["table_numbers"][motion][jitter], "motion": motion, "jitter_deg_s": jitter,
+            "sigma": sigma, "sna": numbers[0], "jpdaf": numbers[1],
+            "gain_pct": 100.0 * (numbers[0] - numbers[1]) / numbers[0]}
+
+
+def _se(values) -> float | None:
+    v = np.array([x for x in (values or []) if x is not None], dtype=float)
+    return float(np.std(v, ddof=1) / np.sqrt(len(v))) if len(v) > 1 else None
+
+
+def _pm(block: Mapping | None, key: str, digits: int = 3) -> str:
+    if not block or block.get(key) is None:
+        return "—"
+    se = _se(block.get(f"{key}_runs"))
+    return f"{block[key]:.{digits}g}" + (f" ± {se:.2g}" if se is not None else "")
+
+
+def _names(scored: Mapping) -> list[str]:
+    return [n for n in ORDER if n in scored] + sorted(set(scored) - set(ORDER))
+
+
+def _draw_errors(series: Mapping):
+    def draw(fig: Figure) -> None:
+        ax = fig.subplots()
+        for name in _names(series):
+            s = series[name]
+            ax.plot(s["frame"], s["error_arcsec"], lw=0.8, label=name)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("attitude error [arcsec] (RMS over runs)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    return draw
+
+
+def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None,
+                          paper: Mapping | None) -> list[Section]:
+    """The run's case next to the paper's table, and the attitude error per frame."""
+    from bench_engine.config import load_scenario
+    case = paper_case(load_scenario(scenario)) if scenario else None
+    text = ("Attitude error = angle of the error rotation (paper eq. 20), arcsec, after the first second; "
+            "cross-boresight and roll are its parts; NEES over 3 dof (3 when the covariance is right). SNA and the "
+            "JPDAF run side by side on identical frames (the same /camera/measurement), each with TRIAD (the paper's "
+            "two-star solution) and the all-star SVD solution of Wahba's problem. Identification and per-star "
+            "centroid errors are scored against the camera's own truth topic (/camera/star_truth).")
+    if paper:
+        text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+    header = ["estimator", "runs", "RMS [arcsec]", "cross-boresight", "roll", "NEES (3)", "solved", "first fix [s]",
+              "ID rate", "false IDs / frame", "centroid error [arcsec]", "LIS / re-acq.", "ms / frame", "gain vs SNA"]
+    rows = []
+    for name in _names(scored):
+        b = scored[name]
+        rows.append([name, str(b.get("runs", "")), _pm(b, "rms_arcsec"), fmt(b.get("cross_arcsec")),
+                     fmt(b.get("roll_arcsec")), fmt(b.get("nees")), fmt(b.get("solved")), fmt(b.get("first_fix_s")),
+                     fmt(b.get("identification_rate")), fmt(b.get("false_ids")), fmt(b.get("centroid_arcsec")),
+                     f"{fmt(b.get('lost_in_space'))} / {fmt(b.get('reacquisitions'))}", fmt(b.get("ms")),
+                     "—" if b.get("gain_pct") is None else f"{_pm(b, 'gain_pct', 2)} %"])
+    if case:
+        rows.append([f"paper Table {case['table']}: SNA", "—", fmt(case["sna"])] + ["—"] * 10 + ["—"])
+        rows.append([f"paper Table {case['table']}: JPDAF", "—", fmt(case["jpdaf"])] + ["—"] * 10
+                    + [f"{case['gain_pct']:.1f} %"])
+        title = (f"Attitude error, {case['motion']} motion, jitter {case['jitter_deg_s']} °/s, σ = {case['sigma']} "
+                 f"(paper Table {case['table']})")
+    else:
+        title = "Attitude error (this case is not one of the paper's tables)"
+    plots = [Plot(f"{scenario}_attitude_error.png", "Attitude error per frame (RMS over the runs)",
+                  _draw_errors(series), (10.0, 4.5))] if series else []
+    return [Section(scenario, text, [Table(title, header, rows)], plots)]
+
+
+def sweep_tables(sweep: Mapping) -> list[Table]:
+    """Per cell: SNA and JPDAF (TRIAD, then all-star) mean ± standard error over the runs, next to the paper."""
+    rows = []
+    for cell in sweep["cells"]:
+        scores = (cell.get("score") or {}).get("filters") or {}
+        paper = cell.get("paper") or {}
+        labels = cell["labels"]
+        sna, jp = scores.get("sna_triad"), scores.get("jpdaf_triad")
+        rows.append([labels.get("motion", ""), labels.get("jitter", ""), str(paper.get("sigma", labels.get("sigma"))),
+                     _pm(sna, "rms_arcsec"), _pm(jp, "rms_arcsec"), _pm(jp, "gain_pct", 2),
+                     fmt(paper.get("sna")), fmt(paper.get("jpdaf")),
+                     "—" if not paper else f"{paper['gain_pct']:.1f}",
+                     _pm(scores.get("sna_wahba"), "rms_arcsec"), _pm(scores.get("jpdaf_wahba"), "rms_arcsec"),
+                     _pm(scores.get("jpdaf_wahba"), "gain_pct", 2)])
+    header = ["motion", "jitter [°/s]", "σ (paper)", "SNA TRIAD", "JPDAF TRIAD", "gain [%]", "paper SNA",
+              "paper JPDAF", "paper gain [%]", "SNA all-star", "JPDAF all-star", "gain all-star [%]"]
+    return [Table("RMS attitude error [arcsec], mean ± standard error over the runs, next to paper Tables 3–8",
+                  header, rows)]
+
+
+def _draw_sweep(sweep: Mapping):
+    def draw(fig: Figure) -> None:
+        ax = fig.subplots()
+        cells = [c for c in sweep["cells"] if c.get("score") and c.get("paper")]
+        for name, key, marker in (("sna_triad", "sna", "o"), ("jpdaf_triad", "jpdaf", "s")):
+            bench = [c["score"]["filters"].get(name, {}).get("rms_arcsec") or np.nan for c in cells]
+            paper = [c["paper"][key] for c in cells]
+            ax.plot(paper, bench, marker, label=name)
+        lim = [0.0, max([1.0] + [c["paper"]["sna"] for c in cells]) * 1.2]
+        ax.plot(lim, lim, "k--", lw=0.8, label="bench = paper")
+        ax.set_xlabel("paper [arcsec]")
+        ax.set_ylabel("bench [arcsec]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    return draw
+
+
+def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown: str = "") -> Path:
+    """``table.md`` of a star_tracker sweep (sweep.json content) with its plot; returns its path."""
+    from bench_eval.report import render
+    text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
+            f"{sweep['runs_per_cell']} runs (seeds {sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}, the "
+            f"same in every cell), 400 frames each; wall time {sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\n"
+            f"Command: `{sweep['command']}`")
+    if sweep.get("failures"):
+        text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
+    plot = Plot(f"{sweep['scenario']}_{sweep['grid']}.png", "Bench against paper, RMS attitude error per cell (TRIAD)",
+                _draw_sweep(sweep), (6.5, 5.5))
+    section = Section(f"{sweep['scenario']} — sweep '{sweep['grid']}'", text, sweep_tables(sweep), [plot])
+    return render(Path(out_dir), [section], f"Sweep {sweep['scenario']} / {sweep['grid']}", filename="table.md")

@@ -1,0 +1,190 @@
+"""Star identification, tracking and attitude in the graph: the node kind ``star_tracker`` (role estimator)
+for every entry of the scenario's ``star_trackers`` section that the run selects (``default_filters`` or
+``--filters``). Each runs the per-frame core (pipeline.StarTrackerPipeline: lost-in-space → SNA or JPDAF
+tracking → TRIAD or Wahba attitude) on one camera's centroids, so several trackers see identical frames.
+
+    star_tracker_defaults: {camera: camera, motion: constant_velocity, sigma_a: 0.05}
+    star_trackers:
+      sna_triad:   {tracker: sna, solver: triad}
+      jpdaf_wahba: {tracker: jpdaf, solver: wahba}
+
+Keys (defaults merged with the entry): ``camera`` (a star_cameras entry; default the only one), ``tracker``
+(sna, jpdaf), ``solver`` (triad, wahba), ``motion`` (constant_velocity, coordinated_turn: eqs. 14–16),
+``aid`` (rate, jitter, none: pipeline.py), ``sigma_px`` (the σ the identifier, the SNA gate and the JPDAF's R
+assume; default the camera's), ``sigma_a`` (JPDAF process noise, px/s²), ``p_detect`` (the JPDA's P_D),
+``clutter_per_frame`` (the JPDA's false-star density × image area; default the camera's false-star rate, at
+least 0.1), ``gate`` (δ on d², default the JPDA's), ``min_stars``, ``verify_sigmas``, ``max_misses``.
+
+Publishes ``/NAME/estimate`` (bench_msgs/StateEstimate): the camera-from-ICRS quaternion, labels qw qx qy qz
+(attitude.py), with the 3 × 3 covariance of the attitude error rotation (rad², camera frame; the scorer's
+rx ry rz: bench_models.states), and the diagnostics ``stars`` (used in the fit), ``identified`` (centroids
+with a star id), ``lost_in_space`` and ``reacquisitions`` (running counts of lost-in-space solves, and of
+those after a lost lock), ``filter_resets`` and ``ms`` (the frame's processing time). A frame without an
+attitude publishes no estimate; its reason is logged. ``/NAME/stars`` (bench_msgs/StarCentroids), every
+frame: per measured centroid, the star id it was given (HIP, −1: none) and the position the attitude used
+(filtered for the JPDAF; NaN if unused).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench_engine.config import ScenarioError, Section, merge
+from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic, resolve_filters
+from bench_engine.stage import Estimate, Outputs, python_log
+from star_tracker.camera_stage import camera_config, read_cameras
+from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame
+
+SECTION = "star_trackers"
+DEFAULTS = "star_tracker_defaults"
+LABELS = ["qw", "qx", "qy", "qz"]
+FRAME = "icrs"
+
+
+def stars_topic(tracker: str) -> str:
+    return f"/{tracker}/stars"
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    name: str
+    camera: str
+    tracker: str
+    solver: str
+    motion: str
+    aid: str
+    sigma_px: float | None
+    sigma_a: float
+    p_detect: float
+    clutter_per_frame: float | None
+    gate: float | None
+    min_stars: int
+    verify_sigmas: float
+    max_misses: int
+
+
+def _read_one(name: str, data: dict, cameras: list[str]) -> TrackerConfig:
+    from star_tracker.pipeline import AIDS, MOTIONS, SOLVERS, TRACKERS
+    e = Section(data, f"{SECTION}.{name}")
+    if not cameras:
+        raise ScenarioError(f"star tracker '{name}' needs a camera: the scenario has no 'star_cameras'")
+    camera = e.choice("camera", cameras, cameras[0] if len(cameras) == 1 else ...)
+    conf = TrackerConfig(
+        name, camera, e.choice("tracker", TRACKERS), e.choice("solver", SOLVERS),
+        e.choice("motion", MOTIONS, "constant_velocity"), e.choice("aid", AIDS, "rate"),
+        e.get("sigma_px", float, None, lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
+        e.get("sigma_a", float, 0.05, lambda v: 0.0 < v <= 1e4, "in (0, 1e4] px/s^2"),
+        e.get("p_detect", float, 0.95, lambda v: 0.0 < v < 1.0, "in (0, 1)"),
+        e.get("clutter_per_frame", float, None, lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+        e.get("gate", float, None, lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+        e.get("min_stars", int, 3, lambda v: 3 <= v <= 100, "an integer in [3, 100]"),
+        e.get("verify_sigmas", float, 6.0, lambda v: 1.0 <= v <= 100.0, "in [1, 100]"),
+        e.get("max_misses", int, 3, lambda v: 0 <= v <= 100, "an integer in [0, 100]"))
+    e.finish()
+    return conf
+
+
+def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
+    """``star_trackers`` merged over ``star_tracker_defaults``, read strictly (registered section reader of
+    both keys)."""
+    defaults = cfg.get(DEFAULTS) or {}
+    trackers = Section(cfg.get(SECTION), SECTION)
+    if not isinstance(defaults, dict):
+        raise ScenarioError(f"'{DEFAULTS}' must be a mapping of settings, got {defaults!r}")
+    cameras = list(read_cameras(cfg))
+    out = {}
+    for name in trackers.keys():
+        if not str(name).replace("_", "").isalnum():
+            raise ScenarioError(f"star tracker name '{name}' must be letters, digits and underscores")
+        own = trackers.section(name).data
+        out[name] = _read_one(name, merge(defaults, own), cameras)
+    trackers.finish()
+    return out
+
+
+def tracker_config(cfg: dict, name: str) -> TrackerConfig:
+    trackers = read_trackers(cfg)
+    if name not in trackers:
+        raise ScenarioError(f"unknown star tracker '{name}'; the scenario's star_trackers: {sorted(trackers)}")
+    return trackers[name]
+
+
+def build_pipeline(cfg: dict, name: str):
+    """The pipeline of tracker ``name`` (its camera's catalogue and geometry)."""
+    from star_tracker.pipeline import StarTrackerPipeline
+    conf = tracker_config(cfg, name)
+    cam = camera_config(cfg, conf.camera)
+    camera = cam.camera()
+    clutter = conf.clutter_per_frame
+    if clutter is None:
+        clutter = max(cam.false_stars + cam.false_rate, 0.1)
+    return StarTrackerPipeline(cam.catalogue(), camera, conf.sigma_px or cam.sigma_px, tracker=conf.tracker,
+                               solver=conf.solver, motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
+                               clutter_density=clutter / (camera.width * camera.height), gate=conf.gate,
+                               min_stars=conf.min_stars, verify_sigmas=conf.verify_sigmas,
+                               max_misses=conf.max_misses, aid=conf.aid)
+
+
+class StarTrackerStage:
+    """One tracker/solver on one camera's frames (module docstring)."""
+
+    def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
+        self.name = name
+        self.pipeline = build_pipeline(cfg, name)
+        self.camera = self.pipeline.camera
+        self.topic, self.stars = estimate_topic(name), stars_topic(name)
+        self.counts = {"lost_in_space": 0, "reacquisitions": 0}
+        self.had_lock = False
+        self.log = python_log(name)
+
+    def on_input(self, topic: str, frame: StarFrame) -> Outputs:
+        uv = self.camera.from_tangent(frame.xy)
+        mags = frame.magnitudes if len(frame.magnitudes) == len(uv) else None
+        start = time.perf_counter()
+        result = self.pipeline.process(uv, mags, frame.t, frame.body_rate, frame.jitter_rate)
+        ms = (time.perf_counter() - start) * 1e3
+        if result.mode == "lost_in_space":
+            self.counts["lost_in_space"] += 1
+            if result.ok and self.had_lock:
+                self.counts["reacquisitions"] += 1
+                self.log("info", f"step {frame.step}: re-acquired lost-in-space")
+        self.had_lock = self.had_lock or result.ok
+        ids = np.where(result.index >= 0, self.pipeline.catalogue.ids[np.maximum(result.index, 0)], -1)
+        used = np.full((len(uv), 2), np.nan)
+        for star, pos in zip(result.star_ids, result.star_uv):
+            used[result.index == star] = self.camera.to_tangent(pos[None])[0]
+        out: Outputs = [(self.stars, StarFrame(frame.step, frame.t_ns, FRAME, self.name, used,
+                                               np.asarray(frame.magnitudes, dtype=float), frame.sigma,
+                                               frame.body_rate, frame.jitter_rate, ids))]
+        if not result.ok:
+            self.log("info", f"step {frame.step}: no attitude ({result.reason})")
+            return out
+        sol = result.attitude
+        diagnostics = {"stars": float(sol.n_stars), "identified": float(np.sum(result.index >= 0)),
+                       **{k: float(v) for k, v in self.counts.items()},
+                       "filter_resets": float(self.pipeline.filter_resets), "ms": ms}
+        out.append((self.topic, Estimate(frame.step, frame.t_ns, FRAME, self.name, list(LABELS), sol.quaternion,
+                                         sol.covariance, float("nan"), diagnostics)))
+        return out
+
+
+def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
+    running = resolve_filters(cfg, requested)
+    return [n for n in read_trackers(cfg) if n in running]
+
+
+def _spec(cfg: dict, name: str) -> NodeSpec:
+    conf = tracker_config(cfg, name)
+    return NodeSpec(name, "star_tracker", publishes={estimate_topic(name): ESTIMATE_TYPE,
+                                                     stars_topic(name): STAR_CENTROIDS_TYPE},
+                    subscribes={measurement_topic(conf.camera): ""})
+
+
+def _check(cfg: dict, name: str) -> None:
+    tracker_config(cfg, name)
+
+
+STAR_TRACKER = NodeKind("star_tracker", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
+                        spec=_spec, check=_check, stage=StarTrackerStage)
