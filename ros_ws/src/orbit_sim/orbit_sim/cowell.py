@@ -8,8 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate import solve_ivp
-
 from .constants import J2_EARTH, MU_EARTH, R_EARTH
 from .gravity import state_derivative
 
@@ -24,6 +22,8 @@ def propagate(state0: np.ndarray, times: np.ndarray, mu: float = MU_EARTH, j2: f
     ``times`` must be monotonic (increasing or decreasing). atol applies to metres and m/s alike:
     1e-9 is far below the relative tolerance on LEO positions (~7e6 m) and velocities (~7e3 m/s).
     """
+    from scipy.integrate import solve_ivp  # here, not at import: most node processes never integrate
+
     times = np.asarray(times, dtype=float)
     state0 = np.asarray(state0, dtype=float)
     if times.size == 1 or times[-1] == times[0]:
