@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -111,20 +112,31 @@ def tracker_config(cfg: dict, name: str) -> TrackerConfig:
     return trackers[name]
 
 
+@lru_cache(maxsize=4)
+def _pair_table(cam):
+    """The k-vector of the camera's catalogue pairs (kvector.PairTable), built once per process and shared by
+    the trackers of one camera (it is read-only)."""
+    from star_tracker.kvector import PairTable
+    return PairTable(cam.catalogue(), cam.camera().max_separation)
+
+
 def build_pipeline(cfg: dict, name: str):
     """The pipeline of tracker ``name`` (its camera's catalogue and geometry)."""
     from star_tracker.pipeline import StarTrackerPipeline
+    from star_tracker.pyramid import PyramidIdentifier
     conf = tracker_config(cfg, name)
     cam = camera_config(cfg, conf.camera)
-    camera = cam.camera()
+    camera, catalogue = cam.camera(), cam.catalogue()
+    sigma_px = conf.sigma_px or cam.sigma_px
     clutter = conf.clutter_per_frame
     if clutter is None:
         clutter = max(cam.false_stars + cam.false_rate, 0.1)
-    return StarTrackerPipeline(cam.catalogue(), camera, conf.sigma_px or cam.sigma_px, tracker=conf.tracker,
-                               solver=conf.solver, motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
+    identifier = PyramidIdentifier(catalogue, camera, sigma_px, pair_table=_pair_table(cam))
+    return StarTrackerPipeline(catalogue, camera, sigma_px, tracker=conf.tracker, solver=conf.solver,
+                               motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
                                clutter_density=clutter / (camera.width * camera.height), gate=conf.gate,
                                min_stars=conf.min_stars, verify_sigmas=conf.verify_sigmas,
-                               max_misses=conf.max_misses, aid=conf.aid)
+                               max_misses=conf.max_misses, aid=conf.aid, identifier=identifier)
 
 
 class StarTrackerStage:
@@ -153,8 +165,10 @@ class StarTrackerStage:
         self.had_lock = self.had_lock or result.ok
         ids = np.where(result.index >= 0, self.pipeline.catalogue.ids[np.maximum(result.index, 0)], -1)
         used = np.full((len(uv), 2), np.nan)
-        for star, pos in zip(result.star_ids, result.star_uv):
-            used[result.index == star] = self.camera.to_tangent(pos[None])[0]
+        order = np.argsort(result.star_ids)
+        rows = np.flatnonzero(np.isin(result.index, result.star_ids))
+        used[rows] = self.camera.to_tangent(result.star_uv[order[np.searchsorted(result.star_ids[order],
+                                                                                 result.index[rows])]])
         out: Outputs = [(self.stars, StarFrame(frame.step, frame.t_ns, FRAME, self.name, used,
                                                np.asarray(frame.magnitudes, dtype=float), frame.sigma,
                                                frame.body_rate, frame.jitter_rate, ids))]
