@@ -216,9 +216,12 @@ class _StopFlag:
         self.signal = signum
 
 
-def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None) -> int:
+def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,
+               shutdown_executor: bool = True) -> int:
     """Spin until every node finished, SIGINT/SIGTERM, or (when ``parent_pid`` is given) the parent process
-    went away; close nodes; return an exit code."""
+    went away; close nodes; return an exit code. ``shutdown_executor=False`` leaves the executor to the end of
+    the process: a node process exits right after, and rclpy's EventsExecutor was seen spinning for good in
+    its shutdown once (a node process that never exited)."""
     stop = _StopFlag()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
@@ -249,7 +252,8 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
                 close()
             executor.remove_node(node)
             node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
+        if shutdown_executor:
+            executor.shutdown(timeout_sec=1.0)
     failed = [n for n in nodes if n.failed]
     for node in failed:
         print(f"[{names[id(node)]}] failed: {node.failed}", file=sys.stderr)
@@ -292,7 +296,7 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
         print(f"[{args.name}] error: {err}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    code = spin_nodes([node], args.executor, parent_pid=os.getppid())
+    code = spin_nodes([node], args.executor, parent_pid=os.getppid(), shutdown_executor=False)
     rclpy.try_shutdown()
     phases.mark("exit", args.name, run.get("out"))
     exit_now(code)

@@ -232,18 +232,33 @@ def _exit_text(code: int) -> str:
     return f"exit code {code}"
 
 
+LINGER_S = 15.0
+"""How long nodes may take to exit once the source finished and the recorder closed the bag."""
+
+
 def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
     """Wait for the nodes; on the first failure stop the others and name the node that died first. A bag a
     killed recorder left incomplete is rebuilt (bench_engine.recovery)."""
     deadline = time.monotonic() + timeout_s
     first: list[str] = []
+    ends = [s.name for s in plan.graph.nodes if s.role in ("source", "replay", "recorder") and s.name in procs]
+    lingering: list[str] = []
+    complete_at = None
     while any(p.poll() is None for p in procs.values()):
         first = [n for n, p in procs.items() if p.poll() not in (None, 0)]
         if first or interrupted or time.monotonic() > deadline:
             break
+        if complete_at is None and all(procs[n].poll() == 0 for n in ends):
+            complete_at = time.monotonic()  # the source finished and the bag is closed: the run is complete
+        if complete_at is not None and time.monotonic() - complete_at > LINGER_S:
+            lingering = [n for n, p in procs.items() if p.poll() is None]
+            break
         time.sleep(0.05)
-    if first or interrupted or time.monotonic() > deadline:
+    if first or interrupted or lingering or time.monotonic() > deadline:
         _stop_all(procs)
+    for name in lingering:
+        print(f"[launcher] warning: node '{name}' had not exited {LINGER_S:.0f} s after the run completed (the "
+              f"bag is complete); stopped it", file=sys.stderr)
     phases.mark("nodes_exited", "launcher", plan.out)
     _recover_bag(plan)
     phases.mark("bag_checked", "launcher", plan.out)
@@ -253,14 +268,14 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
     if time.monotonic() > deadline:
         print(f"[launcher] timed out after {timeout_s:.0f} s", file=sys.stderr)
         return 124
-    first = first or [n for n, p in procs.items() if p.returncode not in (0, None)]
+    first = first or [n for n, p in procs.items() if p.returncode not in (0, None) and n not in lingering]
     for name in first:
         print(f"[launcher] node '{name}' died first ({_exit_text(procs[name].returncode)}); "
               f"log: {plan.logs / (name + '.log')}", file=sys.stderr)
         if not quiet:
             tail = (plan.logs / f"{name}.log").read_text(errors="replace").splitlines()[-8:]
             print("\n".join(f"    {line}" for line in tail), file=sys.stderr)
-    stopped = [n for n, p in procs.items() if n not in first and p.returncode not in (0, None)]
+    stopped = [n for n, p in procs.items() if n not in first + lingering and p.returncode not in (0, None)]
     if first and stopped:
         print(f"[launcher] stopped after it: {', '.join(stopped)}", file=sys.stderr)
     return 1 if first else 0
