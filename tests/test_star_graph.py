@@ -96,6 +96,7 @@ def test_every_variant_and_sweep_cell_resolves():
     from bench_studies.star_tracker.report import paper_case
     cases = [paper_case(c.cfg) for c in grid.cells]
     assert all(cases) and len({(c["table"], c["sigma"]) for c in cases}) == 18
+    assert len(load_grid("star_tracker", "process_noise").cells) == 10
 
 
 # ------------------------------------------------------------------------------------------- node cores

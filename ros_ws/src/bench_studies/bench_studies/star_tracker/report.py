@@ -105,17 +105,17 @@ def sweep_tables(sweep: Mapping) -> list[Table]:
     for cell in sweep["cells"]:
         scores = (cell.get("score") or {}).get("filters") or {}
         paper = cell.get("paper") or {}
-        labels = cell["labels"]
         sna, jp = scores.get("sna_triad"), scores.get("jpdaf_triad")
-        rows.append([labels.get("motion", ""), labels.get("jitter", ""), str(paper.get("sigma", labels.get("sigma"))),
+        rows.append([", ".join(f"{k} {v}" for k, v in cell["labels"].items()), str(paper.get("sigma", "—")),
                      _pm(sna, "rms_arcsec"), _pm(jp, "rms_arcsec"), _pm(jp, "gain_pct", 2),
                      fmt(paper.get("sna")), fmt(paper.get("jpdaf")),
                      "—" if not paper else f"{paper['gain_pct']:.1f}",
                      _pm(scores.get("sna_wahba"), "rms_arcsec"), _pm(scores.get("jpdaf_wahba"), "rms_arcsec"),
                      _pm(scores.get("jpdaf_wahba"), "gain_pct", 2)])
-    header = ["motion", "jitter [°/s]", "σ (paper)", "SNA TRIAD", "JPDAF TRIAD", "gain [%]", "paper SNA",
+    header = ["cell", "σ (paper)", "SNA TRIAD", "JPDAF TRIAD", "gain [%]", "paper SNA",
               "paper JPDAF", "paper gain [%]", "SNA all-star", "JPDAF all-star", "gain all-star [%]"]
-    return [Table("RMS attitude error [arcsec], mean ± standard error over the runs, next to paper Tables 3–8",
+    return [Table("RMS attitude error [arcsec], mean ± standard error over the runs, next to paper Tables 3–8 "
+                  "(where the cell is one of the paper's cases)",
                   header, rows)]
 
 
@@ -141,7 +141,7 @@ def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown:
     from bench_eval.report import render
     text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
             f"{sweep['runs_per_cell']} runs (seeds {sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}, the "
-            f"same in every cell), 400 frames each; wall time {sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\n"
+            f"same in every cell); wall time {sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\n"
             f"Command: `{sweep['command']}`")
     if sweep.get("failures"):
         text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
