@@ -51,6 +51,16 @@ def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
         assert 0.0 <= block["first_fix_s"] < 1.0 and block["solved"] > 0.9
         assert 0.5 < block["nees"] < 10.0
     assert scores["jpdaf_wahba"]["rms_arcsec"] < scores["sna_triad"]["rms_arcsec"]
+    # the graph gives what the same cores give in-process, bit for bit (same seed, same frames)
+    cfg = select_variant(load_scenario("star_tracker"), "short,faults")
+    items = run_in_process(cfg, seed=1).items
+    for name in TRACKERS:
+        graph = {m.step: (np.asarray(m.state), np.asarray(m.covariance), list(m.diagnostic_values))
+                 for _, m in bag[f"/{name}/estimate"]}
+        local = {e.step: (e.x, e.P.ravel(), list(e.diagnostics.values())) for e in items[f"/{name}/estimate"]}
+        assert graph.keys() == local.keys()
+        for step, (x, P, d) in local.items():
+            assert np.array_equal(graph[step][0], x) and np.array_equal(graph[step][1], P) and graph[step][2] == d
 
 
 PATHS = None

@@ -19,14 +19,13 @@ Publishes ``/NAME/estimate`` (bench_msgs/StateEstimate): the camera-from-ICRS qu
 (attitude.py), with the 3 × 3 covariance of the attitude error rotation (rad², camera frame; the scorer's
 rx ry rz: bench_models.states), and the diagnostics ``stars`` (used in the fit), ``identified`` (centroids
 with a star id), ``lost_in_space`` and ``reacquisitions`` (running counts of lost-in-space solves, and of
-those after a lost lock), ``filter_resets`` and ``ms`` (the frame's processing time). A frame without an
+those after a lost lock) and ``filter_resets`` (no wall-clock time: a bag is reproduced bit for bit). A frame without an
 attitude publishes no estimate; its reason is logged. ``/NAME/stars`` (bench_msgs/StarCentroids), every
 frame: per measured centroid, the star id it was given (HIP, −1: none) and the position the attitude used
 (filtered for the JPDAF; NaN if unused).
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -154,9 +153,7 @@ class StarTrackerStage:
     def on_input(self, topic: str, frame: StarFrame) -> Outputs:
         uv = self.camera.from_tangent(frame.xy)
         mags = frame.magnitudes if len(frame.magnitudes) == len(uv) else None
-        start = time.perf_counter()
         result = self.pipeline.process(uv, mags, frame.t, frame.body_rate, frame.jitter_rate)
-        ms = (time.perf_counter() - start) * 1e3
         if result.mode == "lost_in_space":
             self.counts["lost_in_space"] += 1
             if result.ok and self.had_lock:
@@ -178,7 +175,7 @@ class StarTrackerStage:
         sol = result.attitude
         diagnostics = {"stars": float(sol.n_stars), "identified": float(np.sum(result.index >= 0)),
                        **{k: float(v) for k, v in self.counts.items()},
-                       "filter_resets": float(self.pipeline.filter_resets), "ms": ms}
+                       "filter_resets": float(self.pipeline.filter_resets)}
         out.append((self.topic, Estimate(frame.step, frame.t_ns, FRAME, self.name, list(LABELS), sol.quaternion,
                                          sol.covariance, float("nan"), diagnostics)))
         return out

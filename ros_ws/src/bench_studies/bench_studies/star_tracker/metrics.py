@@ -7,8 +7,8 @@ q_est conj(q_true), in the camera frame: bench_models.states):
   ``roll_arcsec``: RMS of the cross-boresight part |(rx, ry)| and of the roll |rz|; ``max_arcsec``;
 - ``nees``: mean of e' P^-1 e over the scored frames (3 dof: 3 when the covariance tells the truth);
 - ``solved``: the fraction of frames with an attitude; ``first_fix_s``: time of the first attitude;
-- ``lost_in_space``, ``reacquisitions``, ``filter_resets``, ``ms``: the tracker's own diagnostics (counts at
-  the end of a run, mean over runs; ms: mean per frame);
+- ``lost_in_space``, ``reacquisitions``, ``filter_resets``: the tracker's own diagnostics (counts at the end
+  of a run, mean over runs);
 - from the estimator's ``/NAME/stars`` against the camera's ``/CAMERA/star_truth`` (same step, same centroid
   order): ``identification_rate`` (true star centroids given their own id), ``false_ids`` (centroids given a
   wrong id, false stars included, per frame), ``centroid_arcsec`` (RMS of the position each used star had in
@@ -110,13 +110,12 @@ def _run_block(track, data: BagData, name: str, stars: dict, options: dict) -> d
             "lost_in_space": last.get("lost_in_space", float("nan")),
             "reacquisitions": last.get("reacquisitions", float("nan")),
             "filter_resets": last.get("filter_resets", float("nan")),
-            "ms": float(np.nanmean(est.diagnostics["ms"])) if "ms" in est.diagnostics else float("nan"),
             "identification_rate": rate, "false_ids": false_ids, "centroid_arcsec": centroid,
             "series": (np.round((t - t0) / dt).astype(int), angle / ARCSEC)}
 
 
 KEYS = ("rms_arcsec", "cross_arcsec", "roll_arcsec", "max_arcsec", "nees", "solved", "first_fix_s", "lost_in_space",
-        "reacquisitions", "filter_resets", "ms", "identification_rate", "false_ids", "centroid_arcsec")
+        "reacquisitions", "filter_resets", "identification_rate", "false_ids", "centroid_arcsec")
 
 
 def _per_run(tracks: Tracks, runs: list[BagData], options: dict) -> dict[str, list[dict]]:

@@ -77,18 +77,18 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
     if paper:
         text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
     header = ["estimator", "runs", "RMS [arcsec]", "cross-boresight", "roll", "NEES (3)", "solved", "first fix [s]",
-              "ID rate", "false IDs / frame", "centroid error [arcsec]", "LIS / re-acq.", "ms / frame", "gain vs SNA"]
+              "ID rate", "false IDs / frame", "centroid error [arcsec]", "LIS / re-acq.", "gain vs SNA"]
     rows = []
     for name in _names(scored):
         b = scored[name]
         rows.append([name, str(b.get("runs", "")), _pm(b, "rms_arcsec"), fmt(b.get("cross_arcsec")),
                      fmt(b.get("roll_arcsec")), fmt(b.get("nees")), fmt(b.get("solved")), fmt(b.get("first_fix_s")),
                      fmt(b.get("identification_rate")), fmt(b.get("false_ids")), fmt(b.get("centroid_arcsec")),
-                     f"{fmt(b.get('lost_in_space'))} / {fmt(b.get('reacquisitions'))}", fmt(b.get("ms")),
+                     f"{fmt(b.get('lost_in_space'))} / {fmt(b.get('reacquisitions'))}",
                      "—" if b.get("gain_pct") is None else f"{_pm(b, 'gain_pct', 2)} %"])
     if case:
-        rows.append([f"paper Table {case['table']}: SNA", "—", fmt(case["sna"])] + ["—"] * 10 + ["—"])
-        rows.append([f"paper Table {case['table']}: JPDAF", "—", fmt(case["jpdaf"])] + ["—"] * 10
+        rows.append([f"paper Table {case['table']}: SNA", "—", fmt(case["sna"])] + ["—"] * 9 + ["—"])
+        rows.append([f"paper Table {case['table']}: JPDAF", "—", fmt(case["jpdaf"])] + ["—"] * 9
                     + [f"{case['gain_pct']:.1f} %"])
         title = (f"Attitude error, {case['motion']} motion, jitter {case['jitter_deg_s']} °/s, σ = {case['sigma']} "
                  f"(paper Table {case['table']})")
