@@ -13,6 +13,7 @@ q_est conj(q_true), in the camera frame: bench_models.states):
   order): ``identification_rate`` (true star centroids given their own id), ``false_ids`` (centroids given a
   wrong id, false stars included, per frame), ``centroid_arcsec`` (RMS of the position each used star had in
   the fit minus its noise-free position: measured for SNA, filtered for the JPDAF; tangent units ~ rad);
+- ``case``: the run's motion (boresight), jitter and centroid σ, so that the report finds the paper's table;
 - ``gain_pct`` (JPDAF estimators): 100 (SNA - JPDAF) / SNA of rms_arcsec for the SNA estimator of the same
   solver (the paper's "improvement"), with ``gain_pct_runs``.
 
@@ -131,6 +132,13 @@ def _per_run(tracks: Tracks, runs: list[BagData], options: dict) -> dict[str, li
     return out
 
 
+def _case(cfg: dict) -> dict:
+    truth = cfg.get("truth") or {}
+    camera = (cfg.get("star_cameras") or {}).get("camera") or {}
+    return {"boresight": truth.get("boresight", "zenith"), "jitter_deg_s": truth.get("jitter_deg_s", 0.0),
+            "sigma_px": camera.get("sigma_px")}
+
+
 def score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     per_run = _per_run(tracks, runs, options)
     scored = {}
@@ -144,6 +152,7 @@ def score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
         angles = np.concatenate([b["series"][1] for b in blocks]) if blocks else np.zeros(0)
         block["rms_arcsec"] = _rms(angles) if angles.size else None
         block["runs"] = len(blocks)
+        block["case"] = _case(runs[0].scenario) if runs else {}
         scored[name] = block
     for name, block in scored.items():
         sna = scored.get(name.replace("jpdaf", "sna")) if "jpdaf" in name else None

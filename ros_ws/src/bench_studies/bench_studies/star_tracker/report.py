@@ -25,7 +25,7 @@ def paper_case(cfg: Mapping) -> Mapping | None:
     truth = cfg.get("truth") or {}
     motion = "rotation" if truth.get("boresight") == "normal" else "linear"
     jitter = f"{float(truth.get('jitter_deg_s', 0.0)):g}"
-    sigma_px = float(((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px", 0.0))
+    sigma_px = float(((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px") or 0.0)
     sigma = next((v for k, v in SIGMA_VARIANCE.items() if abs(k - sigma_px) < 1e-6), None)
     numbers = ((PAPER.get("tables") or {}).get(motion) or {}).get(jitter, {}).get(sigma) if sigma else None
     if numbers is None:
@@ -67,8 +67,9 @@ def _draw_errors(series: Mapping):
 def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None,
                           paper: Mapping | None) -> list[Section]:
     """The run's case next to the paper's table, and the attitude error per frame."""
-    from bench_engine.config import load_scenario
-    case = paper_case(load_scenario(scenario)) if scenario else None
+    run = next((b["case"] for b in scored.values() if b.get("case")), None)
+    case = paper_case({"truth": {"boresight": run["boresight"], "jitter_deg_s": run["jitter_deg_s"]},
+                       "star_cameras": {"camera": {"sigma_px": run["sigma_px"]}}}) if run else None
     text = ("Attitude error = angle of the error rotation (paper eq. 20), arcsec, after the first second; "
             "cross-boresight and roll are its parts; NEES over 3 dof (3 when the covariance is right). SNA and the "
             "JPDAF run side by side on identical frames (the same /camera/measurement), each with TRIAD (the paper's "
