@@ -29,8 +29,12 @@ def main(argv: list[str] | None = None) -> int:
     code, plan = launch(args)
     if code != 0 or args.no_score:
         return code
-    from bench_eval.scoring import score_run
-    print(score_run(plan.out, args.json))
+    from bench_eval.scoring import NothingToScore, score_run
+    try:
+        print(score_run(plan.out, args.json))
+    except NothingToScore as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     phases.mark("scored", "launcher", plan.out)
     return 0
 

@@ -157,3 +157,11 @@ def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path
     assert not alive, "nodes kept running after their launcher died"
     steps = [m.step for _, m in read_bag(out / "bag")["/truth/state"]]
     assert steps == list(range(len(steps))) and steps
+
+
+def test_a_run_with_nothing_to_score_ends_with_one_line(tmp_path: Path) -> None:
+    """A radar that never detects: the filters publish nothing; the launcher says so in one line, exit 1."""
+    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "none"), "--domain-id", "65",
+                 "--set", "time.duration=5", "--set", "sensors.radar.p_detect=0.0", timeout=120)
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert "error: no estimates in" in res.stderr and (tmp_path / "none" / "bag" / "metadata.yaml").is_file()

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench_engine.config import ScenarioError, apply_overrides, load_scenario, override_strings
+from bench_engine.config import ScenarioError, apply_overrides, available_scenarios, load_scenario, override_strings
 from bench_engine.graph import build_graph, resolve_filters
 from bench_engine.launcher import validate
 
@@ -19,7 +19,8 @@ def leaf_paths(node, prefix=()) -> list[str]:
     return [".".join(prefix)] if prefix else []
 
 
-SCENARIOS = ("leo_radar", "formation_pf", "formation_cqkf")
+SCENARIOS = tuple(available_scenarios())
+"""Every registered study's scenario."""
 PATHS = {name: [p for p in leaf_paths(load_scenario(name)) if not p.startswith(("sweeps", "variants", "description"))]
          for name in SCENARIOS}
 VALUES = st.one_of(
