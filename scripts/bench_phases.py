@@ -90,32 +90,31 @@ def run_phases(records: list[dict], start: float, end: float | None, after_run: 
     return out
 
 
-def one_launch(scenario: str, mode: str, extra: list[str], tmp: Path) -> tuple[dict, float, float]:
-    """(phases, wall, stepping) of one launch.py run."""
-    out, log = tmp / mode, tmp / f"{mode}.jsonl"
+def timed(cmd: list[str], log: Path) -> tuple[list[dict], float, float]:
+    """Run ``cmd`` with its phase timestamps going to ``log``: (the phase records, start, end wall time)."""
     env = dict(os.environ, **{phases.ENV: str(log)})
-    cmd = [sys.executable, str(SCRIPTS / "launch.py"), scenario, "--out", str(out), *LAUNCH_MODES[mode], *extra]
     start = time.time()
     res = subprocess.run(cmd, capture_output=True, text=True, env=env)
     end = time.time()
     if res.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed (exit {res.returncode}):\n{res.stderr[-2000:]}")
-    records = phases.read(log)
+    return phases.read(log), start, end
+
+
+def one_launch(scenario: str, mode: str, extra: list[str], tmp: Path) -> tuple[dict, float, float]:
+    """(phases, wall, stepping) of one launch.py run."""
+    out = tmp / mode
+    cmd = [sys.executable, str(SCRIPTS / "launch.py"), scenario, "--out", str(out), *LAUNCH_MODES[mode], *extra]
+    records, start, end = timed(cmd, tmp / f"{mode}.jsonl")
     stepping = json.loads((out / "timing.json").read_text())["stepping_s"]
     return run_phases(records, start, end, "scored"), end - start, stepping
 
 
 def montecarlo(scenario: str, runs: int, jobs: int, extra: list[str], tmp: Path) -> dict:
-    out, log = tmp / "mc", tmp / "mc.jsonl"
-    env = dict(os.environ, **{phases.ENV: str(log)})
+    out = tmp / "mc"
     cmd = [sys.executable, str(SCRIPTS / "montecarlo.py"), scenario, "--runs", str(runs), "--jobs", str(jobs),
            "--out", str(out), *extra]
-    start = time.time()
-    res = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    end = time.time()
-    if res.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed (exit {res.returncode}):\n{res.stderr[-2000:]}")
-    records = phases.read(log)
+    records, start, end = timed(cmd, tmp / "mc.jsonl")
     mc = [r for r in records if r["who"] == "montecarlo"]
     by_run: dict[str, list[dict]] = {}
     for r in records:

@@ -115,7 +115,8 @@ class Graph:
     def pacing_weights(self) -> dict[str, int]:
         """Paced node -> how many windows of backlog it may hold: the recorder reads every data topic, so its
         window is the pacing window times its number of input topics (the others: one)."""
-        return {n.name: max(1, len(n.subscribes) - 1) for n in self.of_role("recorder")}
+        inputs = self.paced_inputs()
+        return {n.name: max(1, len(inputs[n.name])) for n in self.of_role("recorder")}
 
     def topological(self) -> list[NodeSpec]:
         """Nodes, every publisher before its subscribers (the recorder last)."""

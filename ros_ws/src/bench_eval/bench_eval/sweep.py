@@ -33,7 +33,7 @@ import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
@@ -326,6 +326,18 @@ def write_outputs(sweep_run: SweepRun, header: dict) -> dict:
     else:
         generic_sweep_report(sweep_run.out, sweep)
     return sweep
+
+
+def sweep_intro(sweep: Mapping, each_run: str = "") -> str:
+    """The opening text of a study's sweep report: description, grid size, seeds, wall time, command and any
+    failures (``each_run``, e.g. ", one day each", is added after the seeds)."""
+    seeds = f"{sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}"
+    text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
+            f"{sweep['runs_per_cell']} runs (seeds {seeds}, the same in every cell){each_run}; wall time "
+            f"{sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\nCommand: `{sweep['command']}`")
+    if sweep.get("failures"):
+        text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
+    return text
 
 
 def generic_sweep_report(out: Path, sweep: dict) -> Path:

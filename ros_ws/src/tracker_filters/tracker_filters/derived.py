@@ -128,8 +128,8 @@ class DifferentiatedStage:
     """Centre position and Newton derivative over a sliding window of order + 1 samples."""
 
     def __init__(self, conf: DerivedConfig) -> None:
-        from tracker_filters.differentiation import newton_weights
-        self.conf, self.weights = conf, newton_weights
+        from tracker_filters.differentiation import weights_at_node
+        self.conf, self.weights = conf, weights_at_node
         self.window: deque[Measurement] = deque(maxlen=conf.order + 1)
 
     def on_input(self, topic: str, m: Measurement) -> Outputs:
@@ -139,8 +139,7 @@ class DifferentiatedStage:
         if len(self.window) < self.window.maxlen:
             return []
         centre = self.window[len(self.window) // 2]
-        t = np.array([w.t_ns for w in self.window]) * 1e-9
-        w = self.weights(t, centre.t_ns * 1e-9)
+        w = self.weights(np.array([m.t_ns for m in self.window]) * 1e-9, len(self.window) // 2)
         d = len(centre.z)
         if 2 * d != len(self.conf.labels):
             raise ValueError(f"derived measurement '{self.conf.name}' differentiates {d} components into "

@@ -48,10 +48,14 @@ def newton_weights(t: np.ndarray, t0: float) -> np.ndarray:
     return newton_polynomial_derivative(t, divided_differences(t, np.eye(len(t))), float(t0))
 
 
+def weights_at_node(t: np.ndarray, at: int) -> np.ndarray:
+    """``newton_weights`` of nodes t evaluated at node ``at``, cached by the nodes' offsets from the first
+    (even sampling repeats the same few windows)."""
+    return _relative_weights(tuple(np.round(np.asarray(t, dtype=float) - t[0], 9)), at)
+
+
 @lru_cache(maxsize=256)
 def _relative_weights(offsets: tuple[float, ...], at: int) -> np.ndarray:
-    """Weights for nodes at ``offsets`` (relative times) evaluated at node ``at`` (cached: even sampling
-    repeats the same few windows)."""
     w = newton_weights(np.array(offsets), offsets[at])
     w.setflags(write=False)
     return w
@@ -85,8 +89,7 @@ def newton_derivative(t: np.ndarray, z: np.ndarray, order: int, max_gap: float =
             continue
         for i in range(n):
             a, b = window(i, n, order + 1)
-            offsets = tuple(np.round(ts[a:b] - ts[a], 9))
-            v[seg.start + i] = _relative_weights(offsets, i - a) @ zs[a:b]
+            v[seg.start + i] = weights_at_node(ts[a:b], i - a) @ zs[a:b]
     return v
 
 

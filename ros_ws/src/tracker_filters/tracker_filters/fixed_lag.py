@@ -22,6 +22,7 @@ import numpy as np
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, resolve_filters
 from bench_engine.stage import Estimate, Outputs, python_log
+from tracker_filters.smoothing import rts_smoother
 
 SECTION = "fixed_lag_smoothers"
 
@@ -71,21 +72,16 @@ class FixedLagSmoother:
         return out
 
     def _smoothed_oldest(self) -> Estimate:
-        """RTS backward pass from the newest estimate of the window to the oldest."""
+        """RTS backward pass (tracker_filters.smoothing) from the newest estimate of the window to the oldest."""
         items = list(self.window)
-        x_s, P_s = items[-1].x, items[-1].P
-        for k in range(len(items) - 2, -1, -1):
-            x, P = items[k].x, items[k].P
-            dt = (items[k + 1].t_ns - items[k].t_ns) * 1e-9
-            F, Q = self.dynamics.transition_matrix(x, dt), self.dynamics.process_noise(x, dt)
-            P_pred = F @ P @ F.T + Q
-            C = np.linalg.solve(P_pred, F @ P).T
-            x_s = x + C @ (x_s - F @ x)
-            P_s = P + C @ (P_s - P_pred) @ C.T
-            P_s = 0.5 * (P_s + P_s.T)
+        dts = [(b.t_ns - a.t_ns) * 1e-9 for a, b in zip(items[:-1], items[1:])]
+        Fs = [self.dynamics.transition_matrix(e.x, dt) for e, dt in zip(items, dts)]
+        Qs = [self.dynamics.process_noise(e.x, dt) for e, dt in zip(items, dts)]
+        x_s, P_s = rts_smoother(np.array([e.x for e in items]), np.array([e.P for e in items]), np.array(Fs),
+                                np.array(Qs))
         oldest = items[0]
-        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.conf.name, list(oldest.labels), x_s, P_s,
-                        oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
+        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.conf.name, list(oldest.labels), x_s[0],
+                        P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
 
 
 def _instances(cfg: dict, requested: list[str] | None) -> list[str]:

@@ -114,7 +114,7 @@ def _score_one(per_run: list[dict]) -> dict:
 
 def _names(tracks: Tracks, runs: list[BagData], options: dict) -> list[str]:
     names = list(tracks) + [p for p in options["pairs"] if p not in tracks]
-    return [n for n in names if any(residuals(d, n, options) is not None for d in runs[:1])]
+    return [n for n in names if baseline_states(runs[0], n, options) is not None]
 
 
 def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:

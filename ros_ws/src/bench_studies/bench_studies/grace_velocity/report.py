@@ -156,12 +156,8 @@ def _draw_sweep(sweep: Mapping):
 def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown: str = "") -> Path:
     """``table.md`` of a grace_velocity sweep (sweep.json content) with its plot; returns its path."""
     from bench_eval.report import render
-    text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
-            f"{sweep['runs_per_cell']} runs (seeds {sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}, the "
-            f"same in every cell), one day each; wall time {sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\n"
-            f"Command: `{sweep['command']}`")
-    if sweep.get("failures"):
-        text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
+    from bench_eval.sweep import sweep_intro
+    text = sweep_intro(sweep, ", one day each")
     plot = Plot(f"{sweep['scenario']}_{sweep['grid']}.png", "Range-rate residual std per method against the fix "
                 "interval, one panel per GNSS noise", _draw_sweep(sweep), (12.0, 4.5))
     section = Section(f"{sweep['scenario']} — sweep '{sweep['grid']}'", text, sweep_tables(sweep), [plot])

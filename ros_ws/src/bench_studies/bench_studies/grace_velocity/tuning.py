@@ -36,7 +36,7 @@ class QScore:
     """Std of the range-rate residual against the KBR [m/s]."""
 
 
-def measurements(cfg: dict, seed: int, source: str = "baseline"):
+def measurements(cfg: dict, seed: int):
     """The truth and the sensors only, in process: (run items, truth)."""
     run = run_in_process(cfg, None, seed=seed, roles=("sensor",))
     return run.items, build_truth(cfg)
