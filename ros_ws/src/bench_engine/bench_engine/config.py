@@ -46,15 +46,15 @@ def scenario_path(name_or_path: str) -> Path:
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Split ``a.b.c=value`` into its key path and YAML-parsed value."""
     if "=" not in text:
-        raise ScenarioError(f"override '{text}' must look like key.path=value")
+        raise ScenarioError(f"override {text!r} must look like key.path=value")
     key, raw = text.split("=", 1)
     path = [p for p in key.strip().split(".") if p]
     if not path:
-        raise ScenarioError(f"override '{text}' has an empty key")
+        raise ScenarioError(f"override {text!r} has an empty key")
     try:
         value = yaml.safe_load(raw)
     except yaml.YAMLError as err:
-        raise ScenarioError(f"override '{text}': value is not valid YAML ({err})") from err
+        raise ScenarioError(f"override {text!r}: value is not valid YAML ({' '.join(str(err).split())})") from err
     return path, value
 
 
@@ -70,7 +70,7 @@ def apply_overrides(cfg: dict, overrides: Iterable[str]) -> dict:
                 child = node[key] = {}
             if not isinstance(child, dict):
                 where = ".".join(path[: depth + 1])
-                raise ScenarioError(f"override '{text}': '{where}' is a value, not a section")
+                raise ScenarioError(f"override {text!r}: '{where}' is a value, not a section")
             node = child
         node[path[-1]] = value
     return cfg
