@@ -76,3 +76,14 @@ def test_bad_arguments_are_refused():
         orbit_truth(ORBIT, 10, 0.1, jitter_deg_s=0.1)              # no generator
     with pytest.raises(ValueError):
         jitter_rates(10, 0.1, np.random.default_rng(0), hold=0)
+
+
+def test_each_run_seed_draws_its_own_jitter_unless_the_scenario_fixes_it():
+    from bench_engine.config import apply_overrides, load_scenario
+    from orbit_sim.truth import build_truth
+    cfg = apply_overrides(load_scenario("star_tracker"), ["time.duration=2.0"])
+    rates = {seed: build_truth({**cfg, "seed": seed}).states[:, 4:] for seed in (0, 1)}
+    assert not np.allclose(rates[0], rates[1])                  # Monte Carlo runs see different jitter
+    np.testing.assert_array_equal(build_truth({**cfg, "seed": 1}).states, build_truth({**cfg, "seed": 1}).states)
+    fixed = apply_overrides(cfg, ["truth.jitter_seed=5"])
+    np.testing.assert_array_equal(build_truth({**fixed, "seed": 0}).states, build_truth({**fixed, "seed": 1}).states)

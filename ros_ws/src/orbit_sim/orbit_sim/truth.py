@@ -20,7 +20,7 @@ import numpy as np
 
 from orbit_sim import cowell, gravity, hill, kepler, relative
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine.timegrid import TimeGrid, build_time
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
@@ -179,9 +179,19 @@ def build_truth(cfg: dict) -> Truth:
     """Integrate the scenario's truth and sample it on the step grid (cached per truth configuration).
 
     ``truth.model`` names a registered truth model (entry-point group ``tracking_bench.truth_models``): a
-    function (section, model name, earth, grid) -> Truth."""
-    key = json.dumps({k: cfg.get(k) for k in ("earth", "time", "truth")}, sort_keys=True, default=str)
-    return _build_truth(key)
+    function (section, model name, earth, grid) -> Truth. A model with random parts (attribute ``seeded``)
+    also receives ``seed=`` the run's seed, so Monte Carlo runs draw them anew."""
+    fields = {k: cfg.get(k) for k in ("earth", "time", "truth")}
+    if getattr(_model_function(cfg), "seeded", False):
+        fields["seed"] = scenario_seed(cfg)
+    return _build_truth(json.dumps(fields, sort_keys=True, default=str))
+
+
+def _model_function(cfg: dict):
+    """The registered function of ``truth.model``, or None when the name is unknown (reported by Section)."""
+    truth = cfg.get("truth")
+    model = truth.get("model") if isinstance(truth, dict) else None
+    return plugins.load("truth_models", model) if model in plugins.names("truth_models") else None
 
 
 @lru_cache(maxsize=4)
@@ -191,7 +201,8 @@ def _build_truth(key: str) -> Truth:
     grid = build_time(cfg)
     sec = Section(cfg.get("truth"), "truth")
     model = sec.choice("model", plugins.names("truth_models"))
-    truth = plugins.load("truth_models", model)(sec, model, earth, grid)
+    seed = {"seed": cfg["seed"]} if "seed" in cfg else {}
+    truth = plugins.load("truth_models", model)(sec, model, earth, grid, **seed)
     sec.finish()
     truth.states.setflags(write=False)
     return truth

@@ -8,7 +8,8 @@ scenario's time grid (one frame per step).
                                  # boresight (coordinated-turn case)
       jitter_deg_s: 0.1          # J: boresight rate uniform in ±J (deg/s), held jitter_hold frames (paper: 10)
       jitter_hold: 10
-      jitter_seed: 0             # the jitter sequence's generator (the run's seed varies the camera's noise)
+      jitter_seed: null          # the jitter sequence's generator: null = the run's seed (each Monte Carlo run
+                                 # draws its own jitter); an integer fixes the sequence across runs
       altitude_m: 700000.0
       inclination_deg: 30.0
       raan_deg: 30.0
@@ -39,15 +40,19 @@ def orbit_of(sec: Section):
                          arg_latitude0_deg=sec.get("arg_latitude0_deg", float, 50.0))
 
 
-def camera_truth(sec: Section, model: str, earth, grid: TimeGrid):
-    """Truth (orbit_sim.truth.Truth) of the module docstring's section."""
+def camera_truth(sec: Section, model: str, earth, grid: TimeGrid, seed: int = 0):
+    """Truth (orbit_sim.truth.Truth) of the module docstring's section; ``seed`` is the run's seed."""
     from orbit_sim.truth import Truth
     from star_tracker.sky_motion import BORESIGHTS, orbit_truth
     boresight = sec.choice("boresight", BORESIGHTS, "zenith")
     jitter = sec.get("jitter_deg_s", float, 0.0, lambda v: 0.0 <= v <= 90.0, "in [0, 90] deg/s")
     hold = sec.get("jitter_hold", int, 10, lambda v: v >= 1, "an integer >= 1")
-    seed = sec.get("jitter_seed", int, 0, lambda v: v >= 0, "an integer >= 0")
+    fixed = sec.get("jitter_seed", int, None, lambda v: v >= 0, "an integer >= 0 or null (the run's seed)")
+    seed = seed if fixed is None else fixed
     orbit = orbit_of(sec)
     truth = orbit_truth(orbit, grid.steps, grid.dt, boresight, jitter, np.random.default_rng([seed, 7]), hold)
     states = np.hstack([truth.quaternions, truth.rate])
     return Truth(grid, states, LABELS, FRAME)
+
+
+camera_truth.seeded = True  # orbit_sim.truth.build_truth passes the run's seed
