@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Where a run's wall time goes: the phases of a single launch and of a Monte Carlo batch, end to end.
 
-Runs, as a user would, ``launch.py SCENARIO`` (one process per node; the same with ``--fork-nodes``; and
-``--single-process``) and
+Runs, as a user would, ``launch.py SCENARIO`` (one process per node, forked from the launcher; the same with
+``--fresh-nodes``, each node a fresh interpreter; and ``--single-process``) and
 ``montecarlo.py SCENARIO --runs N --jobs J``, with phase recording on (bench_engine.phases: every process of
 the run appends its timestamps to one file), and prints each phase's wall time:
 
@@ -45,7 +45,7 @@ from bench_engine import phases  # noqa: E402
 SCRIPTS = Path(__file__).resolve().parent
 PHASES = ("interpreter + imports", "validation", "process spawn", "node set-up", "discovery + readiness",
           "stepping", "drain", "bag close", "shutdown", "scoring", "exit")
-LAUNCH_MODES = {"multi-process": [], "forked-nodes": ["--fork-nodes"], "single-process": ["--single-process"]}
+LAUNCH_MODES = {"multi-process": [], "fresh-nodes": ["--fresh-nodes"], "single-process": ["--single-process"]}
 
 
 def _first(records: list[dict], event: str, who: str | None = None) -> float | None:
@@ -141,8 +141,8 @@ def montecarlo(scenario: str, runs: int, jobs: int, extra: list[str], tmp: Path)
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="leo_radar")
-    p.add_argument("--modes", default="multi-process,forked-nodes,single-process,montecarlo",
-                   help="comma-separated subset of multi-process, forked-nodes, single-process, montecarlo")
+    p.add_argument("--modes", default="multi-process,fresh-nodes,single-process,montecarlo",
+                   help="comma-separated subset of multi-process, fresh-nodes, single-process, montecarlo")
     p.add_argument("--repeat", type=int, default=1, help="launches per mode (the median of each phase is printed)")
     p.add_argument("--runs", type=int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--jobs", type=int, default=2, help="Monte Carlo jobs (default 2)")

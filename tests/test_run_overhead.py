@@ -1,4 +1,4 @@
-"""The per-run overhead cuts keep every run the same: nodes forked from the launcher (--fork-nodes) and Monte
+"""The per-run overhead cuts keep every run the same: nodes forked from the launcher (the default) and Monte
 Carlo runs forked from the preloaded fork server record the same messages as fresh processes; the recorder
 closes the bag on the source's totals (not after a silence); forked nodes still stop when their launcher is
 killed; the phase benchmark (scripts/bench_phases.py) prints every phase. Nothing here asserts a time."""
@@ -22,7 +22,7 @@ PHASE_ROWS = ("interpreter + imports", "validation", "process spawn", "node set-
 
 def test_forked_and_fresh_node_processes_record_the_same_bag(tmp_path):
     found = {}
-    for mode, args, env in (("fresh", [], {NO_FORK_ENV: "1"}), ("forked", ["--fork-nodes"], {}),
+    for mode, args, env in (("fresh", ["--fresh-nodes"], {}), ("forked", [], {}),
                             ("single", ["--single-process"], {})):
         out = tmp_path / mode
         res = script("launch.py", "leo_radar", "--seed", "5", *SHORT_PASS, "--out", str(out), "--no-score", *args,
@@ -54,7 +54,7 @@ def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_pat
     out, log = tmp_path / "orphan", tmp_path / "phases.jsonl"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{phases.ENV: str(log)})
     proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                             "--no-score", "--fork-nodes", "--set", "time.pacing_window=0"],
+                             "--no-score", "--set", "time.pacing_window=0"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not (log.exists() and "stepping_start" in log.read_text()):

@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import setproctitle
 import yaml
 
 from bench_engine import phases, plugins
@@ -156,8 +157,10 @@ def can_fork() -> bool:
 def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Path) -> ForkedNode:
     """Start node ``name`` (``python -m module`` equivalent) as a child forked from this process, which has
     already imported the node's module: the child skips the interpreter start and the imports (numpy, scipy,
-    rclpy, the cores' modules), which dominate a node process's start-up. Its own session, environment and
-    log, as with subprocess.Popen(start_new_session=True)."""
+    rclpy, the cores' modules), which dominate a node process's start-up, and inherits what validation built
+    (the truth's trajectory). Its own session, environment and log, as with
+    subprocess.Popen(start_new_session=True), and the command line a fresh node process would have (``ps``,
+    ``pgrep -f "--name NODE --config …"`` find it the same way)."""
     node_module = importlib.import_module(module)
     sys.stdout.flush()
     sys.stderr.flush()
@@ -173,9 +176,10 @@ def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Pa
         os.dup2(fd, 1)
         os.dup2(fd, 2)
         os.close(fd)
+        sys.argv = [module, "--name", name, "--config", str(config)]
+        setproctitle.setproctitle(" ".join([sys.executable, "-m", *sys.argv]))  # before environ changes
         os.environ.clear()
         os.environ.update(env)
-        sys.argv = [module, "--name", name, "--config", str(config)]
         code = node_module.main()
     except SystemExit as exit_:
         code = exit_.code if isinstance(exit_.code, int) else 1
@@ -189,10 +193,10 @@ def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Pa
 
 
 def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False,
-                     fork: bool = False) -> int:
-    """One process per node, each a fresh interpreter, or with ``fork`` forked from this one when it can
-    (``fork_node``: faster start-up, but the nodes' command lines are the launcher's); returns 0 on success,
-    non-zero (naming the failed node) otherwise."""
+                     fork: bool = True) -> int:
+    """One process per node, forked from this one when it can (``fork_node``: the fast start-up), else or
+    without ``fork`` each a fresh interpreter; returns 0 on success, non-zero (naming the failed node)
+    otherwise."""
     env = local_dds_env(domain_id)
     plan.logs.mkdir(exist_ok=True)
     procs: dict[str, subprocess.Popen | ForkedNode] = {}
@@ -210,7 +214,7 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
                 try:
                     procs[spec.name] = fork_node(module, spec.name, plan.config_path, env, log_path)
                     continue
-                except ImportError:  # the node's own process reports it, as without --fork-nodes
+                except ImportError:  # the node's own fresh process reports it
                     pass
             log = open(log_path, "w")
             procs[spec.name] = subprocess.Popen(
@@ -310,7 +314,7 @@ def _stop_all(procs: dict) -> None:
 
 
 def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
-              tag: str = "launch", pin: bool = True, fork_nodes: bool = False) -> int:
+              tag: str = "launch", pin: bool = True, fork_nodes: bool = True) -> int:
     """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it."""
     try:
         reservation = reserve(domain_id)

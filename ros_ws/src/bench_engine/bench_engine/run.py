@@ -37,9 +37,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --single-process: let the process's threads use every CPU")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID of this run (default: the first one no other bench run holds)")
-    p.add_argument("--fork-nodes", action="store_true",
-                   help="one process per node, forked from the launcher: they skip the interpreter start and the "
-                        "imports (faster start-up); their command lines are then the launcher's")
+    p.add_argument("--fresh-nodes", action="store_true",
+                   help="start each node process as a fresh interpreter (slower start-up) instead of forking it "
+                        "from the launcher, which has imported the nodes and built the truth already")
     p.add_argument("--executor", choices=["events", "single"], default="events",
                    help="rclpy executor (events = rclpy.experimental.EventsExecutor)")
 
@@ -58,7 +58,7 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     phases.mark("validated", "launcher", plan.out)
     started = time.monotonic()
     code = run_graph(plan, args.domain_id, args.single_process, args.executor, pin=not args.no_pin,
-                     fork_nodes=args.fork_nodes)
+                     fork_nodes=not args.fresh_nodes)
     wall = time.monotonic() - started
     phases.mark("run_end", "launcher", plan.out)
     timing = plan.out / "timing.json"

@@ -55,15 +55,24 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     for run directories already in OUT (unless ``resume``). ``scheduler``: a Dask scheduler address or
     ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times."""
     from bench_eval.report import write_report
-    from bench_eval.scoring import score_bags
+    from bench_eval.scoring import load_bag, score_bags
     mc.out.mkdir(parents=True, exist_ok=True)
     pending = mc.pending(mc.validate(), resume)
     phases.mark("validated", "montecarlo", mc.out.resolve())
     if len(pending) < mc.runs:
         print(f"[montecarlo] resuming: {mc.runs - len(pending)} complete runs kept, {len(pending)} to run",
               file=sys.stderr)
+    loaded = {}
+
+    def load(result) -> None:  # decoded as each run ends, while the others still run
+        if result.ok:
+            try:
+                loaded[result.spec.bag.resolve()] = load_bag(result.spec.bag)
+            except Exception:  # noqa: BLE001 - score_bags reads this bag again and reports what is wrong
+                pass
+
     started = time.monotonic()
-    results = run_batch(pending, jobs, domains, desc=Path(mc.scenario).stem, scheduler=scheduler,
+    results = run_batch(pending, jobs, domains, desc=Path(mc.scenario).stem, on_done=load, scheduler=scheduler,
                         retries=retries) if pending else []
     wall = time.monotonic() - started
     phases.mark("runs_done", "montecarlo", mc.out.resolve())
@@ -78,7 +87,7 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     bags = mc.bags()
     if not bags:
         raise RuntimeError("no run produced a bag")
-    scored, series = score_bags(bags, with_series=True)
+    scored, series = score_bags([loaded.get(b.resolve(), b) for b in bags], with_series=True)
     if results:
         scored["runs_per_minute"] = round(60 * len(results) / wall, 2)
     (mc.out / "score.json").write_text(json.dumps(scored, indent=1))

@@ -127,12 +127,16 @@ def load_bag(bag_dir: Path | str) -> BagData:
     return data
 
 
-def load_bags(bag_dirs: list[Path | str], jobs: int = 2) -> list[BagData]:
-    """Load several bags, in ``jobs`` worker processes when there are many."""
-    if len(bag_dirs) <= 2 or jobs <= 1:
-        return [load_bag(b) for b in bag_dirs]
-    with ProcessPoolExecutor(jobs) as pool:
-        return list(pool.map(load_bag, bag_dirs, chunksize=4))
+def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
+    """Load several bags, in ``jobs`` worker processes when there are many; a BagData item (a bag loaded
+    already, e.g. as its run ended) is taken as it is."""
+    paths = [b for b in bags if not isinstance(b, BagData)]
+    if len(paths) <= 2 or jobs <= 1:
+        loaded = iter([load_bag(b) for b in paths])
+    else:
+        with ProcessPoolExecutor(jobs) as pool:
+            loaded = iter(list(pool.map(load_bag, paths, chunksize=4)))
+    return [b if isinstance(b, BagData) else next(loaded) for b in bags]
 
 
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
@@ -177,7 +181,7 @@ def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
                           if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
 
 
-def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
+def collect(bag_dirs: list[Path | str | BagData]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
     """Load the bags, run the offline estimators, and align every scored estimator's estimates with the truth."""
     runs = load_bags(bag_dirs)
     scenario = _scenario_name(runs)
@@ -189,7 +193,7 @@ def collect(bag_dirs: list[Path | str]) -> tuple[str, dict[str, list[metrics.Tra
     return scenario, tracks, runs
 
 
-def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
+def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
     the metric family the scenario's ``scoring.metric`` names.
 
@@ -198,7 +202,8 @@ def score_bags(bag_dirs: list[Path | str], with_series: bool = False):
     """
     scenario, tracks, runs = collect(bag_dirs)
     if not tracks:
-        raise NothingToScore(f"no estimates in {', '.join(map(str, bag_dirs))}: the run's filters published nothing "
+        names = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
+        raise NothingToScore(f"no estimates in {', '.join(names)}: the run's filters published nothing "
                              "(did the sensors ever see the target?)")
     opts = scoring_options(runs[0].scenario)
     family = plugins.load("metrics", opts.metric)

@@ -28,11 +28,11 @@ def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | Non
     rows = [i for i, k in enumerate(est.steps) if int(k) in meas]
     if not rows:
         return None
-    z_est = [sensor.model.h(est.x[i], est.t[i]) for i in rows]
-    z_meas = [meas[int(est.steps[i])] for i in rows]
-    z_true = [sensor.model.h(data.truth[int(est.steps[i])][1], est.t[i]) for i in rows]
-    return metrics.RadarSamples(np.array(z_est), np.array(z_meas), np.array(z_true),
-                                tuple(sensor.model.angle_indices))
+    t = est.t[rows]
+    z_est = sensor.model.h_series(est.x[rows], t)
+    z_meas = np.array([meas[int(est.steps[i])] for i in rows])
+    z_true = sensor.model.h_series(np.array([data.truth[int(est.steps[i])][1] for i in rows]), t)
+    return metrics.RadarSamples(z_est, z_meas, z_true, tuple(sensor.model.angle_indices))
 
 
 def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
