@@ -112,14 +112,6 @@ def test_batch_h_equals_rowwise_and_extra_state_components_are_ignored(model):
     assert H8.shape == (len(model.labels), 8) and not H8[:, 6:].any()
 
 
-def test_a_series_at_its_own_times_equals_h_state_by_state(model):
-    cases = geometries()
-    X = np.array([target_state(model, t, r, a, e, v) for t, r, a, e, v in cases])
-    times = np.array([c[0] for c in cases])
-    np.testing.assert_allclose(model.h_series(X, times), np.array([model.h(x, t) for x, t in zip(X, times)]),
-                               rtol=1e-12, atol=1e-9)
-
-
 def test_elevation_and_visibility_helper():
     model = GroundRadarModel(*STATION, theta0=THETA0)
     t = 1234.5

@@ -98,18 +98,6 @@ class GroundRadarModel:
         w = (x[..., 3:6] - x[..., 0:3] @ _OMEGA_SKEW.T) @ T.T if self.with_range_rate else None
         return _polar_rows(u, w)
 
-    def h_series(self, x: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """h of states (m, n), row i at its own time t[i] (m,) -> (m, d): a recorded track scored at once."""
-        x = np.asarray(x, dtype=float)
-        theta = earth_rotation_angle(t, self.theta0)
-        c, s = np.cos(theta), np.sin(theta)
-        r3 = np.zeros((len(theta), 3, 3))
-        r3[:, 0, 0], r3[:, 0, 1], r3[:, 1, 0], r3[:, 1, 1], r3[:, 2, 2] = c, s, -s, c, 1.0
-        T = self._M @ r3
-        u = np.einsum("mij,mj->mi", T, x[:, 0:3]) - self._station_enu
-        w = np.einsum("mij,mj->mi", T, x[:, 3:6] - x[:, 0:3] @ _OMEGA_SKEW.T) if self.with_range_rate else None
-        return _polar_rows(u, w)
-
     def elevation(self, x: np.ndarray, t: float) -> np.ndarray | float:
         """Elevation [rad] of a state (n,) -> float or batch (m, n) -> (m,), for the visibility mask."""
         u = self.enu(x, t)
