@@ -28,9 +28,9 @@ P = σ1² I + |b1×b2|⁻² [σ1² (b1·b2)(b1 b2ᵀ + b2 b1ᵀ) + (σ2² − σ
 from __future__ import annotations
 
 from dataclasses import dataclass
+from math import atan2, cos, sin, sqrt
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 
@@ -58,25 +58,97 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def _xyzw_from_rotation(A: np.ndarray) -> tuple[float, float, float, float]:
+    """Unit quaternion (x, y, z, w) of a rotation matrix by Markley's method (Markley 2008, "Unit Quaternion
+    from Rotation Matrix"): of the four candidates, the one built on the largest of A11, A22, A33 and tr A, then
+    normalised. A matrix that is not orthogonal to 1e-12 is first replaced by the nearest rotation, U Vᵀ from
+    its SVD (the orthogonal Procrustes solution); a matrix with det A <= 0 is no rotation (ValueError)."""
+    A = np.asarray(A, dtype=float)
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = A.tolist()
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
+    if not det > 0.0:
+        raise ValueError(f"not a rotation matrix (det {det}): {A.tolist()}")
+    if not np.all(np.abs(A @ A.T - _EYE) <= _ORTHOGONAL_TOL):
+        U, _, Vt = np.linalg.svd(A)
+        (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = (U @ Vt).tolist()
+    tr = m00 + m11 + m22
+    largest = max(m00, m11, m22, tr)
+    if largest == m00:
+        q = (1.0 - tr + 2.0 * m00, m10 + m01, m20 + m02, m21 - m12)
+    elif largest == m11:
+        q = (m10 + m01, 1.0 - tr + 2.0 * m11, m21 + m12, m02 - m20)
+    elif largest == m22:
+        q = (m20 + m02, m21 + m12, 1.0 - tr + 2.0 * m22, m10 - m01)
+    else:
+        q = (m21 - m12, m02 - m20, m10 - m01, 1.0 + tr)
+    n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return q[0] / n, q[1] / n, q[2] / n, q[3] / n
+
+
+_EYE = np.eye(3)
+_ORTHOGONAL_TOL = 1e-12 + 1e-5 * _EYE
+"""|A Aᵀ − I| within 1e-12 off the diagonal (1e-5 relative on it): A is taken as orthogonal."""
+
+
+def _matrix_from_xyzw(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """Rotation matrix of the unit quaternion (x, y, z, w) (w the scalar part)."""
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    return np.array([[x2 - y2 - z2 + w2, 2.0 * (xy - zw), 2.0 * (xz + yw)],
+                     [2.0 * (xy + zw), -x2 + y2 - z2 + w2, 2.0 * (yz - xw)],
+                     [2.0 * (xz - yw), 2.0 * (yz + xw), -x2 - y2 + z2 + w2]])
+
+
+def _rotvec_from_xyzw(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """Rotation vector θ n of the unit quaternion (x, y, z, w): θ = 2 atan2(|(x, y, z)|, |w|) and
+    θ n = (θ / sin(θ/2)) (x, y, z), by its series 2 + θ²/12 + 7θ⁴/2880 for θ <= 1e-3."""
+    if w < 0.0:
+        x, y, z, w = -x, -y, -z, -w
+    angle = 2.0 * atan2(sqrt(x * x + y * y + z * z), w)
+    if angle <= 1e-3:
+        a2 = angle * angle
+        scale = 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0
+    else:
+        scale = angle / sin(angle / 2.0)
+    return np.array([scale * x, scale * y, scale * z])
+
+
 def quaternion_from_matrix(A: np.ndarray) -> np.ndarray:
     """(qw, qx, qy, qz), qw >= 0, of a rotation matrix (module docstring)."""
-    q = Rotation.from_matrix(np.asarray(A, dtype=float)).as_quat(scalar_first=True)
-    return q if q[0] >= 0 else -q
+    x, y, z, w = _xyzw_from_rotation(A)
+    return np.array([w, x, y, z]) if w >= 0 else np.array([-w, -x, -y, -z])
 
 
 def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a scalar-first quaternion (normalised first)."""
-    return Rotation.from_quat(np.asarray(q, dtype=float), scalar_first=True).as_matrix()
+    w, x, y, z = np.asarray(q, dtype=float).tolist()
+    n = sqrt(x * x + y * y + z * z + w * w)
+    return _matrix_from_xyzw(x / n, y / n, z / n, w / n)
+
+
+def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """exp([θ×]): the matrix of the rotation by the rotation vector θ (rad), through its unit quaternion
+    (sin(|θ|/2) θ/|θ|, cos(|θ|/2)), the ratio by its series 1/2 − |θ|²/48 + |θ|⁴/3840 for |θ| <= 1e-3."""
+    x, y, z = np.asarray(rotvec, dtype=float).tolist()
+    angle = sqrt(x * x + y * y + z * z)
+    if angle <= 1e-3:
+        a2 = angle * angle
+        scale = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    else:
+        scale = sin(angle / 2.0) / angle
+    return _matrix_from_xyzw(scale * x, scale * y, scale * z, cos(angle / 2.0))
 
 
 def error_angle(A_est: np.ndarray, A_true: np.ndarray) -> float:
-    """Angle (rad) of the rotation between two attitudes, arccos((tr(Â Aᵀ) − 1)/2), computed stably."""
-    return float(Rotation.from_matrix(np.asarray(A_est) @ np.asarray(A_true).T).magnitude())
+    """Angle (rad) of the rotation between two attitudes, arccos((tr(Â Aᵀ) − 1)/2), computed stably (from
+    the quaternion of Â Aᵀ: 2 atan2(|q_v|, |q_w|))."""
+    x, y, z, w = _xyzw_from_rotation(np.asarray(A_est) @ np.asarray(A_true).T)
+    return 2.0 * atan2(sqrt(x * x + y * y + z * z), abs(w))
 
 
 def error_vector(A_est: np.ndarray, A_true: np.ndarray) -> np.ndarray:
     """Attitude error δθ (rad, camera frame) with Â = exp(−[δθ×]) A (module docstring)."""
-    return -Rotation.from_matrix(np.asarray(A_est) @ np.asarray(A_true).T).as_rotvec()
+    return -_rotvec_from_xyzw(*_xyzw_from_rotation(np.asarray(A_est) @ np.asarray(A_true).T))
 
 
 def error_components(A_est: np.ndarray, A_true: np.ndarray) -> tuple[float, float]:

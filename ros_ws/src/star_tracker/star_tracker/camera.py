@@ -21,6 +21,7 @@ of 0.35"–2", consistent with the arc-second attitude errors the paper reports.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -42,20 +43,23 @@ class Camera:
         if self.width < 1 or self.height < 1:
             raise ValueError(f"image size must be positive, got {self.width} x {self.height}")
 
-    @property
+    # The geometry is computed once per camera (the camera is frozen): the per-frame projections use it.
+    @cached_property
     def focal_px(self) -> float:
         """Focal length in pixels, f = (W/2)/tan(FOV/2)."""
-        return 0.5 * self.width / np.tan(np.radians(self.fov_deg) / 2.0)
+        return float(0.5 * self.width / np.tan(np.radians(self.fov_deg) / 2.0))
 
-    @property
+    @cached_property
     def ifov(self) -> float:
         """Angle subtended by one pixel at the image centre (rad/px), 1/f."""
         return 1.0 / self.focal_px
 
-    @property
+    @cached_property
     def centre(self) -> np.ndarray:
-        """Principal point (u, v) in pixels."""
-        return np.array([self.width / 2.0, self.height / 2.0])
+        """Principal point (u, v) in pixels (read-only)."""
+        c = np.array([self.width / 2.0, self.height / 2.0])
+        c.flags.writeable = False
+        return c
 
     @property
     def half_diagonal(self) -> float:
@@ -71,17 +75,20 @@ class Camera:
         """(N, 2) pixel coordinates (u, v) of camera-frame directions v (N, 3) (need not be unit vectors);
         NaN for directions at or behind the image plane's horizon (z <= 0)."""
         v = np.asarray(v, dtype=float)
-        z = v[..., 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uv = self.focal_px * v[..., :2] / z[..., None] + self.centre
-        return np.where((z > 0)[..., None], uv, np.nan)
+        z = v[..., 2:]
+        uv = np.full(v.shape[:-1] + (2,), np.nan)
+        np.divide(self.focal_px * v[..., :2], z, out=uv, where=z > 0)
+        uv += self.centre
+        return uv
 
     def unproject(self, uv: np.ndarray) -> np.ndarray:
         """(N, 3) camera-frame unit vectors of pixel coordinates (N, 2); inverse of :meth:`project`."""
-        uv = np.asarray(uv, dtype=float)
-        xy = (uv - self.centre) / self.focal_px
-        v = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
-        return v / np.linalg.norm(v, axis=-1, keepdims=True)
+        xy = (np.asarray(uv, dtype=float) - self.centre) / self.focal_px
+        x, y = xy[..., 0], xy[..., 1]
+        norm = np.sqrt(x * x + y * y + 1.0)
+        v = np.empty(xy.shape[:-1] + (3,))
+        v[..., 0], v[..., 1], v[..., 2] = x, y, 1.0
+        return v / norm[..., None]
 
     def to_tangent(self, uv: np.ndarray) -> np.ndarray:
         """Tangent-plane coordinates (x/z, y/z) of pixel coordinates (N, 2) (bench_msgs/StarCentroids'
@@ -95,9 +102,8 @@ class Camera:
     def in_image(self, uv: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """True where a pixel coordinate lies in the image, at least ``margin`` pixels from its edges."""
         uv = np.asarray(uv, dtype=float)
-        with np.errstate(invalid="ignore"):
-            return ((uv[..., 0] >= margin) & (uv[..., 0] <= self.width - margin)
-                    & (uv[..., 1] >= margin) & (uv[..., 1] <= self.height - margin))
+        return ((uv[..., 0] >= margin) & (uv[..., 0] <= self.width - margin)
+                & (uv[..., 1] >= margin) & (uv[..., 1] <= self.height - margin))
 
     def stars_in_view(self, catalogue: StarCatalogue, attitude: np.ndarray,
                       margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from tracker_filters.association import NO_DETECTION, Association, Hypotheses
+from tracker_filters.association import Association, Hypotheses
 
 UNIT_BALL = {1: 2.0, 2: pi, 3: 4.0 * pi / 3.0}
 """c_nz of eq. 11: the volume of the unit ball in n_z dimensions."""
@@ -87,11 +87,17 @@ class JointProbabilisticAssociator:
         self.largest_cluster = 0
 
     def associate(self, hypotheses: Hypotheses) -> list[Association]:
+        weights = self.weights(hypotheses)
+        detection = np.argmax(weights, axis=1) - 1     # the most probable hypothesis; column 0, the miss, gives -1
+        return [Association(int(j), w) for j, w in zip(detection, weights)]
+
+    def weights(self, hypotheses: Hypotheses) -> np.ndarray:
+        """(T, N + 1) β of every target: [β_r0, β_r1, …, β_rN] (eq. 12), the rows of :meth:`associate`."""
         T, N = hypotheses.n_tracks, hypotheses.n_detections
         weights = np.zeros((T, N + 1))
         weights[:, 0] = 1.0
         if N == 0 or T == 0:
-            return [Association(NO_DETECTION, w) for w in weights]
+            return weights
         gated = hypotheses.gated & np.isfinite(hypotheses.log_likelihood)
         # a target whose gated detections are in no other target's gate is a cluster of its own: its weights
         # are the single-target PDA's, computed for all such targets at once
@@ -119,11 +125,7 @@ class JointProbabilisticAssociator:
                 for row, r in enumerate(targets):
                     weights[r] = 0.0
                     weights[r, cols] = beta[row]
-        out = []
-        for w in weights:
-            j = int(np.argmax(w)) - 1
-            out.append(Association(j, w))
-        return out
+        return weights
 
     def _singletons(self, hyp: Hypotheses, gated: np.ndarray, targets: np.ndarray, weights: np.ndarray) -> None:
         """The weights of every single-target cluster at once (the events: missed, or one of its m gated

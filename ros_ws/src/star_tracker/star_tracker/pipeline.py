@@ -50,7 +50,7 @@ from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, StarCatalogue
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
 from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier
-from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, predict_centroids
+from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, member, predict_centroids
 
 TRACKERS = ("sna", "jpdaf")
 SOLVERS = ("wahba", "triad")
@@ -80,6 +80,8 @@ class FrameResult:
     """Catalogue indices of the stars the attitude was solved from."""
     star_uv: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     """Their image positions (measured for SNA and lost-in-space, filtered for the JPDAF)."""
+    star_rows: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    """The centroid (index into the frame's positions) of each of those stars."""
 
 
 class StarTrackerPipeline:
@@ -167,6 +169,7 @@ class StarTrackerPipeline:
             index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
             index[finite] = result.index
             result.index = index
+            result.star_rows = np.flatnonzero(finite)[result.star_rows]
             return result
         omega_body = np.asarray(omega_body, dtype=float)
         self._jitter = float(jitter_rate)
@@ -192,8 +195,8 @@ class StarTrackerPipeline:
         rows = np.flatnonzero(ident.index >= 0)
         ids = ident.index[rows]
         self._start(ids, uv[rows], omega_body)
-        solution = self._solve(uv[rows], ids)
-        return FrameResult(True, "", "lost_in_space", solution, ident.index, ids, uv[rows])
+        solution = self._solve(self.camera.unproject(uv[rows]), self.catalogue.vectors[ids])
+        return FrameResult(True, "", "lost_in_space", solution, ident.index, ids, uv[rows], rows)
 
     def _start(self, ids: np.ndarray, uv: np.ndarray, omega_body: np.ndarray) -> None:
         if self.tracker_kind == "sna":
@@ -224,12 +227,13 @@ class StarTrackerPipeline:
             hit = step.detection >= 0
             ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
             sig = np.minimum(step.position_sigma[hit], self.sigma_px)
-        # verification: drop the stars the fit rejects, one at a time (worst first)
+        # verification: drop the stars the fit rejects, one at a time (worst first); each star's direction b
+        # and catalogue vector r are computed once, the fit that passes is kept (A_fit)
+        b, r = self.camera.unproject(pos), self.catalogue.vectors[ids]
         keep = np.ones(len(ids), dtype=bool)
         while keep.sum() >= self.min_stars:
-            b = self.camera.unproject(pos[keep])
-            r = self.catalogue.vectors[ids[keep]]
-            res = residuals(wahba_matrix(b, r), b, r)
+            A_fit = wahba_matrix(b[keep], r[keep])
+            res = residuals(A_fit, b[keep], r[keep])
             if res.max() <= self.verify_radius:
                 break
             keep[np.flatnonzero(keep)[int(np.argmax(res))]] = False
@@ -238,37 +242,45 @@ class StarTrackerPipeline:
                                "tracking", None, index)
         if not keep.all():
             self._forget(ids[~keep])
-        ids, rows, pos, sig = ids[keep], rows[keep], pos[keep], sig[keep]
+            ids, rows, pos, sig, b, r = ids[keep], rows[keep], pos[keep], sig[keep], b[keep], r[keep]
         index[rows] = ids
         inflation = None
+        solution = None
         if self.tracker_kind == "jpdaf":
-            agree, delta = self._unbiased(pos, sig, uv[rows], ids)
+            b_measured = self.camera.unproject(uv[rows])
+            agree, delta, filtered, own = self._unbiased(b, sig, b_measured, r)
             if not agree:
                 # the filtered stars disagree with this frame's own measurements (a lagging model): restart
                 # the tracks at the measurements and take the attitude from those
                 self.tracker.reseed(ids, uv[rows])
                 self.filter_resets += 1
-                pos, sig = uv[rows], np.full(len(ids), self.sigma_px)
-            elif delta is not None:
-                inflation = np.outer(delta, delta)
-        solution = self._solve(pos, ids, sig)
+                pos, sig, b = uv[rows], np.full(len(ids), self.sigma_px), b_measured
+                A_fit = wahba_matrix(b, r)
+                solution = own if self.solver == "wahba" else None
+            else:
+                if delta is not None:
+                    inflation = np.outer(delta, delta)
+                solution = filtered if self.solver == "wahba" else None
+        if solution is None:
+            solution = self._solve(b, r, sig)
         if inflation is not None:
             solution.covariance = solution.covariance + inflation
-        # new stars: the centroids no track took, identified from the attitude
+        # new stars: the centroids no track took, identified from the attitude of the verified fit
         free = np.flatnonzero(index == UNIDENTIFIED)
         if len(free):
-            A = wahba_matrix(self.camera.unproject(pos), self.catalogue.vectors[ids])
-            new, _ = self.identifier.match(self.camera.unproject(uv[free]), A, self.verify_radius)
-            fresh = (new >= 0) & ~np.isin(new, self.tracker.ids) & ~np.isin(new, ids)
+            new, _ = self.identifier.match(self.camera.unproject(uv[free]), A_fit, self.verify_radius)
+            fresh = (new >= 0) & ~member(new, self.tracker.ids) & ~member(new, ids)
             if fresh.any():
                 self._start(new[fresh], uv[free[fresh]], omega_body)
                 index[free[fresh]] = new[fresh]
-        return FrameResult(True, "", "tracking", solution, index, ids, pos)
+        return FrameResult(True, "", "tracking", solution, index, ids, pos, rows)
 
-    def _unbiased(self, pos: np.ndarray, sig: np.ndarray, measured: np.ndarray, ids: np.ndarray
-                  ) -> tuple[bool, np.ndarray | None]:
-        """Whether the filtered stars agree with the measurements their tracks took (module docstring, step
-        3), and the disagreement δθ to add to the reported covariance (as δθ δθᵀ) when it is suspect.
+    def _unbiased(self, b: np.ndarray, sig: np.ndarray, b_measured: np.ndarray, r: np.ndarray
+                  ) -> tuple[bool, np.ndarray | None, AttitudeSolution, AttitudeSolution]:
+        """Whether the filtered stars (directions b, σ ``sig`` px) agree with the measurements their tracks
+        took (directions ``b_measured``; catalogue vectors r) (module docstring, step 3), the disagreement δθ
+        to add to the reported covariance (as δθ δθᵀ) when it is suspect, and the two all-star attitudes
+        (filtered, measured).
 
         With δθ the rotation between the attitude from the filtered positions and the attitude from the
         measurements, and P_m the latter's covariance, d = δθᵀ P_m⁻¹ δθ has a mean of at most 3 for an
@@ -278,9 +290,8 @@ class StarTrackerPipeline:
         the same way, which no residual of a fit shows. Between, a frame with d above ``BIAS_SUSPECT`` (χ²₃ at
         0.99) or a window mean above 3 keeps its filtered attitude but reports the covariance P_f + δθ δθᵀ,
         so that a lag too small to reject is not hidden behind the filter's small P_f."""
-        r = self.catalogue.vectors[ids]
-        filtered = wahba(self.camera.unproject(pos), r, np.maximum(sig * self.camera.ifov, 1e-3 * ARCSEC))
-        own = wahba(self.camera.unproject(measured), r, max(self.sigma, 1e-3 * ARCSEC))
+        filtered = wahba(b, r, np.maximum(sig * self.camera.ifov, 1e-3 * ARCSEC))
+        own = wahba(b_measured, r, max(self.sigma, 1e-3 * ARCSEC))
         delta = error_vector(filtered.matrix, own.matrix)
         d = float(delta @ np.linalg.solve(own.covariance, delta))
         self._bias.append(d)
@@ -288,19 +299,17 @@ class StarTrackerPipeline:
         mean = float(np.mean(self._bias))
         if d > 30.0 or (len(self._bias) == BIAS_WINDOW and mean > BIAS_MEAN):
             self._bias.clear()
-            return False, None
+            return False, None, filtered, own
         suspect = d > BIAS_SUSPECT or (len(self._bias) == BIAS_WINDOW and mean > 3.0)
-        return True, (delta if suspect else None)
+        return True, (delta if suspect else None), filtered, own
 
     def _forget(self, ids: np.ndarray) -> None:
-        self.tracker.drop(~np.isin(self.tracker.ids, ids))
+        self.tracker.drop(~member(self.tracker.ids, ids))
 
-    def _solve(self, uv: np.ndarray, ids: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
-        """The chosen solver over the stars at uv with catalogue indices ids; each star's direction has the
-        standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the ifov."""
-        b = self.camera.unproject(uv)
-        r = self.catalogue.vectors[ids]
-        px = np.full(len(ids), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
+    def _solve(self, b: np.ndarray, r: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
+        """The chosen solver over the stars seen along b (camera frame) with catalogue vectors r; each star's
+        direction has the standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the
+        ifov. (For the JPDAF with the all-star solver, the same solution as the agreement check's, reused.)"""
+        px = np.full(len(r), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
         sigma = np.maximum(px * self.camera.ifov, 1e-3 * ARCSEC)
         return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)
-

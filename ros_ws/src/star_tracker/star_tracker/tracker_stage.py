@@ -162,10 +162,7 @@ class StarTrackerStage:
         self.had_lock = self.had_lock or result.ok
         ids = np.where(result.index >= 0, self.pipeline.catalogue.ids[np.maximum(result.index, 0)], -1)
         used = np.full((len(uv), 2), np.nan)
-        order = np.argsort(result.star_ids)
-        rows = np.flatnonzero(np.isin(result.index, result.star_ids))
-        used[rows] = self.camera.to_tangent(result.star_uv[order[np.searchsorted(result.star_ids[order],
-                                                                                 result.index[rows])]])
+        used[result.star_rows] = self.camera.to_tangent(result.star_uv)
         out: Outputs = [(self.stars, StarFrame(frame.step, frame.t_ns, FRAME, self.name, used,
                                                np.asarray(frame.magnitudes, dtype=float), frame.sigma,
                                                frame.body_rate, frame.jitter_rate, ids))]

@@ -29,9 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
+from star_tracker.attitude import rotation_matrix
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
 from star_tracker.motion import H, MotionModel, measurement_noise
@@ -40,13 +40,18 @@ from tracker_filters.association import Hypotheses
 MISSED = -1
 
 
+def member(values: np.ndarray, among: np.ndarray) -> np.ndarray:
+    """np.isin for the few dozen catalogue indices of a frame's tracks: True where ``values`` (N,) is in
+    ``among`` (M,), by one (N, M) comparison (a fraction of np.isin's cost at these sizes)."""
+    return (np.asarray(values)[:, None] == np.asarray(among)[None, :]).any(axis=1)
+
+
 def predict_centroids(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: float) -> np.ndarray:
     """Where the stars at pixels uv (N, 2) are seen dt later when the camera turns at the body rate
     ``omega_body`` (rad/s, camera frame): an inertial direction seen along b is seen along
     b' = exp(−[ω×] dt) b after the turn."""
-    b = camera.unproject(uv)
-    turn = Rotation.from_rotvec(-np.asarray(omega_body, dtype=float) * dt)
-    return camera.project(turn.apply(b))
+    turn = rotation_matrix(-np.asarray(omega_body, dtype=float) * dt)
+    return camera.project(camera.unproject(uv) @ turn.T)
 
 
 def image_velocity(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: float = 1e-3) -> np.ndarray:
@@ -73,7 +78,7 @@ class ImagePlaneMeasurement:
 
 
 def linear_hypotheses(zhat: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
-                      gate_probability: float) -> Hypotheses:
+                      gate_probability: float, gate: float | None = None) -> Hypotheses:
     """tracker_filters.association's Hypotheses of Z (N, 2) against T tracks' predicted centroids zhat (T, 2)
     with covariances Pzz (T, 2, 2), for one noise covariance R (2, 2): the same quantities as
     MahalanobisHypothesiser (ν, S = Pzz + R, d², log N(ν; 0, S), the chi-square gate) computed for every
@@ -90,7 +95,10 @@ def linear_hypotheses(zhat: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.nd
     d2 = np.where(finite, d2, np.inf)
     loglik = -0.5 * (d2 + np.log(det)[:, None] + 2.0 * np.log(2.0 * np.pi))
     S = np.broadcast_to(S1[:, None], (T, N, 2, 2))
-    gate = float(chi2.ppf(gate_probability, 2)) if N else np.inf
+    if N == 0:
+        gate = np.inf
+    elif gate is None:
+        gate = float(chi2.ppf(gate_probability, 2))
     return Hypotheses(zhat.copy(), nu, S, d2, loglik, gate, float(gate_probability))
 
 
@@ -109,13 +117,9 @@ def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.nda
     near = np.argmin(d, axis=1)
     dn = d[np.arange(T), near]
     inside = np.flatnonzero(dn <= radius)
-    inside = inside[np.argsort(dn[inside], kind="stable")]
-    taken = np.zeros(N, dtype=bool)
-    for r in inside:            # conflicts only: nearest pair first
-        j = near[r]
-        if not taken[j]:
-            taken[j] = True
-            out[r] = j
+    inside = inside[np.argsort(dn[inside], kind="stable")]      # nearest pair first
+    _, first = np.unique(near[inside], return_index=True)       # a measurement goes to the first that wants it
+    out[inside[first]] = near[inside[first]]
     return out
 
 
@@ -138,7 +142,7 @@ class SNATracker:
     def start(self, ids: np.ndarray, uv: np.ndarray) -> None:
         """Add stars (catalogue indices) at their identified centroids; a star already tracked is skipped."""
         ids, uv = np.asarray(ids, dtype=np.int64), np.asarray(uv, dtype=float).reshape(-1, 2)
-        new = ~np.isin(ids, self.ids)
+        new = ~member(ids, self.ids)
         self.ids = np.concatenate([self.ids, ids[new]])
         self.uv = np.vstack([self.uv, uv[new]])
         self.misses = np.concatenate([self.misses, np.zeros(int(new.sum()), dtype=np.int64)])
@@ -198,6 +202,8 @@ class JPDAFTracker:
             raise ValueError(f"gate must be > 0, got {gate}")
         self.gate = gate
         self.gate_probability = float(chi2.cdf(gate, 2))
+        self._gate = float(chi2.ppf(self.gate_probability, 2))
+        """The hypotheses' threshold (the gate of probability ``gate_probability``), computed once."""
         self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
         self.max_misses = int(max_misses)
         self.camera = camera
@@ -221,7 +227,7 @@ class JPDAFTracker:
         position variance is the measurement's σ². A star already tracked is skipped."""
         ids, uv = np.asarray(ids, dtype=np.int64), np.asarray(uv, dtype=float).reshape(-1, 2)
         vel = np.zeros_like(uv) if velocity is None else np.asarray(velocity, dtype=float).reshape(-1, 2)
-        new = ~np.isin(ids, self.ids)
+        new = ~member(ids, self.ids)
         n = int(new.sum())
         x = np.column_stack([uv[new, 0], vel[new, 0], uv[new, 1], vel[new, 1]])
         P0 = np.diag([self.sigma_px ** 2, velocity_sigma ** 2, self.sigma_px ** 2, velocity_sigma ** 2])
@@ -237,7 +243,7 @@ class JPDAFTracker:
     def reseed(self, ids: np.ndarray, uv: np.ndarray, velocity_sigma: float = 1.0) -> None:
         """Restart the tracks of ``ids`` at the centroids uv (N, 2): position variance σ², velocity kept with
         variance ``velocity_sigma``² and no correlation (after a detected filter bias)."""
-        rows = np.flatnonzero(np.isin(self.ids, ids))
+        rows = np.flatnonzero(member(self.ids, ids))
         where = {int(i): k for k, i in enumerate(np.asarray(ids))}
         uv = np.asarray(uv, dtype=float).reshape(-1, 2)
         for r in rows:
@@ -280,27 +286,20 @@ class JPDAFTracker:
         ids = self.ids.copy()
         if T == 0:
             return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids, np.empty((0, 2)), np.empty(0))
-        Pzz = self.P[:, [0, 2]][:, :, [0, 2]]                                     # H P Hᵀ
-        zhat = self.positions
+        Pzz = self.P[:, ::2, ::2]                                                 # H P Hᵀ (T, 2, 2)
+        zhat = self.x[:, ::2]                                                     # H X (T, 2)
         S = Pzz + self.R
         if N == 0:
-            beta = np.zeros((T, 1))
-            beta[:, 0] = 1.0
-            detection = np.full(T, MISSED, dtype=np.int64)
+            beta = np.ones((T, 1))
+            nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
         else:
-            hyp = linear_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability)
-            assoc = self.associator.associate(hyp)
-            beta = np.array([a.weights for a in assoc])
-            detection = np.array([a.detection for a in assoc], dtype=np.int64)
-        PHt = self.P[:, :, [0, 2]]                                                # P Hᵀ (T, 4, 2)
-        K = PHt @ np.linalg.inv(S)                                                # (T, 4, 2)
-        if N:
-            nu = Z[None, :, :] - zhat[:, None, :]                                 # (T, N, 2)
-            b = beta[:, 1:]
+            hyp = linear_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability, self._gate)
+            beta = self.associator.weights(hyp)
+            nu, b = hyp.nu, beta[:, 1:]                                           # ν_rj (T, N, 2), β_rj
             nu_c = np.einsum("tn,tnd->td", b, nu)                                 # combined innovation
             spread = np.einsum("tn,tnd,tne->tde", b, nu, nu) - nu_c[:, :, None] * nu_c[:, None, :]
-        else:
-            nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
+        detection = np.argmax(beta, axis=1) - 1                                   # column 0, the miss: MISSED
+        K = self.P[:, :, ::2] @ np.linalg.inv(S)                                  # P Hᵀ S⁻¹ (T, 4, 2)
         detected = 1.0 - beta[:, 0]
         self.x = self.x + np.einsum("tij,tj->ti", K, nu_c)
         KSKt = K @ S @ K.transpose(0, 2, 1)
