@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)
 
 from bench_models.states import error_labels, state_error
 from orbit_sim.angles import wrapped_residual
@@ -190,7 +190,7 @@ def nees_series(tracks: Sequence[Track], components: Components | None = None, a
     runs = np.sum(~np.isnan(v), axis=0)
     n = len(tracks[0].indices(components))
     return {"t": grid, "mean": np.nanmean(v, axis=0), "runs": runs, "dof": n,
-            "lo": chi2.ppf(0.5 * alpha, runs * n) / runs, "hi": chi2.ppf(1.0 - 0.5 * alpha, runs * n) / runs}
+            "lo": chdtri(runs * n, 1.0 - 0.5 * alpha) / runs, "hi": chdtri(runs * n, 0.5 * alpha) / runs}
 
 
 def nees_summary(tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05,
@@ -206,8 +206,8 @@ def nees_summary(tracks: Sequence[Track], components: Components | None = None, 
     m, lo, hi = s["mean"][keep], s["lo"][keep], s["hi"][keep]
     n, runs = s["dof"], len(tracks)
     return {"mean": float(np.mean(m)), "dof": n, "runs": runs,
-            "bounds": [float(chi2.ppf(0.5 * alpha, runs * n) / runs),
-                       float(chi2.ppf(1.0 - 0.5 * alpha, runs * n) / runs)],
+            "bounds": [float(chdtri(runs * n, 1.0 - 0.5 * alpha) / runs),
+                       float(chdtri(runs * n, 0.5 * alpha) / runs)],
             "fraction_inside": float(np.mean((m >= lo) & (m <= hi)))}
 
 

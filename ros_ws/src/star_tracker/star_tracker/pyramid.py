@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Iterator
 
 import numpy as np
-from scipy.stats import binom
+from scipy.special import bdtrc  # binomial survival function: binom.sf(k, n, p) = bdtrc(k, n, p)
 
 from star_tracker.attitude import AttitudeSolution, wahba, wahba_matrix
 from star_tracker.camera import Camera
@@ -279,7 +279,7 @@ class PyramidIdentifier:
         n = len(b)
         density = len(self.catalogue.cone(solution.matrix[2], self._cone_radius)) / self._cone_solid_angle
         p = min(1.0, density * np.pi * self.match_radius ** 2)
-        false_alarm = float(binom.sf(m - 3 - 1, n - 3, p))
+        false_alarm = float(bdtrc(m - 3 - 1, n - 3, p))
         if false_alarm > self.max_false_alarm:
             return None
         full = np.full(n, UNIDENTIFIED, dtype=np.int64)
