@@ -11,9 +11,8 @@ from scipy.stats import chi2
 from star_tracker.camera import DEFAULT_CAMERA
 from star_tracker.jpdaf import JointProbabilisticAssociator, clusters, gate_volume
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn
-from star_tracker.tracking import (MISSED, ImagePlaneMeasurement, JPDAFTracker, SNATracker, image_velocity,
-                                   linear_hypotheses, predict_centroids, sna_associate)
-from tracker_filters.association import MahalanobisHypothesiser, MeasurementPrediction
+from star_tracker.tracking import MISSED, JPDAFTracker, SNATracker, image_velocity, predict_centroids, sna_associate
+from tracker_filters.association import gaussian_hypotheses
 
 GATE = 4.0
 
@@ -21,12 +20,9 @@ GATE = 4.0
 def two_target_hypotheses():
     """Targets at (0, 0) and (2, 0), S = I; z0 = (1, 0) in both gates, z1 = (−0.5, 0.5) only in target 0's,
     z2 = (2.2, −0.3) only in target 1's (δ = 4)."""
-    preds = [MeasurementPrediction(np.array([0.0, 0.0]), 0.5 * np.eye(2)),
-             MeasurementPrediction(np.array([2.0, 0.0]), 0.5 * np.eye(2))]
     Z = np.array([[1.0, 0.0], [-0.5, 0.5], [2.2, -0.3]])
-    R = np.broadcast_to(0.5 * np.eye(2), (3, 2, 2))
-    hyp = MahalanobisHypothesiser(chi2.cdf(GATE, 2)).hypothesise(preds, Z, R, ImagePlaneMeasurement())
-    return hyp
+    return gaussian_hypotheses(np.array([[0.0, 0.0], [2.0, 0.0]]), np.full((2, 2, 2), 0.5 * np.eye(2)), Z,
+                               0.5 * np.eye(2), chi2.cdf(GATE, 2))
 
 
 def by_hand(p_d, lam=None):
@@ -71,10 +67,8 @@ def test_jpda_weights_equal_the_hand_computed_two_target_case(p_d, lam):
 def test_single_target_weights_are_the_pda_ones_whichever_path_computes_them(lam):
     """One target, three gated detections: by hand, through the vectorised single-target path, and through
     the event enumeration of a cluster."""
-    preds = [MeasurementPrediction(np.array([10.0, 10.0]), np.eye(2))]
     Z = np.array([[10.5, 10.0], [9.0, 10.8], [10.2, 8.9], [30.0, 30.0]])
-    R = np.broadcast_to(np.eye(2), (4, 2, 2))
-    hyp = MahalanobisHypothesiser(0.99).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    hyp = gaussian_hypotheses(np.array([[10.0, 10.0]]), np.eye(2)[None], Z, np.eye(2), 0.99)
     p_d, p_g = 0.8, 0.99
     S = 2.0 * np.eye(2)
     nu = Z[:3] - 10.0
@@ -88,12 +82,9 @@ def test_single_target_weights_are_the_pda_ones_whichever_path_computes_them(lam
 
 
 def test_singletons_and_a_shared_cluster_in_one_frame_get_their_own_weights():
-    preds = [MeasurementPrediction(np.array([0.0, 0.0]), 0.5 * np.eye(2)),
-             MeasurementPrediction(np.array([40.0, 40.0]), 0.5 * np.eye(2)),
-             MeasurementPrediction(np.array([2.0, 0.0]), 0.5 * np.eye(2))]
     Z = np.array([[1.0, 0.0], [40.3, 39.8], [-0.5, 0.5], [2.2, -0.3]])
-    R = np.broadcast_to(0.5 * np.eye(2), (4, 2, 2))
-    hyp = MahalanobisHypothesiser(chi2.cdf(GATE, 2)).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    hyp = gaussian_hypotheses(np.array([[0.0, 0.0], [40.0, 40.0], [2.0, 0.0]]), np.full((3, 2, 2), 0.5 * np.eye(2)),
+                              Z, 0.5 * np.eye(2), chi2.cdf(GATE, 2))
     got = np.array([a.weights for a in JointProbabilisticAssociator(0.9, 0.02).associate(hyp)])
     pair = by_hand(0.9, 0.02)                                # columns: miss, z0, z1, z2 of the two-target case
     np.testing.assert_allclose(got[0, [0, 1, 3, 4]], pair[0], rtol=1e-10)
@@ -102,20 +93,49 @@ def test_singletons_and_a_shared_cluster_in_one_frame_get_their_own_weights():
     assert got[1, 2] > 0.9
 
 
-def test_the_vectorised_hypotheses_equal_the_tracker_filters_hypothesiser():
-    rng = np.random.default_rng(12)
-    zhat = rng.uniform(0, 100, (7, 2))
-    A = rng.normal(size=(7, 2, 2))
-    Pzz = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(2)
-    Z = rng.uniform(0, 100, (9, 2))
-    R = np.array([[0.3, 0.05], [0.05, 0.2]])
-    want = MahalanobisHypothesiser(0.995).hypothesise([MeasurementPrediction(z, P) for z, P in zip(zhat, Pzz)],
-                                                       Z, np.broadcast_to(R, (9, 2, 2)), ImagePlaneMeasurement())
-    got = linear_hypotheses(zhat, Pzz, Z, R, 0.995)
-    for name in ("z_pred", "nu", "S", "d2", "log_likelihood"):
-        np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-10, atol=1e-12, err_msg=name)
-    assert got.gate == want.gate and got.gate_probability == want.gate_probability
-    np.testing.assert_array_equal(got.gated, want.gated)
+@pytest.mark.parametrize("lam", [2e-3, None])
+def test_the_singletons_weighed_together_equal_each_targets_own_enumeration(lam):
+    """Separate targets with up to four detections each in their gates: the weights computed for all of them
+    at once over the gated pairs are each target's own single-target enumeration (:meth:`_cluster`)."""
+    rng = np.random.default_rng(7)
+    zhat = np.column_stack([np.arange(12) * 50.0, np.zeros(12)])
+    A = rng.normal(size=(12, 2, 2)) * 0.3
+    Pzz = A @ A.transpose(0, 2, 1) + 0.2 * np.eye(2)
+    Z = np.vstack([zhat[r] + rng.normal(0, 0.8, (r % 5, 2)) for r in range(12)] + [[[700.0, 300.0]]])
+    hyp = gaussian_hypotheses(zhat, Pzz, Z, 0.3 * np.eye(2), 0.999)
+    jpda = JointProbabilisticAssociator(0.9, lam)
+    got = jpda.weights(hyp)
+    assert jpda.largest_cluster == 1 and len({int(n) for n in hyp.gated.sum(axis=1)}) >= 4
+    for r in range(12):
+        own = np.flatnonzero(hyp.gated[r])
+        want = np.zeros(len(Z) + 1)
+        want[np.r_[0, own + 1]] = jpda._cluster(hyp, np.array([r]), own)[0] if len(own) else 1.0
+        np.testing.assert_allclose(got[r], want, rtol=1e-12, atol=1e-300)
+
+
+def test_the_update_over_the_gated_pairs_equals_the_sums_over_every_detection():
+    """Steps 5–7 summed over the pairs with β > 0 only equal the dense sums over every detection (clutter
+    near the stars, so that gates hold several detections and clusters share them)."""
+    rng = np.random.default_rng(8)
+    tracker = JPDAFTracker(ConstantVelocity(2.0), 0.5, p_detect=0.9, clutter_density=1e-3)
+    uv = rng.uniform(100, 900, (15, 2))
+    uv[1] = uv[0] + [1.0, 0.5]                                   # two stars sharing detections
+    tracker.start(np.arange(15), uv, velocity=rng.normal(0, 1, (15, 2)), velocity_sigma=2.0)
+    tracker.predict(0.1)
+    x, P = tracker.x.copy(), tracker.P.copy()
+    Z = np.vstack([uv + rng.normal(0, 0.5, (15, 2)), uv[:8] + rng.normal(0, 1.5, (8, 2))])
+    step = tracker.update(Z)
+    beta = step.weights
+    assert (np.count_nonzero(beta[:, 1:], axis=1) >= 2).sum() >= 5
+    nu = Z[None, :, :] - x[:, None, [0, 2]]
+    nu_c = np.einsum("tn,tnd->td", beta[:, 1:], nu)
+    spread = np.einsum("tn,tnd,tne->tde", beta[:, 1:], nu, nu) - np.einsum("td,te->tde", nu_c, nu_c)
+    S = P[:, [0, 2]][:, :, [0, 2]] + 0.25 * np.eye(2)
+    K = P[:, :, [0, 2]] @ np.linalg.inv(S)
+    Kt = K.transpose(0, 2, 1)
+    want_P = P - (1 - beta[:, 0])[:, None, None] * (K @ S @ Kt) + K @ spread @ Kt
+    np.testing.assert_allclose(tracker.x, x + np.einsum("tij,tj->ti", K, nu_c), rtol=1e-12)
+    np.testing.assert_allclose(tracker.P, 0.5 * (want_P + want_P.transpose(0, 2, 1)), rtol=1e-9, atol=1e-12)
 
 
 def test_gate_volume_is_eq_11():
@@ -126,31 +146,28 @@ def test_gate_volume_is_eq_11():
 
 
 def test_far_apart_targets_are_separate_clusters_with_single_target_weights():
-    preds = [MeasurementPrediction(np.array([0.0, 0.0]), np.eye(2)),
-             MeasurementPrediction(np.array([100.0, 0.0]), np.eye(2))]
+    zhat, Pzz = np.array([[0.0, 0.0], [100.0, 0.0]]), np.full((2, 2, 2), np.eye(2))
     Z = np.array([[0.5, 0.2], [-0.8, 0.4], [100.3, 0.1], [50.0, 50.0]])
-    R = np.broadcast_to(np.eye(2), (4, 2, 2))
-    hyp = MahalanobisHypothesiser(0.999).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    hyp = gaussian_hypotheses(zhat, Pzz, Z, np.eye(2), 0.999)
     assert [(t.tolist(), d.tolist()) for t, d in clusters(hyp.gated)] == [([0], [0, 1]), ([1], [2])]
     joint = JointProbabilisticAssociator(0.9, 1e-3).associate(hyp)
     for r in range(2):
-        alone = MahalanobisHypothesiser(0.999).hypothesise([preds[r]], Z, R, ImagePlaneMeasurement())
+        alone = gaussian_hypotheses(zhat[r:r + 1], Pzz[r:r + 1], Z, np.eye(2), 0.999)
         np.testing.assert_allclose(joint[r].weights, JointProbabilisticAssociator(0.9, 1e-3).associate(alone)[0].weights)
     assert joint[0].weights[4] == 0.0 and joint[1].weights[1] == 0.0     # nothing from outside its gate
 
 
 def test_a_cluster_too_large_to_enumerate_falls_back_to_single_target_weights():
-    preds = [MeasurementPrediction(np.array([0.1 * r, 0.0]), np.eye(2)) for r in range(8)]
+    zhat, Pzz = np.array([[0.1 * r, 0.0] for r in range(8)]), np.full((8, 2, 2), np.eye(2))
     Z = np.array([[0.1 * j, 0.05] for j in range(8)])
-    R = np.broadcast_to(0.1 * np.eye(2), (8, 2, 2))
-    hyp = MahalanobisHypothesiser(0.999).hypothesise(preds, Z, R, ImagePlaneMeasurement())
+    hyp = gaussian_hypotheses(zhat, Pzz, Z, 0.1 * np.eye(2), 0.999)
     jpda = JointProbabilisticAssociator(0.9, 1e-3, max_events=1000)
     assoc = jpda.associate(hyp)
     assert jpda.approximated == 1
     np.testing.assert_allclose([a.weights.sum() for a in assoc], 1.0)
     single = JointProbabilisticAssociator(0.9, 1e-3)
     for r in (0, 5):
-        alone = MahalanobisHypothesiser(0.999).hypothesise([preds[r]], Z, R, ImagePlaneMeasurement())
+        alone = gaussian_hypotheses(zhat[r:r + 1], Pzz[r:r + 1], Z, 0.1 * np.eye(2), 0.999)
         np.testing.assert_allclose(assoc[r].weights, single.associate(alone)[0].weights)
 
 

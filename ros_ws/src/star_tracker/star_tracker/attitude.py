@@ -27,7 +27,8 @@ P = σ1² I + |b1×b2|⁻² [σ1² (b1·b2)(b1 b2ᵀ + b2 b1ᵀ) + (σ2² − σ
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from math import atan2, cos, sin, sqrt
 
 import numpy as np
@@ -44,8 +45,15 @@ class AttitudeSolution:
     covariance: np.ndarray
     """(3, 3) covariance of the attitude error δθ (rad², camera frame)."""
     n_stars: int
-    residuals: np.ndarray
-    """(n_stars,) angle (rad) between each b_i and A r_i."""
+    observed: np.ndarray = field(repr=False)
+    """(N, 3) the stars' directions b_i (camera frame) given to the solver."""
+    reference: np.ndarray = field(repr=False)
+    """(N, 3) their catalogue vectors r_i (ICRS)."""
+
+    @cached_property
+    def residuals(self) -> np.ndarray:
+        """(N,) angle (rad) between each b_i and A r_i (computed when first read)."""
+        return residuals(self.matrix, self.observed, self.reference)
 
     @property
     def quaternion(self) -> np.ndarray:
@@ -182,7 +190,8 @@ def davenport_quaternion(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = No
 def residuals(A: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Angles (rad) between observed directions b (N, 3) and the predicted A r (N, 3)."""
     d = np.asarray(b) - np.asarray(r) @ np.asarray(A).T
-    return 2.0 * np.arcsin(np.clip(np.linalg.norm(d, axis=1) / 2.0, 0.0, 1.0))
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    return 2.0 * np.arcsin(np.minimum(np.sqrt(x * x + y * y + z * z) / 2.0, 1.0))    # |d| = 2 sin(angle/2)
 
 
 def wahba_matrix(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
@@ -191,9 +200,11 @@ def wahba_matrix(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> n
     w = np.ones(len(b)) if w is None else np.asarray(w, dtype=float)
     B = (b * w[:, None]).T @ r
     U, _, Vt = np.linalg.svd(B)
-    if np.linalg.det(U @ Vt) < 0:  # the proper rotation: flip the axis of the smallest singular value
-        U = U * np.array([1.0, 1.0, -1.0])
-    return U @ Vt
+    A = U @ Vt
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A.tolist()     # det A = ±1
+    if a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20) < 0:
+        A = (U * np.array([1.0, 1.0, -1.0])) @ Vt   # the proper rotation: flip the smallest singular value's axis
+    return A
 
 
 def wahba(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray) -> AttitudeSolution:
@@ -205,16 +216,22 @@ def wahba(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray) -> AttitudeSo
     s2 = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, (len(b),))
     A = wahba_matrix(b, r, 1.0 / s2)
     F = np.einsum("n,nij->ij", 1.0 / s2, np.eye(3)[None] - b[:, :, None] * b[:, None, :])
-    return AttitudeSolution(A, np.linalg.inv(F), len(b), residuals(A, b, r))
+    return AttitudeSolution(A, np.linalg.inv(F), len(b), b, r)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors (np.cross's arithmetic without its per-call overhead)."""
+    (a0, a1, a2), (b0, b1, b2) = np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def triad_matrix(b1: np.ndarray, b2: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
     """TRIAD attitude matrix, anchored on the first star (module docstring)."""
     def triad(v1: np.ndarray, v2: np.ndarray) -> np.ndarray:
         t1 = v1 / np.linalg.norm(v1)
-        t2 = np.cross(v1, v2)
+        t2 = cross(v1, v2)
         t2 = t2 / np.linalg.norm(t2)
-        return np.column_stack([t1, t2, np.cross(t1, t2)])
+        return np.column_stack([t1, t2, cross(t1, t2)])
     return triad(np.asarray(b1, float), np.asarray(b2, float)) @ triad(np.asarray(r1, float),
                                                                         np.asarray(r2, float)).T
 
@@ -235,7 +252,7 @@ def triad(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray, pair: tuple[i
     s = np.broadcast_to(np.asarray(sigma, dtype=float), (len(b),))
     A = triad_matrix(b[i], b[j], r[i], r[j])
     b1, b2 = b[i], b[j]
-    c = np.cross(b1, b2)
+    c = cross(b1, b2)
     P = s[i] ** 2 * np.eye(3) + (s[i] ** 2 * (b1 @ b2) * (np.outer(b1, b2) + np.outer(b2, b1))
                                  + (s[j] ** 2 - s[i] ** 2) * np.outer(b1, b1)) / (c @ c)
-    return AttitudeSolution(A, P, 2, residuals(A, b, r))
+    return AttitudeSolution(A, P, 2, b, r)

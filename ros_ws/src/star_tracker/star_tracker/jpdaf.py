@@ -100,10 +100,13 @@ class JointProbabilisticAssociator:
             return weights
         gated = hypotheses.gated & np.isfinite(hypotheses.log_likelihood)
         # a target whose gated detections are in no other target's gate is a cluster of its own: its weights
-        # are the single-target PDA's, computed for all such targets at once
-        shared = gated.sum(axis=0) > 1
-        alone = ~np.any(gated & shared[None, :], axis=1)
-        self._singletons(hypotheses, gated, np.flatnonzero(alone & gated.any(axis=1)), weights)
+        # are the single-target PDA's, computed for all such targets at once over their gated pairs only
+        pair_r, pair_j = np.divmod(np.flatnonzero(gated), N)              # the gated pairs, by target
+        shared = (np.bincount(pair_j, minlength=N) > 1)[pair_j]
+        alone = np.ones(T, dtype=bool)
+        alone[pair_r[shared]] = False
+        single = alone[pair_r]
+        self._singletons(hypotheses, pair_r[single], pair_j[single], weights)
         rest = ~alone
         if rest.any():
             rows = np.flatnonzero(rest)
@@ -127,36 +130,36 @@ class JointProbabilisticAssociator:
                     weights[r, cols] = beta[row]
         return weights
 
-    def _singletons(self, hyp: Hypotheses, gated: np.ndarray, targets: np.ndarray, weights: np.ndarray) -> None:
-        """The weights of every single-target cluster at once (the events: missed, or one of its m gated
-        detections, the others clutter), the same numbers :meth:`_cluster` gives for one target:
+    def _singletons(self, hyp: Hypotheses, r: np.ndarray, j: np.ndarray, weights: np.ndarray) -> None:
+        """The weights of every single-target cluster at once, from their gated pairs (target r, detection j;
+        by target) (the events: missed, or one of its m gated detections, the others clutter), the same
+        numbers :meth:`_cluster` gives for one target:
 
             β_j ∝ P_D N_j · c(m − 1),   β_0 ∝ (1 − P_D P_G) · c(m),
             c(φ) = λ^φ (parametric) or φ!/V^φ (non-parametric, V the target's gate volume)."""
-        if len(targets) == 0:
+        if len(r) == 0:
             return
         self.largest_cluster = max(self.largest_cluster, 1)
         P_D, P_G = self.p_detect, hyp.gate_probability
-        g = gated[targets]
-        m = g.sum(axis=1)
-        ll = np.where(g, hyp.log_likelihood[targets], -np.inf)
-        log_det = np.log(P_D) + ll                                             # (K, N)
+        first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])                  # each target's first pair
+        targets, m = r[first], np.diff(np.r_[first, len(r)])
+        own = np.repeat(np.arange(len(targets)), m)                            # pair -> its target's row
+        log_det = np.log(P_D) + hyp.log_likelihood[r, j]
         log_miss = np.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -np.inf
         if self.clutter_density is None:
-            first = np.argmax(g, axis=1)
-            S = hyp.S[targets, first]                                          # (K, d, d)
+            S = hyp.S[targets, j[first]]                                       # (K, d, d)
             n = S.shape[-1]
             c = UNIT_BALL.get(n, pi ** (n / 2) / np.exp(lgamma(n / 2 + 1)))
             log_v = np.log(c * hyp.gate ** (n / 2) * np.sqrt(np.linalg.det(S)))
             # c(m − 1)/c(m) = V/m: relative to the miss, a detection is weighed by V/m
-            log_ratio = log_v - np.log(m)
+            log_pair = log_det + (log_v - np.log(m))[own]
         else:
-            log_ratio = -np.log(max(self.clutter_density, TINY_DENSITY))      # c(m − 1)/c(m) = 1/λ
-        logs = np.concatenate([np.full((len(targets), 1), log_miss), log_det + log_ratio[..., None]
-                               if np.ndim(log_ratio) else log_det + log_ratio], axis=1)
-        top = logs.max(axis=1, keepdims=True)
-        p = np.exp(logs - top)
-        weights[targets] = p / p.sum(axis=1, keepdims=True)
+            log_pair = log_det - np.log(max(self.clutter_density, TINY_DENSITY))   # c(m − 1)/c(m) = 1/λ
+        top = np.maximum(np.maximum.reduceat(log_pair, first), log_miss)
+        p_pair, p_miss = np.exp(log_pair - top[own]), np.exp(log_miss - top)
+        total = p_miss + np.add.reduceat(p_pair, first)
+        weights[targets, 0] = p_miss / total
+        weights[r, j + 1] = p_pair / total[own]
 
     def _cluster(self, hyp: Hypotheses, targets: np.ndarray, detections: np.ndarray) -> np.ndarray:
         """(len(targets), 1 + len(detections)) weights [β_r0, β_r(detections)…] of one cluster."""

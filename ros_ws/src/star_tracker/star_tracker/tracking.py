@@ -13,12 +13,14 @@ JPDAF (paper Table 2): each star has a Kalman state [x ẋ y ẏ] under a motion
     1. X_r = F X_r (+ u_r),  P_r = F P_r Fᵀ + Q                                prediction (u_r: the known
                                                                                  image motion, rate-aided)
     2. ẑ_r = H X_r,  S_r = H P_r Hᵀ + R                                        (eqs. 6–7)
-    3. gating d²_rj <= δ (the hypotheses of tracker_filters.association, computed for all tracks at once:
-       linear_hypotheses, eq. 5)
+    3. gating d²_rj <= δ (eq. 5: tracker_filters.association.gaussian_hypotheses, every pair at once)
     4. β_rj from the feasible joint events, clustered (jpdaf.py, eqs. 8–12)
     5. ν_rj = z_j − ẑ_r,   ν_r = Σ_j β_rj ν_rj                                  combined innovation
     6. K_r = P_r Hᵀ S_r⁻¹,  X_r += K_r ν_r
     7. P_r = P_r − (Σ_j β_rj) K_r S_r K_rᵀ + K_r [Σ_j β_rj ν_rj ν_rjᵀ − ν_r ν_rᵀ] K_rᵀ   (spread of innovations)
+
+Steps 2–7 run for all tracks at once on stacked arrays; the sums over j in 5 and 7 run over the pairs with
+β_rj > 0 only, i.e. the detections in each star's gate (a few of the frame's ~70 stars).
 
 The filtered positions H X_r are the star centroids handed to the attitude solver. With one target, no
 clutter (λ = 0) and P_D = 1 the weights are one-hot and the JPDAF is a Kalman filter
@@ -34,8 +36,8 @@ from scipy.stats import chi2
 from star_tracker.attitude import rotation_matrix
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
-from star_tracker.motion import H, MotionModel, measurement_noise
-from tracker_filters.association import Hypotheses
+from star_tracker.motion import MotionModel, measurement_noise
+from tracker_filters.association import gaussian_hypotheses
 
 MISSED = -1
 
@@ -61,47 +63,6 @@ def image_velocity(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: f
     return (ahead - behind) / (2.0 * dt)
 
 
-class ImagePlaneMeasurement:
-    """z = H X for the hypothesiser (tracker_filters.association): plain differences as residuals."""
-
-    labels = ("x", "y")
-    angle_indices: tuple[int, ...] = ()
-
-    def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
-        return np.asarray(x)[..., [0, 2]]
-
-    def jacobian(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
-        return H
-
-    def residual(self, z: np.ndarray, z_ref: np.ndarray) -> np.ndarray:
-        return np.asarray(z) - np.asarray(z_ref)
-
-
-def linear_hypotheses(zhat: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
-                      gate_probability: float, gate: float | None = None) -> Hypotheses:
-    """tracker_filters.association's Hypotheses of Z (N, 2) against T tracks' predicted centroids zhat (T, 2)
-    with covariances Pzz (T, 2, 2), for one noise covariance R (2, 2): the same quantities as
-    MahalanobisHypothesiser (ν, S = Pzz + R, d², log N(ν; 0, S), the chi-square gate) computed for every
-    track at once with the closed-form 2 × 2 inverse (tests/test_star_tracking.py checks the two agree)."""
-    zhat, Z = np.asarray(zhat, float).reshape(-1, 2), np.asarray(Z, float).reshape(-1, 2)
-    T, N = len(zhat), len(Z)
-    S1 = np.asarray(Pzz, float).reshape(-1, 2, 2) + np.asarray(R, float)            # (T, 2, 2)
-    det = S1[:, 0, 0] * S1[:, 1, 1] - S1[:, 0, 1] * S1[:, 1, 0]
-    a, b, d = S1[:, 1, 1] / det, -S1[:, 0, 1] / det, S1[:, 0, 0] / det             # S⁻¹ (symmetric)
-    nu = Z[None, :, :] - zhat[:, None, :]                                          # (T, N, 2)
-    x, y = nu[..., 0], nu[..., 1]
-    d2 = a[:, None] * x * x + 2.0 * b[:, None] * x * y + d[:, None] * y * y
-    finite = np.isfinite(d2)
-    d2 = np.where(finite, d2, np.inf)
-    loglik = -0.5 * (d2 + np.log(det)[:, None] + 2.0 * np.log(2.0 * np.pi))
-    S = np.broadcast_to(S1[:, None], (T, N, 2, 2))
-    if N == 0:
-        gate = np.inf
-    elif gate is None:
-        gate = float(chi2.ppf(gate_probability, 2))
-    return Hypotheses(zhat.copy(), nu, S, d2, loglik, gate, float(gate_probability))
-
-
 # ------------------------------------------------------------------------------------------------------ SNA
 
 def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.ndarray:
@@ -112,14 +73,20 @@ def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.nda
     out = np.full(T, MISSED, dtype=np.int64)
     if T == 0 or N == 0:
         return out
-    d = np.linalg.norm(predicted[:, None, :] - Z[None, :, :], axis=2)
-    d = np.where(np.isfinite(d), d, np.inf)
+    dx = predicted[:, None, 0] - Z[None, :, 0]
+    dy = predicted[:, None, 1] - Z[None, :, 1]
+    d = np.sqrt(dx * dx + dy * dy)
+    d[~np.isfinite(d)] = np.inf
     near = np.argmin(d, axis=1)
     dn = d[np.arange(T), near]
     inside = np.flatnonzero(dn <= radius)
-    inside = inside[np.argsort(dn[inside], kind="stable")]      # nearest pair first
-    _, first = np.unique(near[inside], return_index=True)       # a measurement goes to the first that wants it
-    out[inside[first]] = near[inside[first]]
+    order = inside[np.argsort(dn[inside], kind="stable")]      # nearest pair first
+    j = near[order]
+    rank = np.arange(len(order))
+    first = np.full(N, len(order))
+    np.minimum.at(first, j, rank)                              # a measurement goes to the first that wants it
+    won = first[j] == rank
+    out[order[won]] = j[won]
     return out
 
 
@@ -202,8 +169,6 @@ class JPDAFTracker:
             raise ValueError(f"gate must be > 0, got {gate}")
         self.gate = gate
         self.gate_probability = float(chi2.cdf(gate, 2))
-        self._gate = float(chi2.ppf(self.gate_probability, 2))
-        """The hypotheses' threshold (the gate of probability ``gate_probability``), computed once."""
         self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
         self.max_misses = int(max_misses)
         self.camera = camera
@@ -217,8 +182,8 @@ class JPDAFTracker:
 
     @property
     def positions(self) -> np.ndarray:
-        """(T, 2) filtered centroids H X."""
-        return self.x[:, [0, 2]]
+        """(T, 2) filtered centroids H X (a copy)."""
+        return self.x[:, ::2].copy()
 
     def start(self, ids: np.ndarray, uv: np.ndarray, velocity: np.ndarray | None = None,
               velocity_sigma: float = 1.0) -> None:
@@ -289,24 +254,28 @@ class JPDAFTracker:
         Pzz = self.P[:, ::2, ::2]                                                 # H P Hᵀ (T, 2, 2)
         zhat = self.x[:, ::2]                                                     # H X (T, 2)
         S = Pzz + self.R
+        nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
         if N == 0:
             beta = np.ones((T, 1))
-            nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
         else:
-            hyp = linear_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability, self._gate)
-            beta = self.associator.weights(hyp)
-            nu, b = hyp.nu, beta[:, 1:]                                           # ν_rj (T, N, 2), β_rj
-            nu_c = np.einsum("tn,tnd->td", b, nu)                                 # combined innovation
-            spread = np.einsum("tn,tnd,tne->tde", b, nu, nu) - nu_c[:, :, None] * nu_c[:, None, :]
+            beta = self.associator.weights(gaussian_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability))
+            r, j = np.divmod(np.flatnonzero(beta), N + 1)
+            r, j = r[j > 0], j[j > 0] - 1                                         # pairs with β_rj > 0
+            nu = Z[j] - zhat[r]                                                   # ν_rj
+            b_nu = beta[r, j + 1][:, None] * nu
+            for d in range(2):
+                nu_c[:, d] = np.bincount(r, b_nu[:, d], minlength=T)              # ν_r = Σ_j β_rj ν_rj
+                for e in range(d + 1):
+                    spread[:, d, e] = spread[:, e, d] = np.bincount(r, b_nu[:, d] * nu[:, e], minlength=T)
+            spread -= nu_c[:, :, None] * nu_c[:, None, :]
         detection = np.argmax(beta, axis=1) - 1                                   # column 0, the miss: MISSED
         K = self.P[:, :, ::2] @ np.linalg.inv(S)                                  # P Hᵀ S⁻¹ (T, 4, 2)
         detected = 1.0 - beta[:, 0]
         self.x = self.x + np.einsum("tij,tj->ti", K, nu_c)
-        KSKt = K @ S @ K.transpose(0, 2, 1)
-        self.P = self.P - detected[:, None, None] * KSKt + K @ spread @ K.transpose(0, 2, 1)
+        self.P = self.P + K @ (spread - detected[:, None, None] * S) @ K.transpose(0, 2, 1)
         self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
         self.misses = np.where(detection >= 0, 0, self.misses + 1)
-        positions = self.positions.copy()
+        positions = self.positions
         position_sigma = np.sqrt(0.5 * (self.P[:, 0, 0] + self.P[:, 2, 2]))
         keep = self.misses <= self.max_misses
         if self.camera is not None:

@@ -25,7 +25,8 @@ probabilistic update for those tracks (tracker_filters.tracker.Tracker.update_tr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from functools import lru_cache
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -75,7 +76,7 @@ class Hypotheses:
     S: np.ndarray
     """(T, N, d, d) innovation covariances Pzz_i + R_j."""
     d2: np.ndarray
-    """(T, N) squared Mahalanobis distances (finite for every pair; see ``gated``)."""
+    """(T, N) squared Mahalanobis distances (inf for a pair that cannot be scored; see ``gated``)."""
     log_likelihood: np.ndarray
     """(T, N) log N(nu_ij; 0, S_ij)."""
     gate: float
@@ -96,9 +97,51 @@ class Hypotheses:
         return self.d2.shape[1]
 
 
+@lru_cache(maxsize=64)
+def gate_threshold(gate_probability: float, dim: int) -> float:
+    """gamma = chi2.ppf(P_G, dim z): the gate holding the target's own measurement with probability P_G."""
+    return float(chi2.ppf(gate_probability, dim))
+
+
+def gaussian_hypotheses(z_pred: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
+                        gate_probability: float, residual: Callable | None = None) -> Hypotheses:
+    """The module docstring's quantities for T tracks' predictions z_pred (T, d), Pzz (T, d, d) against the
+    detections Z (N, d), computed for every pair at once: R is one noise covariance (d, d) shared by the
+    detections (one innovation covariance per track) or one per detection (N, d, d). ``residual(z, z_pred)``
+    (broadcasting) gives nu (default: the plain difference). With the Cholesky factor S = L L' and
+    L e = nu, d2 = |e|^2 and log det S = 2 sum log L_ii; e is solved component by component over the few
+    dimensions d, each step a vector operation over all pairs. A pair whose d2 is not finite (a
+    prediction or detection that is not a number) is outside every gate: d2 = inf, log-likelihood -inf."""
+    z_pred, Z = np.asarray(z_pred, dtype=float), np.asarray(Z, dtype=float)
+    T, (N, d) = len(z_pred), Z.shape
+    nu = np.empty((d, T, N))                  # by component: each a contiguous (T, N) array
+    if residual is None:
+        for i in range(d):
+            np.subtract(Z[None, :, i], z_pred[:, None, i], out=nu[i])
+    else:
+        nu[...] = np.moveaxis(np.asarray(residual(Z[None, :, :], z_pred[:, None, :]), dtype=float), -1, 0)
+    S = np.asarray(Pzz, dtype=float).reshape(T, 1, d, d) + np.asarray(R, dtype=float)    # (T, 1 or N, d, d)
+    L = np.linalg.cholesky(S)
+    e = np.empty((d, T, N))                   # L e = nu by forward substitution, each step over all pairs
+    for i in range(d):
+        acc = nu[i]
+        for j in range(i):
+            acc = acc - L[..., i, j] * e[j]
+        np.divide(acc, L[..., i, i], out=e[i])
+    d2 = np.einsum("ktn,ktn->tn", e, e)
+    log_det = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)            # (T, 1 or N)
+    loglik = -0.5 * (d2 + (log_det + d * np.log(2.0 * np.pi)))
+    bad = ~np.isfinite(loglik)
+    if bad.any():
+        d2[bad], loglik[bad] = np.inf, -np.inf
+    gate = gate_threshold(float(gate_probability), d) if N else np.inf
+    S = np.broadcast_to(S, (T, N, d, d))
+    return Hypotheses(z_pred.copy(), nu.transpose(1, 2, 0), S, d2, loglik, gate, float(gate_probability))
+
+
 class MahalanobisHypothesiser:
     """Scores every (track, detection) pair by its squared Mahalanobis distance and gates it with the
-    chi-square gate of probability ``gate_probability`` (module docstring)."""
+    chi-square gate of probability ``gate_probability`` (module docstring; :func:`gaussian_hypotheses`)."""
 
     def __init__(self, gate_probability: float = 0.999) -> None:
         if not 0.0 < gate_probability < 1.0:
@@ -117,21 +160,13 @@ class MahalanobisHypothesiser:
             hyp = self.hypothesise(predictions, np.where(valid[:, None], Z, 0.0),
                                    np.where(valid[:, None, None], R, np.eye(d)), model)
             hyp.d2[:, ~valid], hyp.log_likelihood[:, ~valid] = np.inf, -np.inf
-            hyp.nu[:, ~valid], hyp.S[:, ~valid] = np.nan, np.nan
+            hyp.nu[:, ~valid] = np.nan
+            hyp.S = hyp.S.copy()
+            hyp.S[:, ~valid] = np.nan
             return hyp
         z_pred = np.array([p.z for p in predictions], dtype=float).reshape(T, d)
-        nu, S = np.zeros((T, N, d)), np.zeros((T, N, d, d))
-        d2, loglik = np.zeros((T, N)), np.zeros((T, N))
-        for i, p in enumerate(predictions):
-            nu[i] = model.residual(Z, p.z)
-            S[i] = p.Pzz[None] + R                                                    # S = Pzz + R
-            L = np.linalg.cholesky(S[i])                                              # S = L L'
-            e = np.linalg.solve(L, nu[i][..., None])[..., 0]                          # L e = nu
-            d2[i] = np.einsum("nd,nd->n", e, e)                                       # d2 = nu' S^-1 nu
-            log_det = 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
-            loglik[i] = -0.5 * (d2[i] + log_det + d * np.log(2.0 * np.pi))
-        gate = float(chi2.ppf(self.gate_probability, d)) if N else np.inf
-        return Hypotheses(z_pred, nu, S, d2, loglik, gate, self.gate_probability)
+        Pzz = np.array([p.Pzz for p in predictions], dtype=float).reshape(T, d, d)
+        return gaussian_hypotheses(z_pred, Pzz, Z, R, self.gate_probability, model.residual)
 
 
 def hypothesise(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray], Z: np.ndarray, R: np.ndarray,
