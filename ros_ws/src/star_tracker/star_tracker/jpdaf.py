@@ -141,8 +141,10 @@ class JointProbabilisticAssociator:
             return
         self.largest_cluster = max(self.largest_cluster, 1)
         P_D, P_G = self.p_detect, hyp.gate_probability
-        first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])                  # each target's first pair
-        targets, m = r[first], np.diff(np.r_[first, len(r)])
+        counts = np.bincount(r)
+        targets = np.flatnonzero(counts)
+        m = counts[targets]                                                    # gated detections per target
+        first = np.cumsum(m) - m                                               # each target's first pair
         own = np.repeat(np.arange(len(targets)), m)                            # pair -> its target's row
         log_det = np.log(P_D) + hyp.log_likelihood[r, j]
         log_miss = np.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -np.inf

@@ -31,13 +31,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtr
 
 from star_tracker.attitude import rotation_matrix
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
 from star_tracker.motion import MotionModel, measurement_noise
-from tracker_filters.association import gaussian_hypotheses
+from tracker_filters.association import gate_threshold, gaussian_hypotheses
 
 MISSED = -1
 
@@ -164,11 +164,11 @@ class JPDAFTracker:
         self.motion = motion
         self.sigma_px = float(sigma_px)
         self.R = measurement_noise(sigma_px)
-        gate = float(chi2.ppf(0.999, 2)) if gate is None else float(gate)
+        gate = gate_threshold(0.999, 2) if gate is None else float(gate)
         if gate <= 0:
             raise ValueError(f"gate must be > 0, got {gate}")
         self.gate = gate
-        self.gate_probability = float(chi2.cdf(gate, 2))
+        self.gate_probability = float(chdtr(2, gate))                            # chi2.cdf(δ, 2)
         self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
         self.max_misses = int(max_misses)
         self.camera = camera

@@ -30,7 +30,7 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 NO_DETECTION = -1
 
@@ -99,8 +99,9 @@ class Hypotheses:
 
 @lru_cache(maxsize=64)
 def gate_threshold(gate_probability: float, dim: int) -> float:
-    """gamma = chi2.ppf(P_G, dim z): the gate holding the target's own measurement with probability P_G."""
-    return float(chi2.ppf(gate_probability, dim))
+    """gamma = chi2.ppf(P_G, dim z): the gate holding the target's own measurement with probability P_G
+    (scipy.special.chdtri, without importing scipy.stats)."""
+    return float(chdtri(dim, 1.0 - gate_probability))
 
 
 def gaussian_hypotheses(z_pred: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
