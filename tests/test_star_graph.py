@@ -186,9 +186,9 @@ def test_corrupt_catalogue_cache_is_rebuilt(tmp_path):
 def test_truth_is_the_attitude_of_the_frames():
     from star_tracker.sky_motion import CircularOrbit, orbit_truth
     cfg = select_variant(load_scenario("star_tracker"), "short")
-    truth = _truth(cfg, 5)
+    truth = _truth(cfg, 5)          # run seed 3, which also draws the jitter (truth.jitter_seed: null)
     ref = orbit_truth(CircularOrbit(raan_deg=30.0, arg_latitude0_deg=50.0), 5, 0.1, "zenith", 0.5,
-                      np.random.default_rng([0, 7]))
+                      np.random.default_rng([3, 7]))
     assert np.allclose([s.state[:4] for s in truth], ref.quaternions)
     assert np.allclose([s.state[4:] for s in truth], ref.rate)
 
