@@ -245,23 +245,25 @@ class StarTrackerPipeline:
             ids, rows, pos, sig, b, r = ids[keep], rows[keep], pos[keep], sig[keep], b[keep], r[keep]
         index[rows] = ids
         inflation = None
-        solution = None
+        all_star = None     # the JPDAF's agreement check has solved Wahba's problem over these stars already
         if self.tracker_kind == "jpdaf":
             b_measured = self.camera.unproject(uv[rows])
             agree, delta, filtered, own = self._unbiased(b, sig, b_measured, r)
-            if not agree:
+            if agree:
+                all_star = filtered
+                if delta is not None:
+                    inflation = np.outer(delta, delta)
+            else:
                 # the filtered stars disagree with this frame's own measurements (a lagging model): restart
                 # the tracks at the measurements and take the attitude from those
                 self.tracker.reseed(ids, uv[rows])
                 self.filter_resets += 1
                 pos, sig, b = uv[rows], np.full(len(ids), self.sigma_px), b_measured
                 A_fit = wahba_matrix(b, r)
-                solution = own if self.solver == "wahba" else None
-            else:
-                if delta is not None:
-                    inflation = np.outer(delta, delta)
-                solution = filtered if self.solver == "wahba" else None
-        if solution is None:
+                all_star = own
+        if all_star is not None and self.solver == "wahba":
+            solution = all_star
+        else:
             solution = self._solve(b, r, sig)
         if inflation is not None:
             solution.covariance = solution.covariance + inflation
@@ -309,7 +311,7 @@ class StarTrackerPipeline:
     def _solve(self, b: np.ndarray, r: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
         """The chosen solver over the stars seen along b (camera frame) with catalogue vectors r; each star's
         direction has the standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the
-        ifov. (For the JPDAF with the all-star solver, the same solution as the agreement check's, reused.)"""
+        ifov."""
         px = np.full(len(r), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
         sigma = np.maximum(px * self.camera.ifov, 1e-3 * ARCSEC)
         return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)

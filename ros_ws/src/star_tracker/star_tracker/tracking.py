@@ -272,7 +272,7 @@ class JPDAFTracker:
         K = self.P[:, :, ::2] @ np.linalg.inv(S)                                  # P Hᵀ S⁻¹ (T, 4, 2)
         detected = 1.0 - beta[:, 0]
         self.x = self.x + np.einsum("tij,tj->ti", K, nu_c)
-        self.P = self.P + K @ (spread - detected[:, None, None] * S) @ K.transpose(0, 2, 1)
+        self.P = self.P + K @ (spread - detected[:, None, None] * S) @ K.transpose(0, 2, 1)   # step 7
         self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
         self.misses = np.where(detection >= 0, 0, self.misses + 1)
         positions = self.positions
