@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy.stats import t as student
+from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
 
 from bench_engine.config import ScenarioError, Section
 
@@ -193,7 +193,7 @@ def _ordering(scored: Mapping, spec: Claim) -> tuple[str, str]:
         if isinstance(a, list) and isinstance(b, list) and len(a) == len(b) > 1:
             d = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
             se = np.std(d, ddof=1) / np.sqrt(len(d))
-            tcrit = student.ppf(0.975, len(d) - 1)
+            tcrit = stdtrit(len(d) - 1, 0.975)
             if se == 0.0:  # the same difference in every run: its sign decides
                 steps.append(int(np.sign(d.mean())))
             else:

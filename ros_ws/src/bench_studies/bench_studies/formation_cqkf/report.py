@@ -57,7 +57,7 @@ def paired_ordering(mae_runs: Mapping[str, Sequence[float]], names: Mapping[str,
                     alpha: float = 0.05) -> str:
     """Filters sorted by mean error, "<" where the paired difference over the same runs is significant
     (two-sided t-test at ``alpha``), "≈" where it is not (always "≈" with a single run)."""
-    from scipy.stats import t as student
+    from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
     order = sorted(mae_runs, key=lambda k: float(np.mean(mae_runs[k])))
     label = (lambda k: names.get(k, k)) if names else str
     text = label(order[0])
@@ -65,7 +65,7 @@ def paired_ordering(mae_runs: Mapping[str, Sequence[float]], names: Mapping[str,
         d = np.asarray(mae_runs[b], dtype=float) - np.asarray(mae_runs[a], dtype=float)
         n = len(d)
         se = np.std(d, ddof=1) / np.sqrt(n) if n > 1 else 0.0
-        significant = n > 1 and se > 0 and np.mean(d) / se > student.ppf(1.0 - 0.5 * alpha, n - 1)
+        significant = n > 1 and se > 0 and np.mean(d) / se > stdtrit(n - 1, 1.0 - 0.5 * alpha)
         text += f" {'<' if significant else '≈'} {label(b)}"
     return text
 
