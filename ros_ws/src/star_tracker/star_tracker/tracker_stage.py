@@ -191,7 +191,9 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 
 def _check(cfg: dict, name: str) -> None:
-    tracker_config(cfg, name)
+    """Build the tracker's pipeline once at validation: a bad key stops the launch, and node processes forked
+    from the launcher inherit the camera's k-vector (``_pair_table``) instead of each building it."""
+    build_pipeline(cfg, name)
 
 
 STAR_TRACKER = NodeKind("star_tracker", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
