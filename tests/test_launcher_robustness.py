@@ -165,3 +165,18 @@ def test_a_run_with_nothing_to_score_ends_with_one_line(tmp_path: Path) -> None:
                  "--set", "time.duration=5", "--set", "sensors.radar.p_detect=0.0", timeout=120)
     assert res.returncode == 1 and "Traceback" not in res.stderr
     assert "error: no estimates in" in res.stderr and (tmp_path / "none" / "bag" / "metadata.yaml").is_file()
+
+
+def test_a_node_lingering_after_a_complete_run_is_stopped_and_named(tmp_path: Path, monkeypatch, capsys) -> None:
+    """The run is complete once its source (and recorder) exited cleanly; a node still up LINGER_S later is
+    stopped with a warning and the run still succeeds. Real processes stand in for the nodes: the supervisor
+    only sees processes."""
+    from bench_engine import launcher
+    plan = launcher.prepare_run("leo_radar", tmp_path / "linger", record=False, overrides=list(SHORT_PASS[1::2]))
+    plan.logs.mkdir(exist_ok=True)
+    monkeypatch.setattr(launcher, "LINGER_S", 1.0)
+    procs = {spec.name: subprocess.Popen(["sleep", "60"] if spec.name == "ekf" else ["true"])
+             for spec in plan.graph.nodes}
+    assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
+    assert "node 'ekf' had not exited 1 s after the run completed" in capsys.readouterr().err
+    assert procs["ekf"].returncode == -signal.SIGINT
