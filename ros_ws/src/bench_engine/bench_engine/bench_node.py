@@ -13,6 +13,7 @@ the run's filters, seed and recording flag) and finds its own topics in :mod:`be
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import os
 import signal
 import sys
@@ -216,6 +217,10 @@ class _StopFlag:
         self.signal = signum
 
 
+ORPHAN_EXIT_S = 10.0
+"""How long an orphaned node process (its launcher killed) may take to close its nodes and exit."""
+
+
 def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,
                shutdown_executor: bool = True) -> int:
     """Spin until every node finished, SIGINT/SIGTERM, or (when ``parent_pid`` is given) the parent process
@@ -238,6 +243,10 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
                 if os.getppid() != parent_pid:  # orphaned: the launcher was killed
                     for node in nodes:
                         node.failed = node.failed or "the launcher went away; stopping"
+                    # Nobody will stop this process should rclpy's teardown hang (seen once: the
+                    # EventsExecutor's destructor spinning in EventHandler.__exit__ with the GIL held): the
+                    # nodes close (the bag first), then faulthandler's own thread ends the process regardless.
+                    faulthandler.dump_traceback_later(ORPHAN_EXIT_S, exit=True)
                     break
     except Exception as err:  # a callback raised (rclpy logged which node): stop cleanly, report it
         for node in nodes:
