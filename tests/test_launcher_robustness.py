@@ -175,7 +175,10 @@ def test_a_node_lingering_after_a_complete_run_is_stopped_and_named(tmp_path: Pa
     plan = launcher.prepare_run("leo_radar", tmp_path / "linger", record=False, overrides=list(SHORT_PASS[1::2]))
     plan.logs.mkdir(exist_ok=True)
     monkeypatch.setattr(launcher, "LINGER_S", 1.0)
-    procs = {spec.name: subprocess.Popen(["sleep", "60"] if spec.name == "ekf" else ["true"])
+    def default_sigint() -> None:  # as a node has, even where the test runs with SIGINT ignored (a background job)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    procs = {spec.name: subprocess.Popen(["sleep", "60"] if spec.name == "ekf" else ["true"], preexec_fn=default_sigint)
              for spec in plan.graph.nodes}
     assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
     assert "node 'ekf' had not exited 1 s after the run completed" in capsys.readouterr().err
