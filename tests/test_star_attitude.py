@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from star_tracker.attitude import (davenport_quaternion, error_angle, error_components, error_vector,
-                                   matrix_from_quaternion, quaternion_from_matrix, residuals, triad, triad_matrix,
-                                   wahba, wahba_matrix)
+                                   matrix_from_quaternion, quaternion_from_matrix, residuals, rotation_matrix, triad,
+                                   triad_matrix, wahba, wahba_matrix)
 
 
 def star_field(rng, n, half_width=0.15):
@@ -34,6 +34,26 @@ def test_the_quaternion_convention_is_scalar_first_and_rotates_icrs_into_the_cam
     np.testing.assert_allclose(q, [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)], atol=1e-12)
     np.testing.assert_allclose(matrix_from_quaternion(q), A, atol=1e-12)
     assert quaternion_from_matrix(Rotation.from_rotvec([0.0, 0.0, 1.9 * np.pi]).as_matrix())[0] >= 0
+
+
+def test_the_rotation_routines_agree_with_scipy_from_tiny_angles_to_half_turns():
+    """The hand-written conversions (attitude.py: scipy Rotations cost most of a tracker's frame) against
+    scipy's, on random rotations and on the series and branch boundaries."""
+    rng = np.random.default_rng(11)
+    axes = rng.normal(size=(6, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = [0.0, 1e-9, 1e-4, 9.9e-4, 1.0001e-3, 0.5, 2.0, np.pi - 1e-6, np.pi]
+    rotations = list(Rotation.random(100, random_state=rng)) + [Rotation.from_rotvec(a * n) for a in angles
+                                                                 for n in axes]
+    for rot in rotations:
+        A, rotvec = rot.as_matrix(), rot.as_rotvec()
+        q = quaternion_from_matrix(A)
+        assert q[0] >= 0 and abs(abs(q @ rot.as_quat(scalar_first=True)) - 1.0) < 1e-12
+        np.testing.assert_allclose(matrix_from_quaternion(q), A, atol=1e-12)
+        np.testing.assert_allclose(rotation_matrix(rotvec) - np.eye(3), A - np.eye(3), rtol=1e-9, atol=1e-15)
+        assert error_angle(A, np.eye(3)) == pytest.approx(rot.magnitude(), abs=1e-12)
+        if rot.magnitude() < np.pi - 1e-7:  # at a half turn the sign of the rotation vector is arbitrary
+            np.testing.assert_allclose(error_vector(A, np.eye(3)), -rotvec, rtol=1e-9, atol=1e-15)
 
 
 @pytest.mark.parametrize("seed", range(5))
