@@ -78,9 +78,6 @@ def ns_to_stamp(t_ns: int, stamp) -> None:
 class BenchNode(Node):
     """Base class: subclasses create their endpoints in ``setup()`` and react in callbacks."""
 
-    EXECUTOR = "events"
-    """The executor of this node's own process (``make_executor``)."""
-
     def __init__(self, name: str, run: dict) -> None:
         super().__init__(name)
         self.run = run
@@ -289,7 +286,7 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
     parser = argparse.ArgumentParser(description=node_class.__doc__)
     parser.add_argument("--name", required=True, help="node name (as in the run's graph)")
     parser.add_argument("--config", required=True, help="run_config.yaml written by the launcher")
-    parser.add_argument("--executor", default=node_class.EXECUTOR, choices=["events", "single"])
+    parser.add_argument("--executor", default="events", choices=["events", "single"])
     args = parser.parse_args(own)
     rclpy.init(args=["node"] + ros_args, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     initialised = time.time()
