@@ -35,10 +35,17 @@ GROUPS = {
 }
 
 
+@lru_cache(maxsize=1)
+def _installed_entry_points():
+    """Every installed package's entry points, read once per process (one scan of the installed packages'
+    metadata; a scan per group took 7 ms each)."""
+    return entry_points()
+
+
 @lru_cache(maxsize=None)
 def _entry_points(group: str) -> dict:
     found = {}
-    for ep in entry_points(group=GROUPS[group]):
+    for ep in _installed_entry_points().select(group=GROUPS[group]):
         found.setdefault(ep.name, ep)  # the first on sys.path wins, as for imports
     return found
 
