@@ -37,7 +37,8 @@ from star_tracker.attitude import rotation_matrix
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
 from star_tracker.motion import MotionModel, measurement_noise
-from tracker_filters.association import gate_threshold, gaussian_hypotheses
+from tracker_filters.association import gaussian_hypotheses
+from tracker_filters.filter_base import gate_threshold
 
 MISSED = -1
 

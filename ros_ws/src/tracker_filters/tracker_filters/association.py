@@ -25,12 +25,12 @@ probabilistic update for those tracks (tracker_filters.tracker.Tracker.update_tr
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Callable, Protocol, Sequence
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.special import chdtri
+
+from tracker_filters.filter_base import gate_threshold
 
 NO_DETECTION = -1
 
@@ -95,13 +95,6 @@ class Hypotheses:
     @property
     def n_detections(self) -> int:
         return self.d2.shape[1]
-
-
-@lru_cache(maxsize=64)
-def gate_threshold(gate_probability: float, dim: int) -> float:
-    """gamma = chi2.ppf(P_G, dim z): the gate holding the target's own measurement with probability P_G
-    (scipy.special.chdtri, without importing scipy.stats)."""
-    return float(chdtri(dim, 1.0 - gate_probability))
 
 
 def gaussian_hypotheses(z_pred: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,

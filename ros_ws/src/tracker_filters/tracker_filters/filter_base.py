@@ -35,7 +35,8 @@ class StepResult:
 
 @lru_cache(maxsize=64)
 def gate_threshold(probability: float, dof: int) -> float:
-    """Chi-square quantile of ``probability`` with ``dof`` degrees of freedom (the NIS gate)."""
+    """Chi-square quantile of ``probability`` with ``dof`` degrees of freedom: the NIS gate, and the gate of
+    every (track, detection) pair (tracker_filters.association)."""
     return float(chdtri(dof, 1.0 - probability))  # = scipy.stats.chi2.ppf, without importing scipy.stats
 
 

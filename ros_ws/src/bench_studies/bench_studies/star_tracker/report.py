@@ -20,12 +20,18 @@ SIGMA_VARIANCE = {0.1732050808: "0.03", 0.1414213562: "0.02", 0.1303840481: "0.0
 
 
 def paper_case(cfg: Mapping) -> Mapping | None:
-    """The paper's numbers for a resolved scenario: motion, jitter and sigma (as a variance) -> the table, or
-    None when the case is not one of the paper's."""
+    """The paper's numbers for a resolved scenario (:func:`paper_numbers` of its boresight, jitter and sigma)."""
     truth = cfg.get("truth") or {}
-    motion = "rotation" if truth.get("boresight") == "normal" else "linear"
-    jitter = f"{float(truth.get('jitter_deg_s', 0.0)):g}"
-    sigma_px = float(((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px") or 0.0)
+    return paper_numbers(truth.get("boresight"), truth.get("jitter_deg_s", 0.0),
+                         ((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px"))
+
+
+def paper_numbers(boresight: str | None, jitter_deg_s: float, sigma_px: float | None) -> Mapping | None:
+    """The paper's numbers for a case: motion (boresight normal: rotation, else linear), jitter and sigma (the
+    camera's sigma_px read as a variance) -> the table, or None when the case is not one of the paper's."""
+    motion = "rotation" if boresight == "normal" else "linear"
+    jitter = f"{float(jitter_deg_s):g}"
+    sigma_px = float(sigma_px or 0.0)
     sigma = next((v for k, v in SIGMA_VARIANCE.items() if abs(k - sigma_px) < 1e-6), None)
     numbers = ((PAPER.get("tables") or {}).get(motion) or {}).get(jitter, {}).get(sigma) if sigma else None
     if numbers is None:
@@ -68,8 +74,7 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
                           paper: Mapping | None) -> list[Section]:
     """The run's case next to the paper's table, and the attitude error per frame."""
     run = next((b["case"] for b in scored.values() if b.get("case")), None)
-    case = paper_case({"truth": {"boresight": run["boresight"], "jitter_deg_s": run["jitter_deg_s"]},
-                       "star_cameras": {"camera": {"sigma_px": run["sigma_px"]}}}) if run else None
+    case = paper_numbers(**run) if run else None
     text = ("Attitude error = angle of the error rotation (paper eq. 20), arcsec, after the first second; "
             "cross-boresight and roll are its parts; NEES over 3 dof (3 when the covariance is right). SNA and the "
             "JPDAF run side by side on identical frames (the same /camera/measurement), each with TRIAD (the paper's "
