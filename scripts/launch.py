@@ -13,10 +13,10 @@ Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 from bench_engine import phases
+from bench_engine.process import exit_now
 from bench_engine.run import add_run_arguments, launch
 
 
@@ -40,7 +40,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)  # every file is closed: skip the interpreter's teardown of numpy, scipy and rclpy
+    exit_now(main())

@@ -29,6 +29,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine import phases  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.montecarlo import MonteCarlo, run_montecarlo  # noqa: E402
 from bench_eval.scoring import print_summary  # noqa: E402
 
@@ -89,7 +90,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)  # bags, scores and report are written: skip the interpreter's teardown (numpy, scipy, rclpy)
+    exit_now(main())

@@ -29,6 +29,7 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine.config import ScenarioError  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outputs  # noqa: E402
 
 
@@ -98,7 +99,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)  # bags, scores and report are written: skip the interpreter's teardown (numpy, scipy, rclpy)
+    exit_now(main())

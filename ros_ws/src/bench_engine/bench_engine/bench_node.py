@@ -30,6 +30,7 @@ from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.config import ScenarioError
 from bench_engine.graph import ACK_TOPIC, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
+from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 
 DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
@@ -266,14 +267,6 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
     if stop.signal:
         return 128 + stop.signal
     return 1 if failed else 0
-
-
-def exit_now(code: int) -> None:
-    """End this node process at once: its endpoints are destroyed, its files closed and rclpy shut down, so
-    the interpreter's teardown of every loaded module (a large share of a short run's shutdown) is skipped."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
 
 
 def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int:

@@ -22,6 +22,7 @@ from bench_engine.config import (ScenarioError, Section, apply_overrides, load_s
                                  select_variant)
 from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 
 ENGINE_KEYS = ("scenario", "description", "seed", "time", "default_filters", "variants", "sweeps")
@@ -187,9 +188,7 @@ def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Pa
         import traceback
         traceback.print_exc()
     finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
+        exit_now(code)
 
 
 def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False,

@@ -19,6 +19,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per proces
 from bench_engine import phases  # noqa: E402
 from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
 from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
 from bench_engine.timegrid import build_time  # noqa: E402
 
 
@@ -77,7 +78,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)  # the bag and every file are closed: skip the interpreter's teardown of the loaded modules
+    exit_now(main())
