@@ -41,6 +41,7 @@ import yaml
 from mcap.reader import make_reader
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
+from bench_engine.columns import Table, table
 from bench_engine.msg_schema import message_class, schema_text, type_hash
 
 METADATA_VERSION = 9
@@ -419,6 +420,14 @@ class BagReader:
                 for schema, channel, message in make_reader(f).iter_messages(topics=wanted,
                                                                              log_time_order=not file_order):
                     yield channel.topic, schema.name, message.log_time, message.data
+
+    def tables(self, topics: Iterable[str] | None = None) -> dict[str, Table]:
+        """Topic -> all its messages as columns (bench_engine.columns), in the order the recorder wrote them."""
+        types = self.topics()
+        payloads: dict[str, list[bytes]] = {}
+        for topic, _type, _log_ns, data in self.messages(topics, file_order=True):
+            payloads.setdefault(topic, []).append(data)
+        return {topic: table(types[topic], data) for topic, data in payloads.items()}
 
     def decoded(self, topics: Iterable[str] | None = None,
                 file_order: bool = False) -> Iterator[tuple[str, int, Any]]:

@@ -29,7 +29,8 @@ from std_msgs.msg import String, UInt64
 from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.config import ScenarioError
-from bench_engine.graph import ACK_TOPIC, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
+from bench_engine.cdr import lite_class, serialize
+from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
 from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 
@@ -144,7 +145,7 @@ class BenchNode(Node):
         self._ack_every = max(1, window // 4)
         self._ack_sent: tuple[int, int] = (-1, 0)
         self._ack_unsent: tuple[int, int] | None = None
-        self._ack_msg = StepAck()
+        self._ack_msg = lite_class(ACK_TYPE)()
         self._ack_msg.node = self.get_name()
         self._ack_msg.topics = sorted(self.spec.publishes)
         if self._ack_every > 1:
@@ -157,7 +158,7 @@ class BenchNode(Node):
     def _send_ack(self, step: int, count: int) -> None:
         self._ack_msg.step, self._ack_msg.count = int(step), int(count)
         self._ack_msg.published = [self.published.get(t, 0) for t in self._ack_msg.topics]
-        self._ack_pub.publish(self._ack_msg)
+        self._ack_pub.publish(serialize(ACK_TYPE, self._ack_msg))
         self._ack_sent, self._ack_unsent = (int(step), int(count)), None
 
     def fail(self, message: str) -> None:

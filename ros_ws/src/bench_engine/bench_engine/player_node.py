@@ -11,6 +11,7 @@ from collections import defaultdict
 
 from bench_engine.bag import BagReader
 from bench_engine.bench_node import node_main
+from bench_engine.cdr import deserialize
 from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC
 from bench_engine.msg_schema import message_class
 from bench_engine.source_node import SourceNode
@@ -20,16 +21,14 @@ class PlayerNode(SourceNode):
     """Replays truth and measurements from the bag named by the run config's ``replay_bag``."""
 
     def setup(self) -> None:
-        from rclpy.serialization import deserialize_message
         reader = BagReader(self.run["replay_bag"])
         types = reader.topics()
         self.by_step: dict[int, list[tuple[str, bytes]]] = defaultdict(list)
         self.clock_ns: dict[int, int] = {}
-        classes = {t: message_class(types[t]) for t in types}
-        for topic, _type, _t, data in reader.messages():
+        for topic, type_name, _t, data in reader.messages():
             if topic == CLOCK_TOPIC or topic not in self.spec.publishes:
                 continue  # /clock is re-generated from the truth stamps; estimates are not replayed
-            msg = deserialize_message(data, classes[topic])
+            msg = deserialize(type_name, data)
             self.by_step[msg.step].append((topic, data))
             if topic == TRUTH_TOPIC:
                 self.clock_ns[msg.step] = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -39,7 +38,7 @@ class PlayerNode(SourceNode):
         super().setup()
         for topic in self.spec.publishes:
             if topic != CLOCK_TOPIC and topic in types:
-                self.data_publisher(classes[topic], topic)
+                self.data_publisher(message_class(types[topic]), topic)
 
     def publish_step(self, k: int) -> None:
         for topic, data in self.by_step.get(k, ()):

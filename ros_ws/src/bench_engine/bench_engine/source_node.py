@@ -16,7 +16,9 @@ from std_msgs.msg import String, UInt64
 from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, delivered, node_main, ns_to_stamp
-from bench_engine.graph import ACK_TOPIC, CLOCK_TOPIC, DONE_TOPIC, READY_TOPIC, TOTALS_TOPIC, node_kinds
+from bench_engine.cdr import deserialize, lite_class, serialize
+from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DONE_TOPIC, READY_TOPIC, TOTALS_TOPIC,
+                                node_kinds)
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
 from bench_engine.msg_schema import message_class
@@ -38,11 +40,12 @@ class SourceNode(BenchNode):
         self._done_sent = False
         self._ready_deadline = time.monotonic() + float(self.run.get("ready_timeout_s", 60.0))
         self.clock_pub = self.data_publisher(Clock, CLOCK_TOPIC)
+        self._clock_msg = lite_class(CLOCK_TYPE)()
         self.done_pub = self.create_publisher(UInt64, DONE_TOPIC, LATCHED_QOS)
         self.totals_pub = self.create_publisher(StepAck, TOTALS_TOPIC, LATCHED_QOS)
         self._reported: dict[str, int] = {}
         """Data topic -> the largest published count a paced node reported for it (final once complete)."""
-        self.create_subscription(StepAck, ACK_TOPIC, self._on_ack, DATA_QOS)
+        self.create_subscription(StepAck, ACK_TOPIC, self._on_ack, DATA_QOS, raw=True)
         self.create_subscription(String, READY_TOPIC, self._on_ready_msg, LATCHED_QOS)
         self._watchdog = self.create_timer(0.5, self._check_start_timeout)
 
@@ -56,9 +59,9 @@ class SourceNode(BenchNode):
         self.pacer.on_published(topic)
 
     def publish_clock(self, t_ns: int) -> None:
-        msg = Clock()
+        msg = self._clock_msg
         ns_to_stamp(t_ns, msg.clock)
-        self.clock_pub.publish(msg)
+        self.clock_pub.publish(serialize(CLOCK_TYPE, msg))
         self.published[CLOCK_TOPIC] += 1
 
     # -- protocol ---------------------------------------------------------------------------------------
@@ -83,8 +86,9 @@ class SourceNode(BenchNode):
             self.fail(f"nodes never became ready: {sorted(self._waiting_for)} "
                       "(did one of them fail at start-up?)")
 
-    def _on_ack(self, msg: StepAck) -> None:
-        published = dict(zip(msg.topics, msg.published))
+    def _on_ack(self, data: bytes) -> None:
+        msg = deserialize(ACK_TYPE, data)
+        published = dict(zip(msg.topics, msg.published.tolist()))
         self.pacer.on_ack(msg.node, msg.count, published)
         for topic, count in published.items():
             self._reported[topic] = max(self._reported.get(topic, 0), int(count))
@@ -133,12 +137,12 @@ class CoreSourceNode(SourceNode):
         for topic, type_name in self.spec.publishes.items():
             if topic != CLOCK_TOPIC:
                 self.data_publisher(message_class(type_name), topic)
-                self.codecs[topic] = (codec(type_name), message_class(type_name))
+                self.codecs[topic] = (codec(type_name), type_name, lite_class(type_name))
 
     def publish_step(self, k: int) -> None:
         for topic, item in self.core.outputs(k):
-            encoder, msg_type = self.codecs[topic]
-            self.publish_data(topic, encoder.encode(item, msg_type))
+            encoder, type_name, lite = self.codecs[topic]
+            self.publish_data(topic, serialize(type_name, encoder.encode(item, lite)))
         self.publish_clock(self.core.t_ns(k))
 
 

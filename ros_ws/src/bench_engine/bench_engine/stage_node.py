@@ -2,7 +2,9 @@
 
 Which core it drives comes from the node's kind (bench_engine.graph.NodeKind.stage); the topics and their
 types from the run's graph; the message <-> item conversions from the codecs registered per message type.
-Everything the core logs goes to the node's ROS logger.
+Messages travel as CDR bytes, built and read by bench_engine.cdr (light message objects: the codecs see the
+same attributes as rclpy's classes, at a fraction of the cost). Everything the core logs goes to the node's
+ROS logger.
 """
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import sys
 from functools import partial
 
 from bench_engine.bench_node import BenchNode, node_main
+from bench_engine.cdr import deserialize, lite_class, serialize
 from bench_engine.graph import node_kinds
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import codec
@@ -24,21 +27,22 @@ class StageNode(BenchNode):
         self.consumed = 0
         self.encoders = {}
         for topic, type_name in self.spec.publishes.items():
-            msg_type = message_class(type_name)
-            self.data_publisher(msg_type, topic)
-            self.encoders[topic] = (codec(type_name), msg_type)
+            self.data_publisher(message_class(type_name), topic)
+            self.encoders[topic] = (codec(type_name), type_name, lite_class(type_name))
         for topic, type_name in self.spec.subscribes.items():
-            self.data_subscription(message_class(type_name), topic, partial(self._on_input, topic, codec(type_name)))
+            self.data_subscription(message_class(type_name), topic,
+                                   partial(self._on_input, topic, codec(type_name), type_name), raw=True)
 
     def _log(self, level: str, text: str) -> None:
         getattr(self.get_logger(), level)(text)
 
-    def _on_input(self, topic: str, decoder, msg) -> None:
+    def _on_input(self, topic: str, decoder, type_name: str, data: bytes) -> None:
         self.consumed += 1
+        msg = deserialize(type_name, data)
         try:
             for out_topic, item in self.stage.on_input(topic, decoder.decode(msg)):
-                encoder, msg_type = self.encoders[out_topic]
-                self.publish_data(out_topic, encoder.encode(item, msg_type))
+                encoder, out_type, lite = self.encoders[out_topic]
+                self.publish_data(out_topic, serialize(out_type, encoder.encode(item, lite)))
         finally:
             self.ack(msg.step, self.consumed)
 

@@ -16,6 +16,7 @@ import yaml
 
 from bench_engine import plugins
 from bench_engine.bag import BagReader
+from bench_engine.columns import Table
 from bench_engine.config import Section
 from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC
 from bench_engine.stage import codec
@@ -73,16 +74,24 @@ class Estimates:
     diagnostics: dict[str, np.ndarray]  # name -> (K,), NaN where an estimate does not carry it
 
     @classmethod
-    def from_messages(cls, msgs: list) -> "Estimates":
-        msgs = sorted(msgs, key=lambda m: m.step)
-        n = len(error_labels(msgs[0].labels))  # a quaternion's covariance is of its 3-component error
-        names = sorted({k for m in msgs for k in m.diagnostic_names})
-        diag = {k: np.array([dict(zip(m.diagnostic_names, m.diagnostic_values)).get(k, np.nan) for m in msgs])
-                for k in names}
-        return cls(np.array([m.step for m in msgs]), np.array([_seconds(m.header.stamp) for m in msgs]),
-                   np.array([m.state for m in msgs], dtype=float),
-                   np.array([m.covariance for m in msgs], dtype=float).reshape(len(msgs), n, n),
-                   list(msgs[0].labels), diag)
+    def from_table(cls, tab: Table, rows: np.ndarray) -> "Estimates":
+        """The estimates in rows ``rows`` of a StateEstimate topic's table (bench_engine.columns)."""
+        rows = rows[np.argsort(tab["step"][rows], kind="stable")]
+        labels = list(tab["labels"][rows[0]])
+        n = len(error_labels(labels))  # a quaternion's covariance is of its 3-component error
+        names = [tab["diagnostic_names"][i] for i in rows]
+        values = [tab["diagnostic_values"][i] for i in rows]
+        diag = {k: np.array([v[list(m).index(k)] if k in m else np.nan for m, v in zip(names, values)])
+                for k in sorted(set().union(*names))}
+        return cls(tab["step"][rows].astype(np.int64), tab.seconds()[rows], _stack(tab["state"], rows),
+                   _stack(tab["covariance"], rows).reshape(len(rows), n, n), labels, diag)
+
+
+def _stack(column, rows: np.ndarray) -> np.ndarray:
+    """Rows of a numeric column as one float array (a list column when its vectors' lengths vary by step)."""
+    if isinstance(column, np.ndarray):
+        return column[rows].astype(float)
+    return np.array([column[i] for i in rows], dtype=float)
 
 
 @dataclass
@@ -100,12 +109,8 @@ class BagData:
         return self.run["scenario"]
 
 
-def _seconds(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
 def load_bag(bag_dir: Path | str) -> BagData:
-    """Decode truth, measurements and estimates of a recorded run."""
+    """Decode truth, measurements and estimates of a recorded run (as columns: bench_engine.columns)."""
     bag_dir = Path(bag_dir)
     config = bag_dir / "run_config.yaml"
     if not config.is_file():
@@ -113,17 +118,20 @@ def load_bag(bag_dir: Path | str) -> BagData:
     data = BagData(yaml.safe_load(config.read_text()))
     reader = BagReader(bag_dir)
     types = reader.topics()
-    estimates: dict[str, list] = {}
-    # file order: everything below is indexed by step, so the chunks need no merge by log time
-    for topic, _t_log, msg in reader.decoded([t for t in types if t != CLOCK_TOPIC], file_order=True):
+    wanted = [t for t in types if t == TRUTH_TOPIC or t.endswith(("/measurement", "/estimate"))]
+    for topic, tab in reader.tables(wanted).items():
+        steps = tab["step"].tolist()
         if topic == TRUTH_TOPIC:
-            data.truth[msg.step] = (_seconds(msg.header.stamp), np.asarray(msg.state, dtype=float))
-            data.truth_labels = list(msg.labels)
+            data.truth = dict(zip(steps, zip(tab.seconds().tolist(), _stack(tab["state"], np.arange(len(tab))))))
+            data.truth_labels = list(tab["labels"][-1])
         elif topic.endswith("/measurement"):
-            data.measurements.setdefault(topic.split("/")[1], {})[msg.step] = codec(types[topic]).decode(msg).z
-        elif topic.endswith("/estimate"):
-            estimates.setdefault(msg.filter_name, []).append(msg)
-    data.estimates = {name: Estimates.from_messages(msgs) for name, msgs in estimates.items()}
+            decode = codec(types[topic]).decode
+            data.measurements.setdefault(topic.split("/")[1], {}).update(
+                (step, decode(tab.row(i)).z) for i, step in enumerate(steps))
+        else:
+            owners = np.array(tab["filter_name"], dtype=object)
+            for name in dict.fromkeys(owners):
+                data.estimates[name] = Estimates.from_table(tab, np.flatnonzero(owners == name))
     return data
 
 

@@ -64,10 +64,8 @@ def _stars(data: BagData, camera: str, names: list[str]) -> dict[str, dict[int, 
     reader = BagReader(bag)
     topics = {f"/{camera}/star_truth": "truth", **{f"/{n}/stars": n for n in names}}
     present = [t for t in reader.topics() if t in topics]
-    out: dict[str, dict[int, object]] = {topics[t]: {} for t in present}
-    for topic, _t, msg in reader.decoded(present):
-        out[topics[topic]][int(msg.step)] = msg
-    return out
+    return {topics[topic]: {step: tab.row(i) for i, step in enumerate(tab["step"].tolist())}
+            for topic, tab in reader.tables(present).items()}
 
 
 def _identification(stars: dict, name: str, skip_steps: int) -> tuple[float, float, float]:
