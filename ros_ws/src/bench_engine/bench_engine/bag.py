@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import collections
 import os
+import struct
 import sys
 import threading
 import time
@@ -37,8 +38,13 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any, BinaryIO
 
+import lz4.frame
 import yaml
+import zstandard
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from bench_engine.columns import Table, table
@@ -361,6 +367,35 @@ class BagWriter:
         }
 
 
+_RECORD_PREFIX = 1 + 8  # an MCAP record's opcode (uint8) and length (uint64)
+_MESSAGE_HEADER = 2 + 4 + 8 + 8  # a message record's channel id, sequence, log time and publish time
+_OPCODE_MESSAGE = 0x05
+_U64, _U16 = struct.Struct("<Q"), struct.Struct("<H")
+
+
+def _chunk_records(chunk: Chunk) -> bytes:
+    """A chunk's records, decompressed."""
+    if chunk.compression == "zstd":
+        return zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    if chunk.compression == "lz4":
+        return lz4.frame.decompress(chunk.data)
+    if chunk.compression == "":
+        return chunk.data
+    raise BagDamaged(f"chunk compression {chunk.compression!r} is not one MCAP defines")
+
+
+def _collect_messages(records: bytes, wanted: dict[int, list[bytes]]) -> None:
+    """Append the data of each message record of ``records`` whose channel id is in ``wanted``."""
+    pos, end = 0, len(records)
+    while pos < end:
+        body = pos + _RECORD_PREFIX
+        pos = body + _U64.unpack_from(records, pos + 1)[0]
+        if records[body - _RECORD_PREFIX] == _OPCODE_MESSAGE:
+            into = wanted.get(_U16.unpack_from(records, body)[0])
+            if into is not None:
+                into.append(records[body + _MESSAGE_HEADER:pos])
+
+
 class BagDamaged(ValueError):
     """A bag's MCAP file cannot be read as a whole (truncated or corrupt)."""
 
@@ -378,6 +413,7 @@ class BagReader:
             if done is not None:
                 print(f"[bag] {done.summary()}", file=sys.stderr)
         self.files = self._mcap_files()
+        self._summaries: dict[Path, Summary] = {}
 
     def _mcap_files(self) -> list[Path]:
         if self.path.is_file():
@@ -393,10 +429,9 @@ class BagReader:
             raise FileNotFoundError(f"no metadata.yaml or .mcap file in {self.path}")
         return files
 
-    def topics(self) -> dict[str, str]:
-        """Topic name -> type name (``pkg/msg/Type``)."""
-        out: dict[str, str] = {}
-        for path in self.files:
+    def _summary(self, path: Path) -> Summary:
+        """The summary section of one of the bag's files (read once)."""
+        if path not in self._summaries:
             with open(path, "rb") as f:
                 try:
                     summary = make_reader(f).get_summary()
@@ -405,37 +440,56 @@ class BagReader:
             if summary is None:
                 raise BagDamaged(f"{path} has no summary section: the file is truncated; rebuild it with "
                                  f"scripts/recover_bag.py --force {self.path}")
+            self._summaries[path] = summary
+        return self._summaries[path]
+
+    def topics(self) -> dict[str, str]:
+        """Topic name -> type name (``pkg/msg/Type``)."""
+        out: dict[str, str] = {}
+        for path in self.files:
+            summary = self._summary(path)
             for channel in summary.channels.values():
                 out[channel.topic] = summary.schemas[channel.schema_id].name
         return out
 
-    def messages(self, topics: Iterable[str] | None = None,
-                 file_order: bool = False) -> Iterator[tuple[str, str, int, bytes]]:
-        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file, or in the order
-        the recorder wrote them (``file_order``: no merge of the chunks by time, for readers that index the
-        messages themselves, e.g. by step)."""
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
+        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file."""
         wanted = None if topics is None else list(topics)
         for path in self.files:
             with open(path, "rb") as f:
-                for schema, channel, message in make_reader(f).iter_messages(topics=wanted,
-                                                                             log_time_order=not file_order):
+                for schema, channel, message in make_reader(f).iter_messages(topics=wanted):
                     yield channel.topic, schema.name, message.log_time, message.data
 
-    def tables(self, topics: Iterable[str] | None = None) -> dict[str, Table]:
+    def payloads(self, topics: Iterable[str]) -> dict[str, list[bytes]]:
+        """Topic -> the CDR bytes of all its messages, in the order the recorder wrote them.
+
+        Reads each chunk that holds one of ``topics`` whole and walks its message records directly:
+        ``iter_messages`` builds a record object per message (and per message it skips), which was ~0.1 s of
+        a leo_radar bag's 0.17 s load; this takes ~0.03 s. The chunk header is read with mcap's own record
+        class, the chunk decompressed with the library mcap itself uses (zstd, lz4 or none)."""
+        out: dict[str, list[bytes]] = {topic: [] for topic in topics}
+        for path in self.files:
+            summary = self._summary(path)
+            wanted = {cid: out[ch.topic] for cid, ch in summary.channels.items() if ch.topic in out}
+            with open(path, "rb") as f:
+                for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+                    if wanted.keys().isdisjoint(index.message_index_offsets):
+                        continue
+                    f.seek(index.chunk_start_offset + _RECORD_PREFIX)
+                    _collect_messages(_chunk_records(Chunk.read(ReadDataStream(f))), wanted)
+        return {topic: data for topic, data in out.items() if data}
+
+    def tables(self, topics: Iterable[str]) -> dict[str, Table]:
         """Topic -> all its messages as columns (bench_engine.columns), in the order the recorder wrote them."""
         types = self.topics()
-        payloads: dict[str, list[bytes]] = {}
-        for topic, _type, _log_ns, data in self.messages(topics, file_order=True):
-            payloads.setdefault(topic, []).append(data)
-        return {topic: table(types[topic], data) for topic, data in payloads.items()}
+        return {topic: table(types[topic], data) for topic, data in self.payloads(topics).items()}
 
-    def decoded(self, topics: Iterable[str] | None = None,
-                file_order: bool = False) -> Iterator[tuple[str, int, Any]]:
+    def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log_time_ns, message)`` deserialized into the generated ROS classes (no DDS needed)."""
         from rclpy.serialization import deserialize_message
 
         classes: dict[str, type] = {}
-        for topic, type_name, log_ns, data in self.messages(topics, file_order):
+        for topic, type_name, log_ns, data in self.messages(topics):
             cls = classes.get(type_name)
             if cls is None:
                 cls = classes[type_name] = message_class(type_name)
