@@ -12,7 +12,7 @@ read those with ``BagReader.decoded``.
 
 A *layout* is what the positions of the fields depend on: the sequence counts and the string bytes. Two
 messages of the same length whose length prefixes and strings are byte-equal have the same layout, so one
-walk of the first message of a group places the fields of the whole group. tests/test_columns.py checks
+walk of the first message of a group places the fields of the whole group. tests/test_cdr.py checks
 every field against rclpy's own deserialisation.
 """
 from __future__ import annotations
@@ -100,7 +100,7 @@ class Table:
     ``table[path]`` (``"step"``, ``"header.stamp.sec"``, ``"state"``) is a numpy array with one row per message
     for a number or a fixed-size or same-length vector field; a list (one array per message) for vectors whose
     length varies; a list of str (or of tuples of str) for strings. ``row(i)`` gives message ``i`` as a
-    read-only object with the message's attribute names (what codecs take)."""
+    plain object with the message's attribute names (what codecs take)."""
 
     def __init__(self, type_name: str, columns: dict[str, Any], n: int):
         self.type_name = type_name
