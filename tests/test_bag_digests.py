@@ -1,6 +1,7 @@
 """The same seed gives the same bag contents, across refactorings: the messages of a short run of each study
 hash to the digests recorded before the package reshape (tests/data/bag_digests.json: per topic, the SHA-256
-of every message's CDR bytes in order, and the message count).
+of every message's CDR bytes in order, and the message count); star_tracker's since the nodes zero the CDR
+padding (bench_engine.cdr), which rclpy left as its reused buffer's bytes.
 
 A deliberate change of a model, a noise draw or a message changes these digests; regenerate the file then,
 and say why in the commit.
