@@ -29,9 +29,11 @@ from std_msgs.msg import String, UInt64
 from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.config import ScenarioError
-from bench_engine.cdr import lite_class, serialize
+from bench_engine.cdr import deserialize, lite_class, serialize
 from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
+from bench_engine.msg_schema import message_class
 from bench_engine.process import exit_now
+from bench_engine.stage import codec
 from bench_engine.timegrid import build_time
 
 DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
@@ -126,6 +128,19 @@ class BenchNode(Node):
 
     def data_subscription(self, msg_type, topic: str, callback: Callable, raw: bool = False):
         return self.create_subscription(msg_type, topic, callback, DATA_QOS, raw=raw)
+
+    def item_publisher(self, topic: str, type_name: str) -> Callable[[object], None]:
+        """A data publisher on ``topic`` that takes the cores' items: each is encoded by the codec registered
+        for ``type_name`` into a light message and sent as CDR bytes (bench_engine.cdr)."""
+        self.data_publisher(message_class(type_name), topic)
+        encode, lite = codec(type_name).encode, lite_class(type_name)
+        return lambda item: self.publish_data(topic, serialize(type_name, encode(item, lite)))
+
+    def item_subscription(self, topic: str, type_name: str, callback: Callable[[object], None]) -> None:
+        """A data subscription on ``topic`` that hands ``callback`` the light message read from the CDR bytes
+        (bench_engine.cdr)."""
+        self.data_subscription(message_class(type_name), topic,
+                               lambda data: callback(deserialize(type_name, data)), raw=True)
 
     def ack(self, step: int, count: int) -> None:
         """Acknowledge step ``step`` with the node's cumulative consumed message ``count`` and its published

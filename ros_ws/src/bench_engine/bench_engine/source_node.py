@@ -21,8 +21,6 @@ from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DO
                                 node_kinds)
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
-from bench_engine.msg_schema import message_class
-from bench_engine.stage import codec
 
 
 class SourceNode(BenchNode):
@@ -133,16 +131,12 @@ class CoreSourceNode(SourceNode):
         self.core = node_kinds()[self.spec.kind].stage(self.cfg, self.get_name(), self.run)
         self.steps = self.core.steps
         super().setup()
-        self.codecs = {}
-        for topic, type_name in self.spec.publishes.items():
-            if topic != CLOCK_TOPIC:
-                self.data_publisher(message_class(type_name), topic)
-                self.codecs[topic] = (codec(type_name), type_name, lite_class(type_name))
+        self.outputs = {topic: self.item_publisher(topic, type_name)
+                        for topic, type_name in self.spec.publishes.items() if topic != CLOCK_TOPIC}
 
     def publish_step(self, k: int) -> None:
         for topic, item in self.core.outputs(k):
-            encoder, type_name, lite = self.codecs[topic]
-            self.publish_data(topic, serialize(type_name, encoder.encode(item, lite)))
+            self.outputs[topic](item)
         self.publish_clock(self.core.t_ns(k))
 
 

@@ -12,9 +12,7 @@ import sys
 from functools import partial
 
 from bench_engine.bench_node import BenchNode, node_main
-from bench_engine.cdr import deserialize, lite_class, serialize
 from bench_engine.graph import node_kinds
-from bench_engine.msg_schema import message_class
 from bench_engine.stage import codec
 
 
@@ -25,24 +23,19 @@ class StageNode(BenchNode):
         self.stage = node_kinds()[self.spec.kind].stage(self.cfg, self.get_name(), self.run)
         self.stage.log = self._log
         self.consumed = 0
-        self.encoders = {}
-        for topic, type_name in self.spec.publishes.items():
-            self.data_publisher(message_class(type_name), topic)
-            self.encoders[topic] = (codec(type_name), type_name, lite_class(type_name))
+        self.outputs = {topic: self.item_publisher(topic, type_name)
+                        for topic, type_name in self.spec.publishes.items()}
         for topic, type_name in self.spec.subscribes.items():
-            self.data_subscription(message_class(type_name), topic,
-                                   partial(self._on_input, topic, codec(type_name), type_name), raw=True)
+            self.item_subscription(topic, type_name, partial(self._on_input, topic, codec(type_name)))
 
     def _log(self, level: str, text: str) -> None:
         getattr(self.get_logger(), level)(text)
 
-    def _on_input(self, topic: str, decoder, type_name: str, data: bytes) -> None:
+    def _on_input(self, topic: str, decoder, msg) -> None:
         self.consumed += 1
-        msg = deserialize(type_name, data)
         try:
             for out_topic, item in self.stage.on_input(topic, decoder.decode(msg)):
-                encoder, out_type, lite = self.encoders[out_topic]
-                self.publish_data(out_topic, serialize(out_type, encoder.encode(item, lite)))
+                self.outputs[out_topic](item)
         finally:
             self.ack(msg.step, self.consumed)
 
