@@ -102,8 +102,7 @@ class Table:
     length varies; a list of str (or of tuples of str) for strings. ``row(i)`` gives message ``i`` as a
     plain object with the message's attribute names (what codecs take)."""
 
-    def __init__(self, type_name: str, columns: dict[str, Any], n: int):
-        self.type_name = type_name
+    def __init__(self, columns: dict[str, Any], n: int):
         self.columns = columns
         self.n = n
         self._tree: dict[str, Any] | None = None
@@ -159,7 +158,7 @@ def table(type_name: str, payloads: list[bytes]) -> Table:
             for path, values in _group_columns(rows[same], layout).items():
                 parts.setdefault(path, []).append((index[same], values))
             todo = np.setdiff1d(todo, same, assume_unique=True)
-    return Table(type_name, {path: _merge(groups, n) for path, groups in parts.items()}, n)
+    return Table({path: _merge(groups, n) for path, groups in parts.items()}, n)
 
 
 def _group_columns(rows: np.ndarray, layout: _Layout) -> dict[str, Any]:

@@ -18,7 +18,7 @@ from bench_engine import plugins
 from bench_engine.bag import BagReader
 from bench_engine.columns import Table
 from bench_engine.config import Section
-from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC
+from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.stage import codec
 from bench_eval import metrics
 from bench_models.states import error_labels
