@@ -20,6 +20,8 @@ setup(
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
     entry_points={
+        "console_scripts": [
+            "sensor_node = radar_sensor.sensor_stage:main"],
         "tracking_bench.node_kinds": [
             "sensor = radar_sensor.sensor_stage:SENSOR",
             "cluttered_sensor = radar_sensor.clutter:CLUTTERED_SENSOR"],

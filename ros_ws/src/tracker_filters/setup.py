@@ -20,6 +20,8 @@ setup(
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
     entry_points={
+        "console_scripts": [
+            "filter_node = tracker_filters.filter_stage:main"],
         "tracking_bench.sections": [
             "trackers = tracker_filters.tracker_stage:read_trackers",
             "derived_measurements = tracker_filters.derived:read_derived",

@@ -1,7 +1,20 @@
-"""ROS shell shared by every node of the bench: run config, QoS, readiness barrier, acks, clean shutdown.
+"""ROS shell shared by every node of the bench: parameters, topics, QoS, readiness barrier, acks, shutdown.
 
-Each node is built from the run config the launcher writes (``run_config.yaml``: the resolved scenario plus
-the run's filters, seed and recording flag) and finds its own topics in :mod:`bench_engine.graph`. Protocol:
+A node's core is configured by the node's ROS parameters alone (bench_engine.parameters: the part of the
+scenario its kind reads, one read-only parameter per scenario key, e.g. ``filters.ukf.params.alpha``), plus the
+shell's own parameters (:data:`SHELL_PARAMETERS`: its kind and the QoS of its data topics). Its data topics are
+relative names (``radar/measurement``, ``ukf/estimate``), so a namespace or a remap moves them.
+
+Two modes:
+
+- **bench** (the launcher starts it with ``--name NAME --config run_config.yaml``): the run config carries the
+  whole scenario, from which the node finds the run's graph (bench_engine.graph) for the lock-step protocol
+  below; its parameters come from the launcher's ``params/NAME.yaml``.
+- **standalone** (no run config: ``filter_node --ros-args --params-file ukf.yaml -r __node:=ukf``): the node
+  builds the graph of its own parameters to learn its topics and their types, and reacts to whatever arrives,
+  with no pacing, readiness or end of run; Ctrl-C stops it.
+
+Lock-step protocol (bench mode):
 
 1. Readiness: a node creates its publishers and subscriptions, waits until each data publisher sees the
    number of subscribers the graph expects, then announces its name on ``/sim/ready`` (transient-local).
@@ -18,11 +31,14 @@ import os
 import signal
 import sys
 import time
+from pathlib import Path
 from typing import Callable, Iterable
 
 import rclpy
 import yaml
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String, UInt64
 
@@ -30,7 +46,9 @@ from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.config import ScenarioError
 from bench_engine.cdr import deserialize, lite_class, serialize
-from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph
+from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph,
+                                node_kinds)
+from bench_engine.parameters import description, unflatten
 from bench_engine.msg_schema import message_class
 from bench_engine.process import exit_now
 from bench_engine.stage import codec
@@ -71,6 +89,21 @@ def graph_of(run: dict) -> Graph:
     return build_graph(run["scenario"], run["filters"], run.get("record", True), run.get("source", "truth"))
 
 
+def standalone_graph(settings: dict, name: str, kind: str) -> Graph:
+    """The graph a standalone node's own parameters describe (no recorder): it gives the node its topics and
+    their types. An estimator kind's node is the one estimator requested."""
+    kinds = node_kinds()
+    if kind not in kinds:
+        raise ScenarioError(f"parameter 'kind' must name a registered node kind, got {kind!r}; registered: "
+                            f"{sorted(kinds)}")
+    graph = build_graph(settings, [name] if kinds[kind].role == "estimator" else None, record=False)
+    spec = graph.node(name) if name in [n.name for n in graph.nodes] else None
+    if spec is None or spec.kind != kind:
+        raise ScenarioError(f"the parameters describe no {kind} node named '{name}' (the node's name is its name "
+                            f"in the scenario: rename it with -r __node:=NAME, or check the parameters file)")
+    return graph
+
+
 def stamp_to_ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
@@ -79,30 +112,92 @@ def ns_to_stamp(t_ns: int, stamp) -> None:
     stamp.sec, stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
 
 
-class BenchNode(Node):
-    """Base class: subclasses create their endpoints in ``setup()`` and react in callbacks."""
+SHELL_PARAMETERS = {
+    "kind": ("", "the node kind whose core this node runs (bench_engine.graph.NodeKind, e.g. filter, "
+                       "sensor); set by the launcher or the console script"),
+    "qos.reliability": ("reliable", "QoS reliability of the data topics: reliable or best_effort (a best-effort "
+                                    "subscription also hears reliable publishers)"),
+    "qos.history": ("keep_all", "QoS history of the data topics: keep_all or keep_last"),
+    "qos.depth": (100, "QoS depth of the data topics with keep_last history"),
+}
+"""The shell's own parameters (name -> (default, description)); every other parameter is a scenario key."""
+ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+"""Parameters rclpy declares on every node."""
 
-    def __init__(self, name: str, run: dict) -> None:
-        super().__init__(name)
+
+def relative(topic: str) -> str:
+    """A graph topic (``/radar/measurement``) as the relative name a node uses, so namespaces and remaps apply."""
+    return topic.lstrip("/")
+
+
+def data_qos(reliability: str, history: str, depth: int) -> QoSProfile:
+    """The QoS of a node's data topics (bench mode: reliable, keep-all, as the lock-step pacing needs)."""
+    reliabilities = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
+    histories = {"keep_all": HistoryPolicy.KEEP_ALL, "keep_last": HistoryPolicy.KEEP_LAST}
+    if reliability not in reliabilities:
+        raise ScenarioError(f"parameter 'qos.reliability' must be one of {sorted(reliabilities)}, got {reliability!r}")
+    if history not in histories:
+        raise ScenarioError(f"parameter 'qos.history' must be one of {sorted(histories)}, got {history!r}")
+    if not isinstance(depth, int) or depth < 1:
+        raise ScenarioError(f"parameter 'qos.depth' must be an integer >= 1, got {depth!r}")
+    return QoSProfile(history=histories[history], depth=depth, reliability=reliabilities[reliability],
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+class BenchNode(Node):
+    """Base class: subclasses create their endpoints in ``setup()`` and react in callbacks.
+
+    ``run``: the launcher's run config (bench mode), or None (standalone). ``parameters``: parameter values
+    given in code (the single-process launcher), besides those of ``--params-file``. ``kind``: the default of
+    the ``kind`` parameter (a standalone console script's kind)."""
+
+    def __init__(self, name: str, run: dict | None, parameters: dict | None = None, kind: str = "") -> None:
+        overrides = [Parameter(k, value=v) for k, v in (parameters or {}).items()]
+        super().__init__(name, parameter_overrides=overrides)
+        self.settings, shell = self._declare_parameters(kind)
+        """The scenario part this node's core reads: its parameters (bench_engine.parameters)."""
+        self.qos = data_qos(shell["qos.reliability"], shell["qos.history"], shell["qos.depth"])
         self.run = run
-        self.cfg = run["scenario"]
-        self.graph = graph_of(run)
-        self.spec = self.graph.node(name)
+        self.standalone = run is None
+        if self.standalone:
+            self.cfg = self.settings
+            self.graph = standalone_graph(self.settings, self.get_name(), shell["kind"])
+        else:
+            self.cfg = run["scenario"]
+            self.graph = graph_of(run)
+        self.spec = self.graph.node(self.get_name())
         self.finished = False
         self.failed = ""
         self._announced = False
         self._publishers_by_topic: dict[str, object] = {}
-        self._ready_pub = self.create_publisher(String, READY_TOPIC, LATCHED_QOS)
         self._ack_pub = None
         self.published: dict[str, int] = {}
         """Data topic -> messages this node published on it (reported in its acknowledgements)."""
-        if self.spec.role in PACED_ROLES:
-            self._ack_pub = self.create_publisher(StepAck, ACK_TOPIC, DATA_QOS)
-            self._setup_acks()
-        if self.spec.role not in ("source", "replay"):
-            self.create_subscription(UInt64, DONE_TOPIC, self._on_done, LATCHED_QOS)
+        if not self.standalone:
+            self._ready_pub = self.create_publisher(String, READY_TOPIC, LATCHED_QOS)
+            if self.spec.role in PACED_ROLES:
+                self._ack_pub = self.create_publisher(StepAck, ACK_TOPIC, DATA_QOS)
+                self._setup_acks()
+            if self.spec.role not in ("source", "replay"):
+                self.create_subscription(UInt64, DONE_TOPIC, self._on_done, LATCHED_QOS)
         self.setup()
-        self._ready_timer = self.create_timer(0.02, self._check_ready)
+        if not self.standalone:
+            self._ready_timer = self.create_timer(0.02, self._check_ready)
+
+    def _declare_parameters(self, kind: str) -> tuple[dict, dict]:
+        """Declare every parameter read-only: the shell's (SHELL_PARAMETERS, with their defaults) and every
+        scenario key given (params file or constructor); returns (scenario settings, shell values)."""
+        given = {name: p.value for name, p in self._parameter_overrides.items()  # rclpy's merged overrides
+                 if name not in ROS_OWN_PARAMETERS}
+        shell_defaults = {**{k: v for k, (v, _) in SHELL_PARAMETERS.items()}, "kind": kind}
+        declared = self.declare_parameters("", [
+            *((name, default, ParameterDescriptor(description=SHELL_PARAMETERS[name][1], read_only=True))
+              for name, default in shell_defaults.items()),
+            *((name, value, ParameterDescriptor(description=description(name), read_only=True))
+              for name, value in sorted(given.items()) if name not in SHELL_PARAMETERS)])
+        values = {p.name: p.value for p in declared}
+        shell = {name: values[name] for name in SHELL_PARAMETERS}
+        return unflatten({k: v for k, v in values.items() if k not in SHELL_PARAMETERS}), shell
 
     # -- for subclasses -------------------------------------------------------------------------------
     def setup(self) -> None:
@@ -116,7 +211,8 @@ class BenchNode(Node):
         """Called once, after this node announced itself ready."""
 
     def data_publisher(self, msg_type, topic: str):
-        pub = self.create_publisher(msg_type, topic, DATA_QOS)
+        """A publisher on the graph's data topic ``topic`` (by its relative name), with the node's data QoS."""
+        pub = self.create_publisher(msg_type, relative(topic), self.qos)
         self._publishers_by_topic[topic] = pub
         self.published[topic] = 0
         return pub
@@ -127,7 +223,7 @@ class BenchNode(Node):
         self.published[topic] += 1
 
     def data_subscription(self, msg_type, topic: str, callback: Callable, raw: bool = False):
-        return self.create_subscription(msg_type, topic, callback, DATA_QOS, raw=raw)
+        return self.create_subscription(msg_type, relative(topic), callback, self.qos, raw=raw)
 
     def item_publisher(self, topic: str, type_name: str) -> Callable[[object], None]:
         """A data publisher on ``topic`` that takes the cores' items: each is encoded by the codec registered
@@ -285,13 +381,17 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
     return 1 if failed else 0
 
 
-def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int:
-    """Entry point of a node process: ``python -m MODULE --name NAME --config RUN_CONFIG [--ros-args ...]``;
-    exits the process when the node is done."""
-    imported = time.time()
-    argv = sys.argv[1:] if argv is None else argv
+def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(the node's own arguments, ``--ros-args …`` onwards)."""
     ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
-    own = argv[: len(argv) - len(ros_args)]
+    return argv[: len(argv) - len(ros_args)], ros_args
+
+
+def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int:
+    """Entry point of a bench node process: ``python -m MODULE --name NAME --config RUN_CONFIG --ros-args
+    --params-file params/NAME.yaml``; exits the process when the node is done."""
+    imported = time.time()
+    own, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=node_class.__doc__)
     parser.add_argument("--name", required=True, help="node name (as in the run's graph)")
     parser.add_argument("--config", required=True, help="run_config.yaml written by the launcher")
@@ -315,3 +415,39 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
     rclpy.try_shutdown()
     phases.mark("exit", args.name, run.get("out"))
     exit_now(code)
+
+
+STANDALONE_HELP = """Runs one bench {kind} node in any ROS 2 graph, without the bench's launcher or lock-step pacing.
+
+Every setting is a ROS parameter named after its scenario key (e.g. filters.ukf.type, filters.ukf.params.alpha,
+sensors.radar.site.latitude_deg); the node's name is its name in the scenario. The easiest parameters file is
+the one the launcher writes for each node of a run: OUT/params/NAME.yaml. Shell parameters: kind,
+qos.reliability (reliable | best_effort), qos.history (keep_all | keep_last), qos.depth. Topics are relative
+names (radar/measurement, ukf/estimate): remap them with -r FROM:=TO.
+
+Example:
+  {command} --ros-args -r __node:=ukf --params-file runs/x/params/ukf.yaml \\
+      -p qos.reliability:=best_effort -r radar/measurement:=/my_radar/measurement
+
+Exit code: 0 after Ctrl-C or SIGTERM, 2 for a bad or missing parameter (named on one line)."""
+
+
+def standalone_main(node_class: type[BenchNode], kind: str, argv: list[str] | None = None) -> int:
+    """Entry point of a standalone node (console scripts ``filter_node``, ``sensor_node``): parameters and
+    remaps from ``--ros-args``; runs until SIGINT/SIGTERM."""
+    own, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
+    command = Path(sys.argv[0]).name
+    parser = argparse.ArgumentParser(prog=command, description=STANDALONE_HELP.format(kind=kind, command=command),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--executor", default="events", choices=["events", "single"])
+    args = parser.parse_args(own)
+    rclpy.init(args=[command] + ros_args, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    try:
+        node = node_class(kind, None, kind=kind)
+    except (ScenarioError, KeyError, ValueError, OSError) as err:
+        print(f"[{command}] error: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    code = spin_nodes([node], args.executor)
+    rclpy.try_shutdown()
+    return 0 if code >= 128 else code

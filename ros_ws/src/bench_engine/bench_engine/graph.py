@@ -33,6 +33,9 @@ CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 ESTIMATE_TYPE = "bench_msgs/msg/StateEstimate"
 ACK_TYPE = "bench_msgs/msg/StepAck"
 
+RUN_ONLY_KEYS = ("description", "variants", "sweeps")
+"""Scenario keys only the launcher reads (variants and sweeps are resolved before a run): no node's setting."""
+
 ROLES = ("source", "replay", "sensor", "estimator", "recorder")
 PACED_ROLES = ("sensor", "estimator", "recorder")
 """Roles whose nodes acknowledge what they consumed, so the source never runs more than the pacing window
@@ -79,6 +82,15 @@ class NodeKind:
     stage: Callable[[dict, str, dict], object] | None = None
     order: int = 0
     """Build order among kinds of one role (lower first)."""
+    reads: Callable[[dict, str], dict] | None = None
+    """``reads(cfg, name)``: the part of the scenario node ``name``'s core reads, which is all it is given (its
+    ROS parameters, bench_engine.parameters); None: every key but the launcher's own (RUN_ONLY_KEYS)."""
+
+    def settings(self, cfg: dict, name: str) -> dict:
+        """What node ``name`` of this kind is configured with (its parameters, unflattened)."""
+        if self.reads is not None:
+            return self.reads(cfg, name)
+        return {k: v for k, v in cfg.items() if k not in RUN_ONLY_KEYS}
 
 
 @dataclass

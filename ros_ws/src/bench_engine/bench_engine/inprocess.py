@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from bench_engine.config import scenario_seed
 from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.parameters import node_settings
 from bench_engine.stage import Item, Log
 
 
@@ -44,11 +45,12 @@ def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None
     context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()
     source_spec = graph.of_role("source")[0]
-    source = kinds[source_spec.kind].stage(cfg, source_spec.name, context)
+    source = kinds[source_spec.kind].stage(node_settings(cfg, source_spec.kind, source_spec.name), source_spec.name,
+                                           context)
     stages, subscribers = {}, {}
     for spec in graph.topological():
         if spec.role in roles:
-            stages[spec.name] = kinds[spec.kind].stage(cfg, spec.name, context)
+            stages[spec.name] = kinds[spec.kind].stage(node_settings(cfg, spec.kind, spec.name), spec.name, context)
             stages[spec.name].log = _collector(run, spec.name)
             for topic in spec.subscribes:
                 subscribers.setdefault(topic, []).append(spec.name)

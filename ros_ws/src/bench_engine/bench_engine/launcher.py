@@ -22,6 +22,7 @@ from bench_engine.config import (ScenarioError, Section, apply_overrides, load_s
                                  select_variant)
 from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.parameters import flatten, node_settings, parameters_file
 from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 
@@ -46,6 +47,15 @@ class RunPlan:
     @property
     def bag_dir(self) -> Path:
         return Path(self.run["bag_dir"])
+
+    def parameters_file(self, name: str) -> Path:
+        """Node ``name``'s ROS parameters (``--params-file``), written by :func:`prepare_run`."""
+        return self.out / "params" / f"{name}.yaml"
+
+    def node_argv(self, name: str) -> list[str]:
+        """A node process's arguments after ``python -m MODULE``."""
+        return ["--name", name, "--config", str(self.config_path),
+                "--ros-args", "--params-file", str(self.parameters_file(name))]
 
 
 def local_dds_env(domain_id: int) -> dict[str, str]:
@@ -81,9 +91,19 @@ def validate(cfg: dict, filters: list[str], source: str) -> None:
         read(cfg)
     kinds = node_kinds()
     for spec in build_graph(cfg, filters, record=False, source=source).nodes:
+        settings = node_settings(cfg, spec.kind, spec.name)
         check = kinds[spec.kind].check
         if check is not None:
-            check(cfg, spec.name)
+            check(settings, spec.name)
+
+
+def write_parameters(plan: "RunPlan") -> None:
+    """One ``ros__parameters`` file per node: its kind and its settings (bench_engine.parameters)."""
+    cfg = plan.run["scenario"]
+    plan.parameters_file("x").parent.mkdir(exist_ok=True)
+    for spec in plan.graph.nodes:
+        flat = {"kind": spec.kind, **flatten(node_kinds()[spec.kind].settings(cfg, spec.name))}
+        plan.parameters_file(spec.name).write_text(parameters_file(flat))
 
 
 def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,
@@ -106,7 +126,9 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
     run.update(extra or {})
     config_path = out / "run_config.yaml"
     config_path.write_text(yaml.safe_dump(run, sort_keys=False))
-    return RunPlan(out, run, graph, config_path)
+    plan = RunPlan(out, run, graph, config_path)
+    write_parameters(plan)
+    return plan
 
 
 class ForkedNode:
@@ -155,7 +177,7 @@ def can_fork() -> bool:
     return rclpy is None or not rclpy.ok()
 
 
-def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Path) -> ForkedNode:
+def fork_node(module: str, argv: list[str], env: dict[str, str], log: Path) -> ForkedNode:
     """Start node ``name`` (``python -m module`` equivalent) as a child forked from this process, which has
     already imported the node's module: the child skips the interpreter start and the imports (numpy, scipy,
     rclpy, the cores' modules), which dominate a node process's start-up, and inherits what validation built
@@ -177,7 +199,7 @@ def fork_node(module: str, name: str, config: Path, env: dict[str, str], log: Pa
         os.dup2(fd, 1)
         os.dup2(fd, 2)
         os.close(fd)
-        sys.argv = [module, "--name", name, "--config", str(config)]
+        sys.argv = [module, *argv]
         setproctitle.setproctitle(" ".join([sys.executable, "-m", *sys.argv]))  # before environ changes
         os.environ.clear()
         os.environ.update(env)
@@ -211,13 +233,13 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
             module, log_path = spec.node.split(":")[0], plan.logs / f"{spec.name}.log"
             if fork:
                 try:
-                    procs[spec.name] = fork_node(module, spec.name, plan.config_path, env, log_path)
+                    procs[spec.name] = fork_node(module, plan.node_argv(spec.name), env, log_path)
                     continue
                 except ImportError:  # the node's own fresh process reports it
                     pass
             log = open(log_path, "w")
             procs[spec.name] = subprocess.Popen(
-                [sys.executable, "-m", module, "--name", spec.name, "--config", str(plan.config_path)],
+                [sys.executable, "-m", module, *plan.node_argv(spec.name)],
                 env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         phases.mark("spawned", "launcher", plan.out)
         return _supervise(plan, procs, interrupted, timeout_s, quiet)
@@ -336,6 +358,12 @@ def node_class(node: str) -> type:
     return getattr(importlib.import_module(module), name)
 
 
+def _file_parameters(plan: RunPlan, name: str) -> dict:
+    """The parameters :func:`write_parameters` wrote for node ``name`` (nodes in one process share rclpy's
+    global arguments, so each takes its own file's values in code)."""
+    return next(iter(yaml.safe_load(plan.parameters_file(name).read_text()).values()))["ros__parameters"]
+
+
 def pin_to_one_cpu(domain_id: int) -> int | None:
     """Restrict this thread, and every thread it starts from now on, to one of the CPUs it may use; parallel
     runs (distinct domains) get different CPUs. Returns the CPU, or None when there is only one.
@@ -363,7 +391,8 @@ def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", 
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     try:
         phases.mark("rclpy_init", "launcher", plan.out)
-        nodes = [node_class(spec.node)(spec.name, plan.run) for spec in plan.graph.start_order()]
+        nodes = [node_class(spec.node)(spec.name, plan.run, parameters=_file_parameters(plan, spec.name))
+                 for spec in plan.graph.start_order()]
         phases.mark("node_created", "launcher", plan.out)
         code = spin_nodes(nodes, executor)
         phases.mark("nodes_exited", "launcher", plan.out)

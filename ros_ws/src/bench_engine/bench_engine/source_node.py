@@ -128,7 +128,7 @@ class CoreSourceNode(SourceNode):
     """The ROS shell of a registered source kind: publishes its core's items of each step, then /clock."""
 
     def setup(self) -> None:
-        self.core = node_kinds()[self.spec.kind].stage(self.cfg, self.get_name(), self.run)
+        self.core = node_kinds()[self.spec.kind].stage(self.settings, self.get_name(), self.run)
         self.steps = self.core.steps
         super().setup()
         self.outputs = {topic: self.item_publisher(topic, type_name)

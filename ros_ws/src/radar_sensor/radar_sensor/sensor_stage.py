@@ -52,3 +52,11 @@ def _check(cfg: dict, name: str) -> None:
 
 SENSOR = NodeKind("sensor", "sensor", "bench_engine.stage_node:StageNode",
                   instances=lambda cfg, requested: sensor_names(cfg), spec=_spec, check=_check, stage=SensorStage)
+
+
+def main() -> int:
+    """``sensor_node``: a bench sensor in any ROS 2 graph, fed by a truth topic and configured by its parameters
+    alone (no launcher, no lock-step; bench_engine.bench_node.standalone_main)."""
+    from bench_engine.bench_node import standalone_main
+    from bench_engine.stage_node import StageNode
+    return standalone_main(StageNode, SENSOR.name)

@@ -3,8 +3,10 @@ node kind ``filter`` for the run's selected filters (``--filters`` or the scenar
 
 Subscribes the measurement topics of the sensors it consumes (``/SENSOR/measurement``); publishes
 ``/NAME/estimate`` (bench_msgs/StateEstimate with full covariance and state labels) after every accepted
-measurement. Rejected measurements (NaN/inf, out of order, a step already seen from the same sensor, gated by
-the filter's NIS gate, failed update) are logged and skipped;
+measurement. Measurements are ordered by their sim time (``header.stamp``), never by the bench's ``step``
+counter, so a publisher outside the bench (``step`` left at 0) feeds the filter the same way. Rejected
+measurements (NaN/inf, a time not after the last one from the same sensor, gated by the filter's NIS gate,
+failed update) are logged and skipped;
 recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings. The filters are
 imported only when one is built (every node of a run reads the kind to build the graph).
 """
@@ -30,17 +32,18 @@ class FilterStage:
         self.sensor_of = {measurement_topic(s): s for s in self.stack.sensors}
         self.topic = estimate_topic(name)
         self.log = python_log(name)
-        self.last_step: dict[str, int] = {}
+        self.last_t_ns: dict[str, int] = {}
         self.gated_in_a_row = 0
 
     def on_input(self, topic: str, m: Measurement) -> Outputs:
         sensor = self.stack.sensors[self.sensor_of[topic]]
         flt = self.stack.filter
-        if m.step <= self.last_step.get(topic, -1):
-            self.log("warning", f"rejected a duplicated or out-of-order measurement from {sensor.name} at step "
-                                f"{m.step} (its last was step {self.last_step[topic]})")
+        if topic in self.last_t_ns and m.t_ns <= self.last_t_ns[topic]:
+            self.log("warning", f"rejected measurement at step {m.step}: out-of-order measurement from "
+                                f"{sensor.name} (duplicated or out-of-order: t = {m.t:.9f} s is not after its "
+                                f"last, t = {self.last_t_ns[topic] * 1e-9:.9f} s)")
             return []
-        self.last_step[topic] = m.step
+        self.last_t_ns[topic] = m.t_ns
         if not flt.initialised or self.gated_in_a_row >= self.stack.reinit_after_gated:
             return self._start(m, sensor)
         result = flt.process(m.t, m.z, m.R, sensor.model)
@@ -85,6 +88,19 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
                     subscribes={measurement_topic(s): "" for s in inputs})
 
 
+FILTER_READS = ("scenario", "seed", "time", "earth", "truth", "sensors", "derived_measurements")
+"""Scenario sections a filter's core reads besides its own settings: the sensor and derived measurement
+models it consumes, the Earth and reference orbit of its dynamics, the seed of a random filter."""
+
+
+def _reads(cfg: dict, name: str) -> dict:
+    """A filter node's settings (its ROS parameters): FILTER_READS and ``filters.NAME`` merged with
+    ``filter_defaults``."""
+    settings = {key: cfg[key] for key in FILTER_READS if key in cfg}
+    settings["filters"] = {name: filter_config(cfg, name)}
+    return settings
+
+
 def _check(cfg: dict, name: str) -> None:
     from tracker_filters.builders import build_filter_stack
     build_filter_stack(cfg, name)
@@ -100,4 +116,12 @@ def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
 
 
 FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
-                  spec=_spec, check=_check, stage=FilterStage)
+                  spec=_spec, check=_check, stage=FilterStage, reads=_reads)
+
+
+def main() -> int:
+    """``filter_node``: a bench filter in any ROS 2 graph, configured by its parameters alone (no launcher, no
+    lock-step; bench_engine.bench_node.standalone_main)."""
+    from bench_engine.bench_node import standalone_main
+    from bench_engine.stage_node import StageNode
+    return standalone_main(StageNode, FILTER.name)
