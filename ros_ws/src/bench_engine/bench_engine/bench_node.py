@@ -149,11 +149,12 @@ class BenchNode(Node):
 
     ``run``: the launcher's run config (bench mode), or None (standalone). ``parameters``: parameter values
     given in code (the single-process launcher), besides those of ``--params-file``. ``kind``: the default of
-    the ``kind`` parameter (a standalone console script's kind)."""
+    the ``kind`` parameter (a standalone console script's kind). ``context``: rclpy's (default: the global one)."""
 
-    def __init__(self, name: str, run: dict | None, parameters: dict | None = None, kind: str = "") -> None:
+    def __init__(self, name: str, run: dict | None, parameters: dict | None = None, kind: str = "",
+                 context=None) -> None:
         overrides = [Parameter(k, value=v) for k, v in (parameters or {}).items()]
-        super().__init__(name, parameter_overrides=overrides)
+        super().__init__(name, parameter_overrides=overrides, context=context)
         self.settings, shell = self._declare_parameters(kind)
         """The scenario part this node's core reads: its parameters (bench_engine.parameters)."""
         self.qos = data_qos(shell["qos.reliability"], shell["qos.history"], shell["qos.depth"])
