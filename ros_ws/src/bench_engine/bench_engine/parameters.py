@@ -48,7 +48,8 @@ def _array(values: list) -> list | None:
 
 
 def _yaml_text(value: Any) -> str:
-    return yaml.safe_dump(value, default_flow_style=True, width=1 << 30).strip()
+    """One line of YAML (a lone scalar such as null without the document end marker YAML adds to it)."""
+    return yaml.safe_dump(value, default_flow_style=True, width=1 << 30).removesuffix("...\n").strip()
 
 
 def flatten(tree: dict, prefix: str = "") -> dict[str, Any]:
@@ -103,9 +104,29 @@ def node_settings(cfg: dict, kind: str, name: str) -> dict:
     return unflatten(flatten(node_kinds()[kind].settings(cfg, name)))
 
 
+class _Quoted(str):
+    """A string value, always written quoted: rcl's parser reads an unquoted scalar as a bool, an integer or a
+    double whenever it can (``3.986004418e14``, ``y``, ``0x1F``), where PyYAML's YAML 1.1 rules see a string."""
+
+
+class _ParametersDumper(yaml.SafeDumper):
+    pass
+
+
+_ParametersDumper.add_representer(
+    _Quoted, lambda dumper, text: dumper.represent_scalar("tag:yaml.org,2002:str", str(text), style="'"))
+
+
+def _quoted(value: Any) -> Any:
+    if isinstance(value, str):
+        return _Quoted(value)
+    return [_quoted(v) for v in value] if isinstance(value, list) else value
+
+
 def parameters_file(flat: dict[str, Any], node: str = "/**") -> str:
     """The text of a ``--params-file`` for ``node`` (default: any node, so a renamed node still reads it)."""
-    return yaml.safe_dump({node: {"ros__parameters": flat}}, sort_keys=True, width=1 << 30)
+    body = {name: _quoted(value) for name, value in flat.items()}
+    return yaml.dump({node: {"ros__parameters": body}}, Dumper=_ParametersDumper, sort_keys=True, width=1 << 30)
 
 
 def description(name: str) -> str:
