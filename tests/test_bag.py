@@ -247,6 +247,81 @@ def test_payloads_are_every_message_of_the_topics_asked_in_written_order(tmp_pat
     assert reader.payloads(["/b"]) == {"/b": mcap_order["/b"]}
 
 
+def _out_of_order_bag(directory: Path) -> tuple[list[tuple[str, int, bytes]], list[tuple[int, int]]]:
+    """A bag written as the recorder writes sim-time log times: the estimate of step k after the truth of step
+    k + 3, a chunk ended every 10 steps (so chunks overlap in log time). Returns (topic, log time, bytes) in
+    the order written, and each chunk's least and greatest log time."""
+    written, spans, chunk = [], [], []
+    with BagWriter(directory) as writer:
+        writer.add_topic("/truth", TOPICS["/truth"])
+        writer.add_topic("/estimate", TOPICS["/estimate"])
+        for k in range(STEPS + 3):
+            t_ns = T0_NS + k * 100_000_000
+            items = [("/truth", t_ns)] if k < STEPS else []
+            items += [("/estimate", t_ns - 300_000_000)] if k >= 3 else []
+            for topic, log_ns in items:
+                msg = message_class(TOPICS[topic])(step=(log_ns - T0_NS) // 100_000_000)
+                _stamp(msg, log_ns, "eci")
+                data = serialize_message(msg)
+                writer.write(topic, data, log_ns)
+                written.append((topic, log_ns, data))
+                chunk.append(log_ns)
+            if k % 10 == 9 or k == STEPS + 2:
+                writer.flush()
+                spans.append((min(chunk), max(chunk)))
+                chunk = []
+    return written, spans
+
+
+@pytest.mark.parametrize("which", ["directory", "bare_mcap"])
+def test_out_of_order_log_times_are_read_whole_by_every_reader(tmp_path, which):
+    directory = tmp_path / "ooo"
+    written, spans = _out_of_order_bag(directory)
+    mcap = directory / "ooo_0.mcap"
+    in_time = sorted(written, key=lambda w: w[1])  # stable: equal log times in written order
+    assert in_time != written
+    with AnyReader([directory if which == "directory" else mcap]) as reader:
+        assert [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()] == in_time
+    with open(mcap, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()] == in_time
+        assert [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)] == written
+    assert [(t, n, d) for t, _, n, d in BagReader(mcap).messages()] == in_time
+    assert BagReader(mcap).payloads(["/truth", "/estimate"]) == {
+        topic: [d for t, _, d in written if t == topic] for topic in ("/truth", "/estimate")}
+    assert (summary.statistics.message_start_time, summary.statistics.message_end_time) == (in_time[0][1],
+                                                                                             in_time[-1][1])
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert [(c.message_start_time, c.message_end_time) for c in chunks] == spans
+    assert any(b[0] < a[1] for a, b in zip(spans, spans[1:]))  # chunks overlap in log time
+    info = yaml.safe_load((directory / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["starting_time"] == {"nanoseconds_since_epoch": in_time[0][1]}
+    assert info["duration"] == {"nanoseconds": in_time[-1][1] - in_time[0][1]}
+
+
+def test_custom_data_is_rosbag2s_map_of_strings(tmp_path):
+    writer = BagWriter(tmp_path / "custom", custom_data={"operator": "bench"})
+    writer.add_topic("/chatter", "std_msgs/msg/String")
+    writer.set_custom_data({"wall_clock_start_ns": "17", "operator": "bench 2"})
+    with pytest.raises(TypeError, match="strings to strings"):
+        writer.set_custom_data({"wall_clock_start_ns": 17})
+    writer.close()
+    with pytest.raises(ValueError, match="closed"):
+        writer.set_custom_data({"late": "x"})
+    with pytest.raises(TypeError):
+        BagWriter(tmp_path / "bad", custom_data={1: "x"})
+    text = (tmp_path / "custom" / "metadata.yaml").read_text()
+    info = yaml.safe_load(text)["rosbag2_bagfile_information"]
+    assert info["custom_data"] == {"operator": "bench 2", "wall_clock_start_ns": "17"}
+    with open(tmp_path / "custom" / "custom_0.mcap", "rb") as f:
+        opened, closed = (yaml.safe_load(r.metadata["serialized_metadata"])
+                          for r in make_reader(f).iter_metadata())
+    assert opened["custom_data"] == {"operator": "bench"} and closed == info
+    with AnyReader([tmp_path / "custom"]) as reader:
+        assert [(c.topic, c.msgcount) for c in reader.connections] == [("/chatter", 0)]
+
+
 # --- the rosbag2 records ---------------------------------------------------------------------------------
 
 def test_mcap_records_are_those_rosbag2_writes(bag):

@@ -1,7 +1,8 @@
 """The same seed gives the same bag contents, across refactorings: the messages of a short run of each study
 hash to the digests recorded before the package reshape (tests/data/bag_digests.json: per topic, the SHA-256
-of every message's CDR bytes in order, and the message count); star_tracker's since the nodes zero the CDR
-padding (bench_engine.cdr), which rclpy left as its reused buffer's bytes.
+of every message's CDR bytes in the order the recorder wrote them, and the message count); star_tracker's since
+the nodes zero the CDR padding (bench_engine.cdr), which rclpy left as its reused buffer's bytes. Log times are
+not hashed: they became sim time (bench_engine.bag.SimClock) with the bytes and their order unchanged.
 
 A deliberate change of a model, a noise draw or a message changes these digests; regenerate the file then,
 and say why in the commit.
@@ -23,7 +24,7 @@ RECORDED = json.loads((Path(__file__).parent / "data" / "bag_digests.json").read
 def digests(bag: Path) -> dict[str, list]:
     found: dict[str, list] = {}
     with open(next(bag.glob("*.mcap")), "rb") as f:
-        for _schema, channel, message in make_reader(f).iter_messages():
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
             entry = found.setdefault(channel.topic, [hashlib.sha256(), 0])
             entry[0].update(message.data)
             entry[1] += 1

@@ -1,5 +1,5 @@
 """Bags that survive a crash (bench_engine.recovery): what a killed recorder flushed is rebuilt into a complete
-rosbag2 bag that the independent reader opens."""
+rosbag2 bag that the independent reader opens, with its sim-time log times and file order kept."""
 from __future__ import annotations
 
 import json
@@ -8,7 +8,9 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 from mcap.opcode import Opcode
+from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 
 from bench_engine.bag import BagReader, BagWriter
@@ -84,6 +86,53 @@ def test_the_reader_recovers_a_crashed_bag_itself(tmp_path: Path, capsys) -> Non
     bag = crashed_copy(tmp_path, flushed=12, unflushed=3)
     assert [t for t, *_ in BagReader(bag).messages()] == ["/truth/state"] * 12
     assert "recovered 12 messages" in capsys.readouterr().err
+
+
+def _written_in_file_order(bag: Path) -> list[tuple[str, int, int, bytes]]:
+    """(topic, log time, publish time, bytes) of every message, in file order."""
+    with open(next(bag.glob("*.mcap")), "rb") as f:
+        return [(c.topic, m.log_time, m.publish_time, m.data)
+                for _, c, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
+def test_sim_log_times_out_of_order_are_kept_with_the_file_order(tmp_path: Path) -> None:
+    """A sim-time bag: the estimate of step k is written after the truth of step k + 3 (log times go back);
+    the rebuilt bag keeps every flushed message where it was, with its log and publish times."""
+    writer = BagWriter(tmp_path / "live")
+    writer.add_topic("/truth/state", TRUTH)
+    writer.add_topic("/ukf/estimate", TRUTH)
+    written = []
+    for k in range(40):
+        for topic, step in [("/truth/state", k), ("/ukf/estimate", k - 3)][:2 if k >= 3 else 1]:
+            t_ns = 4_320_800_000_000 + step * 100_000_000
+            written.append((topic, t_ns, t_ns - 7, truth(step)))
+            writer.write(topic, truth(step), t_ns, t_ns - 7)
+        if k % 10 == 9:
+            writer.flush()
+    time.sleep(0.2)
+    shutil.copytree(tmp_path / "live", tmp_path / "crashed")
+    writer.close()
+    done = recover(tmp_path / "crashed")
+    assert _written_in_file_order(tmp_path / "crashed") == written
+    assert done.log_span_ns == (4_320_800_000_000, 4_324_700_000_000)
+    assert "sim time 4320.8–4324.7 s" in done.summary()
+    info = yaml.safe_load((tmp_path / "crashed" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["starting_time"] == {"nanoseconds_since_epoch": 4_320_800_000_000}
+    assert info["duration"] == {"nanoseconds": 3_900_000_000}
+    assert [t for t, _ in read_bag(tmp_path / "crashed")["/ukf/estimate"]] == [
+        t for topic, t, _, _ in written if topic == "/ukf/estimate"]
+
+
+def test_a_forced_rebuild_keeps_the_custom_data(tmp_path: Path) -> None:
+    with BagWriter(tmp_path / "bag", custom_data={"wall_clock_start_ns": "17"}) as writer:
+        writer.add_topic("/truth/state", TRUTH)
+        writer.write("/truth/state", truth(0), 5)
+    metadata = tmp_path / "bag" / "metadata.yaml"
+    metadata.write_text(metadata.read_text().replace("'17'", "17"))  # as yaml-cpp writes it: unquoted
+    assert "wall_clock_start_ns: 17\n" in metadata.read_text()
+    recover(tmp_path / "bag")
+    info = yaml.safe_load(metadata.read_text())["rosbag2_bagfile_information"]
+    assert info["custom_data"] == {"wall_clock_start_ns": "17"} and info["message_count"] == 1
 
 
 def test_nothing_to_recover_is_a_clear_error(tmp_path: Path) -> None:

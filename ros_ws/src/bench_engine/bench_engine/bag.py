@@ -12,7 +12,16 @@ Format (checked against rosbag2's ``jazzy`` branch):
   without the ``rosbag2_bagfile_information`` wrapper), written once when the bag opens and again, final,
   at close (``SequentialWriter::open`` / ``close`` -> ``MCAPStorage::update_metadata``);
 * chunks of 768 KiB (the MCAP C++ writer's default, which rosbag2 keeps), zstd-compressed as with the
-  rosbag2 storage presets ``zstd_fast`` / ``zstd_small`` (plain rosbag2 defaults to no compression).
+  rosbag2 storage presets ``zstd_fast`` / ``zstd_small`` (plain rosbag2 defaults to no compression);
+* ``custom_data`` (rosbag2's ``ros2 bag record --custom-data``): string keys and values, or ``~`` when empty.
+
+Log times are sim time (:class:`SimClock`, the recorder's rule): a message's log and publish times are its
+``header.stamp``, the clock's own time for ``rosgraph_msgs/Clock``, and otherwise the latest ``/clock`` (what
+``ros2 bag record --use-sim-time`` gives every message). Messages are written as they arrive, so within a
+chunk log times are not monotonic across topics (an estimate of step k may follow the truth of step k+3).
+MCAP allows that: chunk indexes and statistics hold each chunk's and the file's least and greatest log time,
+message index entries are in write order, and readers that return log-time order sort (mcap, rosbags);
+``metadata.yaml``'s ``starting_time`` and ``duration`` are the least log time and the span to the greatest.
 
 Shutdown safety: all MCAP work happens on a writer thread. :meth:`BagWriter.write` only appends to a deque
 (atomic, lock-free), so :meth:`BagWriter.close` may be called from a SIGINT/SIGTERM handler at any moment,
@@ -28,6 +37,7 @@ rebuilds a complete bag from the chunks on disk.
 from __future__ import annotations
 
 import collections
+import enum
 import os
 import struct
 import sys
@@ -48,7 +58,7 @@ from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from bench_engine.columns import Table, table
-from bench_engine.msg_schema import message_class, schema_text, type_hash
+from bench_engine.msg_schema import canonical_type_name, message_class, schema_text, type_hash
 
 METADATA_VERSION = 9
 STORAGE_IDENTIFIER = "mcap"
@@ -153,6 +163,79 @@ def offered_qos(qos: Any = None) -> list[dict[str, Any]]:
     return [qos_dict(qos)]
 
 
+# --- log times in sim time ---------------------------------------------------------------------------------
+
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+HEADER_TYPE = "std_msgs/Header"  # as a generated class names a field's type
+STAMP_AT = 4
+"""Byte offset of a leading ``std_msgs/Header``'s stamp (and of a Clock's ``clock``): right after the CDR
+encapsulation header, a ``builtin_interfaces/Time`` {int32 sec, uint32 nanosec}, 4-aligned."""
+_TIME_BY_ENCAPSULATION = {b"\x00\x01": struct.Struct("<iI"), b"\x00\x00": struct.Struct(">iI")}  # plain CDR LE, BE
+
+
+class StampRule(enum.Enum):
+    """Where a topic's log times come from (:func:`stamp_rule`)."""
+
+    CLOCK = "clock"                 # rosgraph_msgs/Clock: its own time, which also sets the latest clock
+    HEADER = "header"               # first field a std_msgs/Header: header.stamp
+    LATEST_CLOCK = "latest clock"   # anything else: the latest clock received
+
+
+def stamp_rule(type_name: str) -> StampRule:
+    """The rule for messages of ``type_name``, from its generated class's fields: any type whose first field is
+    a ``std_msgs/Header`` (bench messages, nav_msgs/Odometry, diagnostic_msgs/DiagnosticArray, …) is
+    :attr:`StampRule.HEADER`; ``rosgraph_msgs/Clock`` is :attr:`StampRule.CLOCK`; every other type (e.g.
+    visualization_msgs/MarkerArray, std_msgs/String) :attr:`StampRule.LATEST_CLOCK`."""
+    if canonical_type_name(type_name) == CLOCK_TYPE:
+        return StampRule.CLOCK
+    first = next(iter(message_class(type_name).get_fields_and_field_types().values()), None)
+    return StampRule.HEADER if first == HEADER_TYPE else StampRule.LATEST_CLOCK
+
+
+def leading_stamp_ns(data: bytes) -> int | None:
+    """The ``builtin_interfaces/Time`` a message's CDR bytes open with, in ns, read in place (no
+    deserialisation). None when the bytes cannot hold it (shorter than 12 bytes), are not plain CDR (XCDR1,
+    little or big endian: what ROS 2's rmw write), or hold no valid time from 0 on (an MCAP log time is
+    unsigned; ``nanosec`` must be below 10⁹)."""
+    if len(data) < STAMP_AT + 8:
+        return None
+    time_struct = _TIME_BY_ENCAPSULATION.get(bytes(data[:2]))
+    if time_struct is None:
+        return None
+    sec, nanosec = time_struct.unpack_from(data, STAMP_AT)
+    return sec * 1_000_000_000 + nanosec if sec >= 0 and nanosec < 1_000_000_000 else None
+
+
+class SimClock:
+    """Sim-time log times for a recorder, decided per topic when it is declared (:func:`stamp_rule`).
+
+    Contract: a message's log time is its ``header.stamp`` when its type opens with a ``std_msgs/Header``,
+    the ``clock`` of a ``rosgraph_msgs/Clock``, and otherwise the latest clock received (``start_ns`` before
+    the first: what ``ros2 bag record --use-sim-time`` gives every message); the same when a stamp cannot be
+    read (:func:`leading_stamp_ns`: short, not plain CDR, not a valid time). A clock that cannot be read does
+    not move it."""
+
+    def __init__(self, start_ns: int) -> None:
+        self.now_ns = int(start_ns)
+        self._rules: dict[str, StampRule] = {}
+
+    def add_topic(self, topic: str, type_name: str) -> None:
+        """Decide the rule of ``topic``'s log times from its type."""
+        self._rules[topic] = stamp_rule(type_name)
+
+    def log_time_ns(self, topic: str, data: bytes) -> int:
+        """The sim-time log time of one message of a declared topic."""
+        rule = self._rules[topic]
+        stamp_ns = None if rule is StampRule.LATEST_CLOCK else leading_stamp_ns(data)
+        if stamp_ns is None:
+            return self.now_ns
+        if rule is StampRule.CLOCK:
+            self.now_ns = stamp_ns
+        return stamp_ns
+
+
+# --- writer ------------------------------------------------------------------------------------------------
+
 @dataclass
 class _Topic:
     name: str
@@ -179,19 +262,30 @@ class _Stats:
         return self.last_ns - self.first_ns if self.count else 0
 
 
+def _string_pairs(items: Mapping[str, str]) -> dict[str, str]:
+    """``items`` checked to be rosbag2 custom data: a map of strings to strings."""
+    bad = {k: v for k, v in items.items() if not (isinstance(k, str) and isinstance(v, str))}
+    if bad:
+        raise TypeError(f"custom data maps strings to strings, got {bad!r}")
+    return dict(items)
+
+
 class BagWriter:
     """Write a rosbag2 (Jazzy, MCAP storage) bag directory; see the module docstring for the format.
 
     ``directory`` is created (it may exist if empty); the MCAP file is ``<dirname>_0.mcap`` unless
-    ``storage_name`` gives another file name. Usable as a context manager.
+    ``storage_name`` gives another file name. ``custom_data``: the metadata's string pairs (more with
+    :meth:`set_custom_data` before closing). Usable as a context manager.
     """
 
-    def __init__(self, directory: str | os.PathLike, storage_name: str | None = None) -> None:
+    def __init__(self, directory: str | os.PathLike, storage_name: str | None = None,
+                 custom_data: Mapping[str, str] | None = None) -> None:
         self.directory = Path(directory)
         self.storage_name = storage_name or f"{self.directory.name}_0.mcap"
         self.mcap_path = self.directory / self.storage_name
         self.metadata_path = self.directory / "metadata.yaml"
         self.ros_distro = os.environ.get("ROS_DISTRO", "jazzy")
+        self._custom_data = _string_pairs(custom_data or {})
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, int] = {}
         self._stats = _Stats()
@@ -244,6 +338,11 @@ class BagWriter:
         while len(self._pending) > MAX_QUEUED and self._thread.is_alive():
             time.sleep(POLL_S)
         self._pending.append((topic, payload, log_ns, pub_ns))
+
+    def set_custom_data(self, items: Mapping[str, str]) -> None:
+        """Add (or replace) ``custom_data`` pairs of the final metadata (rosbag2's map of strings)."""
+        self._check_open()
+        self._custom_data = {**self._custom_data, **_string_pairs(items)}
 
     def flush(self) -> None:
         """End the chunk in progress and write it to the file (asynchronously, in call order): what a crash
@@ -362,7 +461,7 @@ class BagWriter:
             "relative_file_paths": [self.storage_name],
             "files": [{"path": self.storage_name, "starting_time": start, "duration": duration,
                        "message_count": stats.count}],
-            "custom_data": None,
+            "custom_data": dict(self._custom_data) or None,
             "ros_distro": self.ros_distro,
         }
 
@@ -453,7 +552,8 @@ class BagReader:
         return out
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
-        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file."""
+        """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file (sim-time order for
+        the bench's bags; messages of equal log time in the order they were written)."""
         wanted = None if topics is None else list(topics)
         for path in self.files:
             with open(path, "rb") as f:

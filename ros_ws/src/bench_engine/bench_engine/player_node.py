@@ -2,7 +2,9 @@
 
 The recorded serialized messages are published unchanged (``publish(bytes)``), so the header stamps, steps
 and noise are exactly those of the original run: any filter can be re-run on identical data. Topics:
-``/truth/state``, ``/clock`` and every ``/SENSOR/measurement`` of the original bag.
+``/truth/state``, ``/clock`` and every ``/SENSOR/measurement`` of the original bag. The bag is read in log-time
+(sim-time) order and each message replayed with the step it recorded (its ``step`` field), whatever its place
+in the file.
 """
 from __future__ import annotations
 

@@ -5,6 +5,13 @@ it drains what is still in flight and closes the bag as soon as every topic hold
 announced on ``/sim/totals`` (without them, once the other nodes have left and nothing arrived for a while); SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
 FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
 killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
+
+Log times are sim time (bench_engine.bag.SimClock, decided per topic from its type when it is declared): a
+message's log and publish times are its ``header.stamp`` if its type opens with a std_msgs/Header, a
+rosgraph_msgs/Clock's own time, and otherwise the latest /clock received (the run's start before the first),
+so Foxglove, PlotJuggler, rosbags or ``ros2 bag play`` show and play the run on the sim's time line. The wall
+time of the first message and the span to the last go to the metadata's ``custom_data``
+(:data:`WALL_START_KEY`, :data:`WALL_DURATION_KEY`, in ns).
 """
 from __future__ import annotations
 
@@ -16,7 +23,7 @@ from pathlib import Path
 import yaml
 
 from bench_engine import phases
-from bench_engine.bag import BagWriter
+from bench_engine.bag import BagWriter, SimClock
 from bench_msgs.msg import StepAck
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
 from bench_engine.graph import CLOCK_TOPIC, TOTALS_TOPIC
@@ -29,6 +36,8 @@ STRANDED_POLL_S = 0.5
 """Wall time between two polls of the subscriptions' queues for messages without an executor event."""
 IDLE_AFTER_DONE_S = 0.5
 MAX_DRAIN_S = 15.0
+WALL_START_KEY = "wall_clock_start_ns"
+WALL_DURATION_KEY = "wall_clock_duration_ns"
 
 
 class RecorderNode(BenchNode):
@@ -48,7 +57,10 @@ class RecorderNode(BenchNode):
         # The scorer needs the scenario (sensor models, scoring options): the bag carries its run config.
         Path(self.run["bag_dir"], "run_config.yaml").write_text(yaml.safe_dump(self.run, sort_keys=False))
         self.counts: dict[str, int] = {}
-        self._flush_every = max(1, round(FLUSH_SIM_S / build_time(self.cfg).dt))
+        grid = build_time(self.cfg)
+        self.sim_clock = SimClock(grid.start_ns)
+        self._wall_first_ns = self._wall_last_ns = 0  # wall times of the first and the last message
+        self._flush_every = max(1, round(FLUSH_SIM_S / grid.dt))
         self._last_rx = time.monotonic()
         self._drain_started = None
         self.stranded = 0
@@ -58,14 +70,18 @@ class RecorderNode(BenchNode):
         self._subs = {}
         for topic, type_name in sorted(self.spec.subscribes.items()):
             self.bag.add_topic(topic, type_name, DATA_QOS)
+            self.sim_clock.add_topic(topic, type_name)
             self.counts[topic] = 0
             self._subs[topic] = self.data_subscription(message_class(type_name), topic,
                                                        partial(self._on_message, topic), raw=True)
         self.create_timer(STRANDED_POLL_S, self._take_stranded)
 
     def _on_message(self, topic: str, data: bytes) -> None:
+        sim_ns = self.sim_clock.log_time_ns(topic, data)
+        self.bag.write(topic, data, sim_ns, sim_ns)
         now_ns = time.time_ns()
-        self.bag.write(topic, data, now_ns, now_ns)
+        self._wall_first_ns = self._wall_first_ns or now_ns
+        self._wall_last_ns = now_ns
         self.counts[topic] += 1
         if topic != CLOCK_TOPIC:  # acknowledged like any paced node's input (the clock is not paced)
             self.consumed += 1
@@ -139,10 +155,16 @@ class RecorderNode(BenchNode):
         first = not self.bag.closed
         if first:
             phases.mark("bag_close_start", self.get_name(), self.run.get("out"))
+            self._keep_wall_span()
         self.bag.close()
         if first:
             phases.mark("bag_closed", self.get_name(), self.run.get("out"))
 
+    def _keep_wall_span(self) -> None:
+        """Put the wall time of the first message and the span to the last into the bag's custom data."""
+        if self._wall_first_ns:
+            self.bag.set_custom_data({WALL_START_KEY: str(self._wall_first_ns),
+                                      WALL_DURATION_KEY: str(self._wall_last_ns - self._wall_first_ns)})
 
 
 def main() -> int:

@@ -7,6 +7,10 @@ perhaps a partial record. :func:`recover` reads the records in order up to the f
 writes a new, complete bag (MCAP with summary, ``metadata.yaml``) with every message it found, keeping the
 damaged file as ``<name>.mcap.truncated``; it reports what it kept and what it could not read. Like
 ``ros2 bag reindex``, but for a file whose tail is missing.
+
+Messages keep their log and publish times (sim time, bench_engine.bag.SimClock) and their order in the file:
+log times are not monotonic across topics, and the rebuilt bag reads like one the recorder closed. A bag
+rebuilt with ``--force`` keeps its ``metadata.yaml``'s ``custom_data`` (the recorder's wall-clock span).
 """
 from __future__ import annotations
 
@@ -35,13 +39,16 @@ class Recovery:
     lost_bytes: int = 0
     truncated_file: Path | None = None
     reason: str = ""
+    log_span_ns: tuple[int, int] | None = None  # least and greatest log time (sim time) kept
 
     def summary(self) -> str:
         counts = ", ".join(f"{topic} {n}" for topic, n in sorted(self.kept.items()))
         kept_as = self.truncated_file.name if self.truncated_file else "-"
-        return (f"{self.bag}: recovered {sum(self.kept.values())} messages ({counts}); {self.lost_bytes} bytes "
-                f"after the last complete record were unreadable ({self.reason}); the damaged file is kept as "
-                f"{kept_as}")
+        span = (f", sim time {self.log_span_ns[0] * 1e-9:.9g}–{self.log_span_ns[1] * 1e-9:.9g} s"
+                if self.log_span_ns else "")
+        return (f"{self.bag}: recovered {sum(self.kept.values())} messages ({counts}{span}); {self.lost_bytes} "
+                f"bytes after the last complete record were unreadable ({self.reason}); the damaged file is "
+                f"kept as {kept_as}")
 
 
 def needs_recovery(bag_dir: Path) -> bool:
@@ -76,6 +83,23 @@ def _read_records(path: Path) -> tuple[dict, dict, list, int, str]:
     return schemas, channels, messages, max(0, size - good), reason
 
 
+def _custom_data(bag_dir: Path) -> dict[str, str]:
+    """The ``custom_data`` of the bag's ``metadata.yaml``, if it has one, as strings (YAML written by yaml-cpp
+    leaves a number-like string unquoted)."""
+    metadata = bag_dir / "metadata.yaml"
+    if not metadata.is_file():
+        return {}
+    info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
+    custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
+    return {str(key): str(value) for key, value in custom.items()}
+
+
+def _log_span(messages: list[Message]) -> tuple[int, int] | None:
+    """The least and the greatest log time of ``messages`` (None for none)."""
+    log_times = [m.log_time for m in messages]
+    return (min(log_times), max(log_times)) if log_times else None
+
+
 def recover(bag_dir: Path | str) -> Recovery:
     """Rebuild ``bag_dir`` (a bag directory with a damaged or summary-less MCAP file) in place."""
     bag_dir = Path(bag_dir)
@@ -86,12 +110,12 @@ def recover(bag_dir: Path | str) -> Recovery:
     schemas, channels, messages, lost, reason = _read_records(path)
     work = bag_dir.with_name(bag_dir.name + ".recovering")
     shutil.rmtree(work, ignore_errors=True)
-    writer = BagWriter(work, storage_name=path.name)
+    writer = BagWriter(work, storage_name=path.name, custom_data=_custom_data(bag_dir))
     for channel in sorted(channels.values(), key=lambda c: c.id):
         qos = yaml.safe_load(channel.metadata.get("offered_qos_profiles", "") or "null")
         writer.add_topic(channel.topic, schemas[channel.schema_id].name, qos)
     kept: dict[str, int] = {}
-    for m in sorted(messages, key=lambda m: m.log_time):
+    for m in messages:  # in file order, as the recorder wrote them
         topic = channels[m.channel_id].topic
         writer.write(topic, m.data, m.log_time, m.publish_time)
         kept[topic] = kept.get(topic, 0) + 1
@@ -101,7 +125,7 @@ def recover(bag_dir: Path | str) -> Recovery:
     os.replace(work / path.name, path)
     os.replace(work / "metadata.yaml", bag_dir / "metadata.yaml")
     shutil.rmtree(work)
-    return Recovery(bag_dir, kept, lost, truncated, reason)
+    return Recovery(bag_dir, kept, lost, truncated, reason, _log_span(messages))
 
 
 def ensure_complete(bag_dir: Path | str) -> Recovery | None:
