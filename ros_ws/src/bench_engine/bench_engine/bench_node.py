@@ -421,7 +421,7 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
 STANDALONE_HELP = """Runs one bench {kind} node in any ROS 2 graph, without the bench's launcher or lock-step pacing.
 
 Every setting is a ROS parameter named after its scenario key (e.g. filters.ukf.type, filters.ukf.params.alpha,
-sensors.radar.site.latitude_deg); the node's name is its name in the scenario. The easiest parameters file is
+sensors.radar.station.lat_deg); the node's name is its name in the scenario. The easiest parameters file is
 the one the launcher writes for each node of a run: OUT/params/NAME.yaml. Shell parameters: kind,
 qos.reliability (reliable | best_effort), qos.history (keep_all | keep_last), qos.depth. Topics are relative
 names (radar/measurement, ukf/estimate): remap them with -r FROM:=TO.

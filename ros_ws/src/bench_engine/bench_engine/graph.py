@@ -43,12 +43,25 @@ ahead of them. The recorder is one: DDS does not hold every message for a subscr
 (a busy recorder was measured losing messages under load), so the source waits for it too."""
 
 
+MEASUREMENT = "measurement"
+ESTIMATE = "estimate"
+"""Topic contract, checked by :func:`build_graph` and relied on by the scorer (:func:`topic_owner`): the only
+topics named ``/NAME/measurement`` are sensor NAME's measurements (published by that sensor-role node, or by the
+player on replay), and the only topics named ``/NAME/estimate`` are estimator NAME's ``StateEstimate``s."""
+
+
 def measurement_topic(sensor: str) -> str:
-    return f"/{sensor}/measurement"
+    return f"/{sensor}/{MEASUREMENT}"
 
 
 def estimate_topic(node: str) -> str:
-    return f"/{node}/estimate"
+    return f"/{node}/{ESTIMATE}"
+
+
+def topic_owner(topic: str, suffix: str) -> str | None:
+    """NAME if ``topic`` is ``/NAME/<suffix>`` (suffix MEASUREMENT or ESTIMATE), else None."""
+    parts = topic.split("/")
+    return parts[1] if len(parts) == 3 and not parts[0] and parts[1] and parts[2] == suffix else None
 
 
 @dataclass
@@ -216,6 +229,7 @@ def build_graph(cfg: dict, filters: list[str] | None, record: bool = True, sourc
             player.publishes.update(spec.publishes)
         nodes = [player]
     nodes += estimators
+    _check_topic_contract(nodes)
     _resolve_topics(nodes)
     if record:
         recorder = [s for k in kinds if k.role == "recorder" for s in _kind_nodes(k, cfg, filters)]
@@ -226,6 +240,20 @@ def build_graph(cfg: dict, filters: list[str] | None, record: bool = True, sourc
     graph = Graph(nodes)
     graph.topological()
     return graph
+
+
+def _check_topic_contract(nodes: list[NodeSpec]) -> None:
+    """Every ``/NAME/measurement`` and ``/NAME/estimate`` topic is what MEASUREMENT and ESTIMATE say it is."""
+    for node in nodes:
+        for topic, type_name in node.publishes.items():
+            sensor, estimator = topic_owner(topic, MEASUREMENT), topic_owner(topic, ESTIMATE)
+            if sensor is not None and node.role != "replay" and (sensor != node.name or node.role != "sensor"):
+                raise ScenarioError(f"node '{node.name}' ({node.kind}) publishes {topic}: only sensor '{sensor}' "
+                                    f"may (the topic contract of bench_engine.graph.MEASUREMENT)")
+            if estimator is not None and (estimator != node.name or node.role != "estimator"
+                                          or type_name != ESTIMATE_TYPE):
+                raise ScenarioError(f"node '{node.name}' ({node.kind}) publishes {topic} as {type_name}: only "
+                                    f"estimator '{estimator}' may, as {ESTIMATE_TYPE} (bench_engine.graph.ESTIMATE)")
 
 
 def _resolve_topics(nodes: list[NodeSpec]) -> None:

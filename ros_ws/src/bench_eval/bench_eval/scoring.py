@@ -18,7 +18,7 @@ from bench_engine import plugins
 from bench_engine.bag import BagReader
 from bench_engine.columns import Table
 from bench_engine.config import Section
-from bench_engine.graph import TRUTH_TOPIC
+from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.stage import codec
 from bench_eval import metrics
 from bench_models.states import error_labels
@@ -118,15 +118,17 @@ def load_bag(bag_dir: Path | str) -> BagData:
     data = BagData(yaml.safe_load(config.read_text()))
     reader = BagReader(bag_dir)
     types = reader.topics()
-    wanted = [t for t in types if t == TRUTH_TOPIC or t.endswith(("/measurement", "/estimate"))]
+    sensors = {t: topic_owner(t, MEASUREMENT) for t in types}
+    wanted = [t for t in types if t == TRUTH_TOPIC or sensors[t] is not None
+              or (topic_owner(t, ESTIMATE) is not None and types[t] == ESTIMATE_TYPE)]
     for topic, tab in reader.tables(wanted).items():
         steps = tab["step"].tolist()
         if topic == TRUTH_TOPIC:
             data.truth = dict(zip(steps, zip(tab.seconds().tolist(), _stack(tab["state"], np.arange(len(tab))))))
             data.truth_labels = list(tab["labels"][-1])
-        elif topic.endswith("/measurement"):
+        elif sensors[topic] is not None:
             decode = codec(types[topic]).decode
-            data.measurements.setdefault(topic.split("/")[1], {}).update(
+            data.measurements.setdefault(sensors[topic], {}).update(
                 (step, decode(tab.row(i)).z) for i, step in enumerate(steps))
         else:
             owners = np.array(tab["filter_name"], dtype=object)
@@ -148,13 +150,20 @@ def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
 
 
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
-    """Estimates of one filter aligned with the truth of the same steps (truth reordered to the labels)."""
+    """Estimates of one filter aligned with the truth of the same steps: the estimate's components that the
+    truth has, matched by label wherever they sit in either state (e.g. a bias block first), with the
+    covariance of their errors (bench_models.states.error_labels)."""
     est = data.estimates[filter_name]
-    index = [data.truth_labels.index(lab) for lab in est.labels if lab in data.truth_labels]
-    n = len(index)
-    m = len(error_labels(est.labels[:n]))
-    x_true = np.array([data.truth[int(k)][1][index] for k in est.steps])
-    return metrics.Track(est.t, est.x[:, :n], est.P[:, :m, :m], x_true, est.labels[:n])
+    for labels, whose in ((est.labels, f"estimator '{filter_name}'"), (data.truth_labels, "the truth")):
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"{whose} repeats state labels {labels}: components are matched by label")
+    scored = [i for i, lab in enumerate(est.labels) if lab in data.truth_labels]
+    labels = [est.labels[i] for i in scored]
+    all_errors, errors = error_labels(est.labels), error_labels(labels)
+    cov = [all_errors.index(lab) for lab in errors]
+    truth_index = [data.truth_labels.index(lab) for lab in labels]
+    x_true = np.array([data.truth[int(k)][1][truth_index] for k in est.steps])
+    return metrics.Track(est.t, est.x[:, scored], est.P[:, cov][:, :, cov], x_true, labels)
 
 
 class NothingToScore(ValueError):

@@ -1,0 +1,77 @@
+"""Contracts the scorer relies on are stated and checked: which topics hold measurements and estimates
+(bench_engine.graph.MEASUREMENT / ESTIMATE, refused by build_graph when broken), and which estimate
+components are scored against which truth components (by label, wherever they sit: bench_eval.scoring.track_of)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench_engine.config import ScenarioError
+from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, NodeSpec, _check_topic_contract, topic_owner
+from bench_eval.scoring import BagData, Estimates, track_of
+
+
+@pytest.mark.parametrize("topic, suffix, owner", [
+    ("/radar/measurement", MEASUREMENT, "radar"), ("/ukf/estimate", ESTIMATE, "ukf"),
+    ("/ukf/estimate", MEASUREMENT, None), ("/a/b/estimate", ESTIMATE, None), ("//estimate", ESTIMATE, None),
+    ("ukf/estimate", ESTIMATE, None), ("/ukf/estimates", ESTIMATE, None)])
+def test_topic_owner_reads_only_the_contracted_shape(topic: str, suffix: str, owner: str | None) -> None:
+    assert topic_owner(topic, suffix) == owner
+
+
+@pytest.mark.parametrize("spec, message", [
+    (NodeSpec("ukf", "filter", "estimator", publishes={"/radar/measurement": "bench_msgs/msg/RangeAzEl"}),
+     "only sensor 'radar' may"),
+    (NodeSpec("radar", "sensor", "sensor", publishes={"/ukf/estimate": ESTIMATE_TYPE}), "only estimator 'ukf'"),
+    (NodeSpec("ukf", "filter", "estimator", publishes={"/ukf/estimate": "nav_msgs/msg/Odometry"}),
+     "as nav_msgs/msg/Odometry"),
+    (NodeSpec("lag", "fixed_lag", "estimator", publishes={"/ukf/estimate": ESTIMATE_TYPE}), "only estimator 'ukf'")])
+def test_the_graph_refuses_a_node_that_breaks_the_topic_contract(spec: NodeSpec, message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        _check_topic_contract([spec])
+
+
+def test_the_player_republishes_measurements_and_a_sensor_its_own() -> None:
+    _check_topic_contract([NodeSpec("player", "player", "replay", publishes={"/radar/measurement": "x"}),
+                           NodeSpec("radar", "sensor", "sensor", publishes={"/radar/measurement": "x"}),
+                           NodeSpec("ukf", "filter", "estimator", publishes={"/ukf/estimate": ESTIMATE_TYPE})])
+
+
+def _bag(truth_labels: list[str], est_labels: list[str], x: np.ndarray, P: np.ndarray,
+         truth: np.ndarray) -> BagData:
+    data = BagData({"scenario": {}, "filters": ["f"]}, truth={k: (float(k), truth[k]) for k in range(len(truth))},
+                   truth_labels=truth_labels)
+    data.estimates["f"] = Estimates(np.arange(len(x)), np.arange(len(x), dtype=float), x, P, est_labels, {})
+    return data
+
+
+def test_a_state_with_a_bias_block_first_is_scored_on_the_components_the_truth_has() -> None:
+    rng = np.random.default_rng(4)
+    truth_labels = ["vx", "vy", "vz", "x", "y", "z"]             # the truth's own order
+    est_labels = ["bx", "by", "bz", "x", "y", "z", "vx", "vy", "vz"]
+    x, truth = rng.normal(size=(5, 9)), rng.normal(size=(5, 6))
+    A = rng.normal(size=(5, 9, 9))
+    P = A @ np.swapaxes(A, 1, 2)
+    track = track_of(_bag(truth_labels, est_labels, x, P, truth), "f")
+    assert track.labels == ["x", "y", "z", "vx", "vy", "vz"]
+    np.testing.assert_array_equal(track.x_est, x[:, 3:])
+    np.testing.assert_array_equal(track.P, P[:, 3:, 3:])
+    np.testing.assert_array_equal(track.x_true, truth[:, [3, 4, 5, 0, 1, 2]])
+
+
+def test_an_attitude_with_rates_keeps_the_rotation_block_of_its_error_covariance() -> None:
+    rng = np.random.default_rng(5)
+    est_labels = ["wx", "qw", "qx", "qy", "qz"]                 # error labels: wx rx ry rz
+    q = rng.normal(size=(3, 4))
+    x = np.column_stack([rng.normal(size=3), q / np.linalg.norm(q, axis=1, keepdims=True)])
+    A = rng.normal(size=(3, 4, 4))
+    P = A @ np.swapaxes(A, 1, 2)
+    track = track_of(_bag(["qw", "qx", "qy", "qz"], est_labels, x, P, x[:, 1:]), "f")
+    assert track.labels == ["qw", "qx", "qy", "qz"]
+    np.testing.assert_array_equal(track.P, P[:, 1:, 1:])
+
+
+def test_repeated_labels_are_refused_rather_than_matched_at_random() -> None:
+    data = _bag(["x", "x"], ["x", "y"], np.zeros((1, 2)), np.zeros((1, 2, 2)), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="repeats state labels"):
+        track_of(data, "f")
