@@ -1,64 +1,7 @@
 #!/usr/bin/env python3
-"""Re-run filters on the measurements of a recorded bag, and record (and score) a new bag.
-
-A player node re-publishes the recorded truth and measurements unchanged (same stamps, same noise), paced by
-the new filters, so any filter can be compared on identical data. The scenario comes from the bag's
-run_config.yaml; --set changes it (e.g. a filter's parameters) for the replay.
-
-Examples:
-  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --filters ukf --out runs/replay-ukf
-  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --filters ukf --set filters.ukf.params.alpha=0.5
-"""
-from __future__ import annotations
-
-import argparse
-import os
-import sys
-import time
-from pathlib import Path
-
-import yaml
-
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
-
-from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
-from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("bag", type=Path, help="bag directory recorded by launch.py / montecarlo.py")
-    p.add_argument("--filters", required=True, help="comma-separated filter names to run on the bag's data")
-    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/replay-TIMESTAMP)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override for the replay (filters only: the data are fixed), repeatable")
-    p.add_argument("--single-process", action="store_true", help="run every node in this one process")
-    p.add_argument("--domain-id", type=int, default=None,
-                   help="ROS_DOMAIN_ID (default: the first one no other bench run holds)")
-    p.add_argument("--json", action="store_true", help="print the score as JSON")
-    args = p.parse_args(argv)
-    config = args.bag / "run_config.yaml"
-    if not config.is_file():
-        print(f"error: {args.bag} is not a bag recorded by this bench (no run_config.yaml)", file=sys.stderr)
-        return 2
-    recorded = yaml.safe_load(config.read_text())
-    out = args.out or Path(f"runs/replay-{time.strftime('%Y%m%d-%H%M%S')}")
-    try:
-        cfg = apply_overrides(recorded["scenario"], args.overrides)
-        plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"), source="player",
-                           extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
-    except ScenarioError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['filters']}", file=sys.stderr)
-    code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
-    if code != 0:
-        return code
-    from bench_eval.scoring import score_run
-    print(score_run(plan.out, args.json))
-    return 0
-
+"""The command bench_replay run from the repository: same flags, output and exit codes. Its logic, options and
+examples: bench_eval/cli/replay.py (or --help)."""
+from bench_eval.cli.replay import command
 
 if __name__ == "__main__":
-    sys.exit(main())
+    command()

@@ -24,7 +24,8 @@ setup(
             "stage_node = bench_engine.stage_node:main",
             "source_node = bench_engine.source_node:main",
             "recorder_node = bench_engine.recorder_node:main",
-            "player_node = bench_engine.player_node:main"],
+            "player_node = bench_engine.player_node:main",
+            "bench_recover_bag = bench_engine.cli.recover_bag:command"],
         "tracking_bench.node_kinds": [
             "recorder = bench_engine.kinds:RECORDER",
             "player = bench_engine.kinds:PLAYER"],

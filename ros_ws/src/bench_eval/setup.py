@@ -20,6 +20,13 @@ setup(
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
     entry_points={
+        "console_scripts": [
+            "bench_launch = bench_eval.cli.launch:command",
+            "bench_score = bench_eval.cli.score:command",
+            "bench_montecarlo = bench_eval.cli.montecarlo:command",
+            "bench_replay = bench_eval.cli.replay:command",
+            "bench_sweep = bench_eval.cli.sweep:command",
+            "bench_demo = bench_eval.cli.demo:command"],
         "tracking_bench.sections": [
             "scoring = bench_eval.scoring:scoring_options"],
         "tracking_bench.metrics": [

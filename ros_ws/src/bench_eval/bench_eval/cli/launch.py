@@ -1,0 +1,45 @@
+"""Run a scenario through the ROS 2 graph, record a rosbag2-style MCAP bag, and print its score.
+
+Examples:
+  .venv/bin/python scripts/launch.py leo_radar
+  .venv/bin/python scripts/launch.py leo_radar --filters ukf --seed 7 --out runs/ukf7
+  .venv/bin/python scripts/launch.py leo_radar --set sensors.radar.p_detect=1.0 --single-process
+  .venv/bin/python scripts/launch.py leo_radar --variant table3_angles
+
+DDS stays on this host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST); each run uses its own ROS_DOMAIN_ID.
+Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128+N if interrupted by signal N.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from bench_engine import phases
+from bench_engine.process import exit_now
+from bench_engine.run import add_run_arguments, launch
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run, then score the bag unless --no-score; the exit code of the module docstring."""
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_run_arguments(p)
+    p.add_argument("--no-score", action="store_true", help="do not score the bag after the run")
+    p.add_argument("--json", action="store_true", help="print the score as JSON")
+    args = p.parse_args(argv)
+    code, plan = launch(args)
+    if code != 0 or args.no_score:
+        return code
+    from bench_eval.scoring import NothingToScore, score_run
+    try:
+        print(score_run(plan.out, args.json))
+    except NothingToScore as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    phases.mark("scored", "launcher", plan.out)
+    return 0
+
+
+def command() -> None:
+    """Console script ``bench_launch``: ``main`` on the command line, then exit without the interpreter's
+    teardown (bench_engine.process.exit_now)."""
+    exit_now(main())

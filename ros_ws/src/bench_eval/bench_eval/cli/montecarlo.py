@@ -1,0 +1,95 @@
+"""Monte Carlo: N seeded runs of a scenario through the ROS 2 graph, every bag kept, metrics over runs.
+
+Run i uses seed SEED0 + i and writes OUT/run_NNN/bag. Up to --jobs runs execute in parallel, each on its
+own ROS_DOMAIN_ID (DDS stays on this host). By default each run's nodes share one process (real DDS, one
+executor); --multiprocess starts one process per node instead. Metrics are aggregated across runs as in
+paper 000 eq. 35 (RMSE per time step over the N runs) and written to OUT/score.json and OUT/report/.
+
+With --scheduler the runs go to a Dask distributed cluster instead: each worker runs whole runs on its own
+host (DDS on that host, a free ROS domain there) and writes the bags to OUT, which must be on a file system
+every worker shares at the same path; a run whose worker is lost is run again elsewhere. --resume keeps the
+complete runs already in OUT (same configuration and seed) and makes only the others.
+
+Examples:
+  .venv/bin/python scripts/montecarlo.py leo_radar --runs 100 --jobs 2 --out runs/mc
+  .venv/bin/python scripts/montecarlo.py leo_radar --runs 10 --filters ukf --set time.duration=120
+  .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc
+  .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc --resume
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+from bench_engine import phases  # noqa: E402
+from bench_engine.config import ScenarioError  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
+from bench_eval.montecarlo import MonteCarlo, run_montecarlo  # noqa: E402
+from bench_eval.scoring import print_summary  # noqa: E402
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenario", help="scenario name or YAML path")
+    p.add_argument("--runs", type=int, required=True, help="number of Monte Carlo runs")
+    p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
+    p.add_argument("--filters", help="comma-separated filter names (default: the scenario's)")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/mc-SCENARIO)")
+    p.add_argument("--seed0", type=int, default=1, help="seed of run 0 (run i uses seed0 + i)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="scenario override, repeatable")
+    p.add_argument("--variant", help="the scenario's named variants (comma-separated, in order)")
+    p.add_argument("--multiprocess", action="store_true", help="one process per node in every run")
+    p.add_argument("--domain-base", type=int, default=None,
+                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run takes a free domain)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
+                        "'local' for a local cluster of --jobs worker processes")
+    p.add_argument("--retries", type=int, default=2,
+                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the complete runs already in OUT (same configuration and seed), run the others")
+    p.add_argument("--json", action="store_true", help="print the aggregated scores as JSON")
+    args = p.parse_args(argv)
+    if args.runs < 1 or args.jobs < 1:
+        p.error("--runs and --jobs must be >= 1")
+    if args.scheduler is not None and args.domain_base is not None:
+        p.error("--domain-base is for local runs: with --scheduler each run takes a free domain on its worker's host")
+    if args.retries < 0:
+        p.error("--retries must be >= 0")
+    if args.domain_base is not None and (args.domain_base < 0 or args.domain_base + args.jobs - 1 > 101):
+        p.error("--domain-base + --jobs - 1 must be in [0, 101] (ROS_DOMAIN_ID range)")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the Monte Carlo of the command line; 0 ok, 1 a run failed, 2 a bad scenario."""
+    args = parse_args(argv)
+    mc = MonteCarlo(args.scenario, args.out or Path(f"runs/mc-{Path(args.scenario).stem}"), args.runs, args.seed0,
+                    args.filters, args.variant, args.overrides, args.multiprocess)
+    phases.mark_process_start("montecarlo", mc.out.resolve())
+    domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
+    try:
+        scored, failures = run_montecarlo(mc, args.jobs, domains, args.scheduler, args.resume, args.retries)
+    except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except (RuntimeError, OSError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
+    print(f"[montecarlo] report: {mc.out / 'report' / 'report.md'}", file=sys.stderr)
+    for f in failures:
+        print(f"[montecarlo] failed: {f}", file=sys.stderr)
+    return 1 if failures else 0
+
+
+def command() -> None:
+    """Console script ``bench_montecarlo``: ``main`` on the command line, then exit without the interpreter's
+    teardown (bench_engine.process.exit_now)."""
+    exit_now(main())

@@ -1,0 +1,109 @@
+"""Parameter sweep: every cell of a grid of the scenario's ``sweeps`` section through the ROS 2 graph, N seeded
+runs per cell, every bag kept, and a paper-style report (grid schema: ``bench_eval.sweep``).
+
+Run i of every cell uses seed SEED0 + i and writes OUT/CELL/run_NNN/bag; up to --jobs runs go in parallel, each
+on its own ROS_DOMAIN_ID, all nodes of a run in one process. Outputs: OUT/sweep.json (cells, scores with
+per-run values, the study's extra rows) and OUT/table.md with its PNG plots.
+
+With --scheduler the runs go to a Dask distributed cluster instead (each worker runs whole runs on its own
+host, DDS on that host, bags written to OUT on a file system every worker shares at the same path; a run whose
+worker is lost is run again elsewhere). --resume keeps the complete runs already in OUT and runs the others.
+
+Examples:
+  .venv/bin/python scripts/sweep.py formation_cqkf --grid tables --runs 12 --jobs 2 --out runs/sweep-tables
+  .venv/bin/python scripts/sweep.py formation_cqkf --grid tables --runs 40 --scheduler tcp://head:8786 --out /shared/t
+  .venv/bin/python scripts/sweep.py formation_cqkf --grid interval --runs 4 --out runs/sweep-interval
+  .venv/bin/python scripts/sweep.py formation_cqkf --grid noise --runs 2 --set time.duration=600
+Exit code: 0 on success, 1 if a run or a cell's scoring failed, 2 for a bad grid/scenario/argument.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+from bench_engine.config import ScenarioError  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
+from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outputs  # noqa: E402
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenario", help="scenario name or YAML path (with a 'sweeps' section)")
+    p.add_argument("--grid", required=True, help="name of the grid in the scenario's 'sweeps' section")
+    p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per cell (default 1)")
+    p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/sweep-SCENARIO-GRID)")
+    p.add_argument("--seed0", type=int, default=1, help="seed of run 0 of every cell (run i uses seed0 + i)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="scenario override applied to every cell after its own, repeatable")
+    p.add_argument("--domain-base", type=int, default=None,
+                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run reserves a free domain)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the complete runs already in OUT (same configuration and seed), run the others")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
+                        "'local' for a local cluster of --jobs worker processes")
+    p.add_argument("--retries", type=int, default=2,
+                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
+    p.add_argument("--json", action="store_true", help="print sweep.json instead of the summary")
+    args = p.parse_args(argv)
+    if args.runs < 1 or args.jobs < 1:
+        p.error("--runs and --jobs must be >= 1")
+    if args.scheduler is not None and args.domain_base is not None:
+        p.error("--domain-base is for local runs: with --scheduler each run takes a free domain on its worker's host")
+    if args.retries < 0:
+        p.error("--retries must be >= 0")
+    if args.domain_base is not None and (args.domain_base < 0 or args.domain_base + args.jobs - 1 > 101):
+        p.error("--domain-base + --jobs - 1 must be in [0, 101] (ROS_DOMAIN_ID range)")
+    return args
+
+
+def invoked_as() -> str:
+    """The program recorded in sweep.json: scripts/sweep.py when run from the repository, else bench_sweep."""
+    return "scripts/sweep.py" if Path(sys.argv[0]).name == "sweep.py" else "bench_sweep"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the grid of the command line; the exit code of the module docstring."""
+    args = parse_args(argv)
+    args.out = args.out or Path(f"runs/sweep-{Path(args.scenario).stem}-{args.grid}")
+    try:
+        grid = load_grid(args.scenario, args.grid, args.overrides)
+        validate(grid, args.seed0)
+        done = reusable(args.out, grid, args.runs, args.seed0, args.resume)
+    except ScenarioError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"[sweep] {grid.scenario}/{grid.name}: {len(grid.cells)} cells x {args.runs} runs "
+          f"({len(done)} reused), {args.jobs} jobs, out {args.out}", file=sys.stderr)
+    started = time.monotonic()
+    sweep_run = SweepRun(grid, args.out, args.runs, args.seed0, done)
+    domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
+    try:
+        sweep_run.run(args.jobs, domains, args.scheduler, args.retries)
+    except OSError as err:  # e.g. no Dask scheduler at that address
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    wall = time.monotonic() - started
+    command = " ".join([invoked_as()] + (sys.argv[1:] if argv is None else argv))
+    sweep = write_outputs(sweep_run, {"runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs,
+                                      "wall_s": round(wall, 1), "runs_reused": len(done), "command": command})
+    print(json.dumps(sweep, indent=1) if args.json else (args.out / "table.md").read_text())
+    print(f"[sweep] {len(sweep_run.specs)} runs in {wall:.0f} s; table {args.out / 'table.md'}", file=sys.stderr)
+    for r in sweep_run.reruns:
+        print(f"[sweep] ran again: {r}", file=sys.stderr)
+    for f in sweep_run.failures:
+        print(f"[sweep] failed: {f}", file=sys.stderr)
+    return 1 if sweep_run.failures else 0
+
+
+def command() -> None:
+    """Console script ``bench_sweep``: ``main`` on the command line, then exit without the interpreter's
+    teardown (bench_engine.process.exit_now)."""
+    exit_now(main())
