@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_models.models import angle_components
 from orbit_sim.angles import wrapped_residual
 from orbit_sim.relative import convention_matrix
 
@@ -29,7 +30,7 @@ class RangeAzElModel:
     """
 
     labels = ("range", "azimuth", "elevation")
-    angle_indices = (1, 2)
+    angle_indices = angle_components(labels)
 
     def __init__(self, convention: str = "radial_along_normal") -> None:
         self.convention = convention

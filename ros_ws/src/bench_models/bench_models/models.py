@@ -18,6 +18,27 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
+ANGLE_LABELS = frozenset({"azimuth", "elevation", "roll", "pitch", "yaw", "phase", "angle"})
+"""The one place the bench tells an angle: a state or measurement component with one of these labels is an
+angle, differenced with wrapping to (-pi, pi] (a measurement model's ``angle_indices``, checked by
+:func:`check_angles`; a state's error, bench_models.states)."""
+AZIMUTH_LABELS = frozenset({"azimuth"})
+"""Angles a sensor reports in [0, 2 pi) (bench_msgs/RangeAzEl), not (-pi, pi]."""
+
+
+def angle_components(labels: Sequence[str]) -> tuple[int, ...]:
+    """Indices of the components of ``labels`` that are angles (ANGLE_LABELS)."""
+    return tuple(i for i, label in enumerate(labels) if label in ANGLE_LABELS)
+
+
+def check_angles(model: "MeasurementModel") -> None:
+    """Raise ValueError if a measurement model's ``angle_indices`` are not the angles its labels name."""
+    if tuple(model.angle_indices) != angle_components(model.labels):
+        raise ValueError(f"{type(model).__name__} wraps components {tuple(model.angle_indices)} of "
+                         f"{tuple(model.labels)}, but the angles among them (bench_models.models.ANGLE_LABELS) "
+                         f"are {angle_components(model.labels)}")
+
+
 @runtime_checkable
 class DynamicsModel(Protocol):
     """State transition x(t + dt) = f(x(t), dt) with additive process noise of covariance Q(dt)."""
@@ -54,3 +75,15 @@ class MeasurementModel(Protocol):
 
     def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
         """z - z_pred with angle components wrapped to (-pi, pi]; broadcasts over batches."""
+
+
+@runtime_checkable
+class ScanPositionModel(Protocol):
+    """A measurement model from one scan of which a position follows (initialisation from a single scan:
+    tracker_filters.initialisation.scan_position)."""
+
+    def position_from_measurement(self, z: np.ndarray, t: float) -> np.ndarray:
+        """The position (3,) that measurement z (its first three components) places the target at."""
+
+    def position_jacobian(self, z: np.ndarray, t: float) -> np.ndarray:
+        """d position_from_measurement / d z[:3], shape (3, 3)."""

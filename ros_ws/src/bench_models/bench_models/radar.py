@@ -34,6 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
+from bench_models.models import angle_components
 from orbit_sim.angles import wrapped_residual
 from orbit_sim.constants import OMEGA_EARTH
 from orbit_sim.frames import earth_rotation_angle, enu_rotation, geodetic_to_ecef
@@ -64,7 +65,7 @@ class GroundRadarModel:
         self._T_cache: tuple[float, np.ndarray] = (float("nan"), np.eye(3))
         base = ("range", "azimuth", "elevation")
         self.labels: Sequence[str] = (base + ("range_rate",)) if self.with_range_rate else base
-        self.angle_indices: Sequence[int] = (1, 2)
+        self.angle_indices: Sequence[int] = angle_components(self.labels)
 
     def eci_to_enu_rotation(self, t: float) -> np.ndarray:
         """T(t) = M R3(theta(t)): ECI vector components -> station ENU components, shape (3, 3).

@@ -5,7 +5,7 @@ An estimate and the truth are compared component block by component block, each 
 * an attitude quaternion, labels ``qw qx qy qz`` in one block (scalar first, Hamilton, rotating the reference frame into
   the body frame): the error is the rotation vector of dq = q_est * conj(q_true), i.e. the small rotation
   that takes the true attitude to the estimate (angle = |error|, in rad); q and -q are the same attitude;
-* an angle (labels in :data:`ANGLE_LABELS`): the difference wrapped to (-pi, pi];
+* an angle (labels in bench_models.models.ANGLE_LABELS): the difference wrapped to (-pi, pi];
 * anything else: the plain difference x_est - x_true.
 
 :func:`state_error` returns the error vector with its labels (a quaternion block becomes ``rx ry rz``), which
@@ -17,11 +17,11 @@ from typing import Sequence
 
 import numpy as np
 
+from bench_models.models import ANGLE_LABELS
 from orbit_sim.angles import wrap_angle
 
 QUATERNION = ("qw", "qx", "qy", "qz")
 ROTATION = ("rx", "ry", "rz")
-ANGLE_LABELS = frozenset({"azimuth", "elevation", "roll", "pitch", "yaw", "phase", "angle"})
 
 
 def quaternion_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:

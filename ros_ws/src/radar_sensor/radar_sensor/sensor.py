@@ -17,6 +17,7 @@ from bench_engine.config import ScenarioError, Section
 from bench_engine.timegrid import build_time
 from orbit_sim.truth import Earth, build_earth
 from bench_models.isl import RangeAzElModel, RelativePositionModel
+from bench_models.models import AZIMUTH_LABELS, check_angles
 from bench_models.radar import GroundRadarModel
 from radar_sensor.sensor_types import SensorType, sensor_type
 
@@ -36,7 +37,11 @@ class Sensor:
 
     def __post_init__(self) -> None:
         self._chol = np.linalg.cholesky(self.R)
-        self._azimuths = [i for i in self.model.angle_indices if self.model.labels[i] == "azimuth"]
+        try:
+            check_angles(self.model)
+        except ValueError as err:
+            raise ScenarioError(f"sensor '{self.name}': {err}") from None
+        self._azimuths = [i for i, label in enumerate(self.model.labels) if label in AZIMUTH_LABELS]
 
     def noise(self, t: float, rng: np.random.Generator) -> np.ndarray:
         """One draw of the measurement noise at time t: white, N(0, R)."""

@@ -30,12 +30,15 @@ from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
-from bench_models.models import DynamicsModel
+from bench_models.models import DynamicsModel, ScanPositionModel
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
 from bench_models.white_jerk import WhiteJerkDynamics
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
+"""(z, R, sensor, t) -> (x0, P0). An initialiser that needs more of a measurement model than the
+MeasurementModel protocol states says so in an attribute ``requires`` (a runtime-checkable Protocol): every
+measurement the filter consumes must satisfy it, checked when the filter is built (validation)."""
 
 
 @dataclass
@@ -119,6 +122,7 @@ def first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
         return initial_state_from_scan(z, R, sensor.model, t, velocity_sigma)
+    initialise.requires = ScanPositionModel
     return initialise
 
 
@@ -206,7 +210,20 @@ def build_filter_stack(cfg: dict, name: str) -> FilterStack:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
     flt.gate_probability = gate
-    return FilterStack(name, flt, {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}, init, reinit)
+    sources = {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}
+    _check_initialiser(init, sources, f"filters.{name}.init")
+    return FilterStack(name, flt, sources, init, reinit)
+
+
+def _check_initialiser(init: Initialiser, sources: dict, path: str) -> None:
+    """Every measurement the filter consumes offers what its initialiser ``requires`` (ScenarioError if not)."""
+    requires = getattr(init, "requires", None)
+    for name, source in sources.items():
+        if requires is not None and not isinstance(source.model, requires):
+            raise ScenarioError(f"'{path}' starts the filter from one measurement through the model's "
+                                f"{requires.__name__} methods, which measurement '{name}' "
+                                f"({type(source.model).__name__}) does not have; choose another init method "
+                                f"(e.g. given) or a sensor whose model has them")
 
 
 def measurement_source(cfg: dict, name: str, state_labels) -> Sensor | DerivedSource:
