@@ -43,6 +43,8 @@ stars they are independent as long as the known rate is exact).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
+
 import numpy as np
 
 from star_tracker.attitude import AttitudeSolution, error_vector, residuals, triad, wahba, wahba_matrix
@@ -57,7 +59,7 @@ SOLVERS = ("wahba", "triad")
 MOTIONS = ("constant_velocity", "coordinated_turn")
 AIDS = ("rate", "jitter", "none")
 BIAS_WINDOW = 10
-"""Frames over which the JPDAF's filtered-versus-measured agreement is averaged (StarTrackerPipeline._unbiased)."""
+"""Frames over which the JPDAF's filtered-versus-measured agreement is averaged (JPDAFTracking.unbiased)."""
 BIAS_MEAN = 6.0
 """Largest mean of that statistic over the window (an unbiased filter's mean is at most 3)."""
 BIAS_SUSPECT = 11.34
@@ -91,7 +93,9 @@ class StarTrackerPipeline:
     ``sigma_a``: the JPDAF motion model's process noise (constant velocity: acceleration σ in px/s², the
     paper's discrete form; coordinated turn: √q of its white acceleration); ``p_detect``, ``clutter_density``
     (per px², None: non-parametric) and ``gate`` (δ on d²): the JPDA's (jpdaf.py); ``verify_sigmas``: the
-    verification radius in σ; ``max_misses``: frames a track may coast before it is dropped."""
+    verification radius in σ; ``max_misses``: frames a track may coast before it is dropped. What differs
+    between the trackers (starting tracks, a frame's step, the check after verification) is the strategy
+    ``tracking`` (SNATracking, JPDAFTracking), chosen once from ``tracker``."""
 
     def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float, tracker: str = "jpdaf",
                  solver: str = "wahba", motion: str = "constant_velocity", sigma_a: float = 0.5,
@@ -111,7 +115,7 @@ class StarTrackerPipeline:
         self.catalogue, self.camera = catalogue, camera
         self.sigma_px = float(sigma_px)
         self.sigma = camera.pixel_sigma_to_angle(sigma_px)
-        self.tracker_kind, self.solver, self.motion_kind = tracker, solver, motion
+        self.solver, self.motion_kind = solver, motion
         self.sigma_a = float(sigma_a)
         self.p_detect, self.clutter_density, self.gate = p_detect, clutter_density, gate
         self.min_stars = int(min_stars)
@@ -120,24 +124,31 @@ class StarTrackerPipeline:
         self.aid = aid
         self._jitter = 0.0
         """The boresight jitter rate of the frame being processed (rad/s)."""
-        self.filter_resets = 0
-        """JPDAF frames whose filtered stars disagreed with their measurements (step 3) and were restarted."""
         self.identifier = identifier if identifier is not None else PyramidIdentifier(catalogue, camera, sigma_px)
+        self.tracking: SNATracking | JPDAFTracking = TRACKING[tracker](self)
+        """How the identified stars are tracked (SNATracking, JPDAFTracking); it owns the tracker."""
         self.reset()
+
+    @property
+    def tracker_kind(self) -> str:
+        """'sna' or 'jpdaf'."""
+        return self.tracking.kind
+
+    @property
+    def tracker(self) -> SNATracker | JPDAFTracker:
+        """The current tracker (a new one after each reset)."""
+        return self.tracking.tracker
+
+    @property
+    def filter_resets(self) -> int:
+        """JPDAF frames whose filtered stars disagreed with their measurements (step 3) and were restarted."""
+        return self.tracking.resets
 
     def reset(self) -> None:
         """Forget the lock: the next frame is a lost-in-space one."""
         self.locked = False
         self.t_prev: float | None = None
-        self._bias: list[float] = []
-        self.tracker = self._new_tracker()
-
-    def _new_tracker(self) -> SNATracker | JPDAFTracker:
-        if self.tracker_kind == "sna":
-            return SNATracker(self.camera, self.sigma_px, max_misses=self.max_misses)
-        return JPDAFTracker(ConstantVelocity(self.sigma_a), self.sigma_px, p_detect=self.p_detect,
-                            clutter_density=self.clutter_density, gate=self.gate, max_misses=self.max_misses,
-                            camera=self.camera)
+        self.tracking.reset()
 
     def motion_for(self, omega_body: np.ndarray, jitter_rate: float = 0.0) -> MotionModel:
         """The JPDAF's motion model for a body rate: constant velocity, or the turn at the image's rotation
@@ -148,12 +159,6 @@ class StarTrackerPipeline:
             compensated = jitter_rate if self.aid == "jitter" else 0.0
             return CoordinatedTurn(-(float(omega_body[2]) - compensated), self.sigma_a)
         return ConstantVelocity(self.sigma_a)
-
-    def _model_rate(self, omega_body: np.ndarray, jitter_rate: float) -> np.ndarray:
-        """The part of the body rate the motion model carries (image velocities), the rest being compensated."""
-        if self.aid == "jitter":
-            return omega_body - np.array([0.0, 0.0, jitter_rate])
-        return omega_body
 
     # ------------------------------------------------------------------------------------------------ frame
     def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float, omega_body: np.ndarray,
@@ -194,39 +199,13 @@ class StarTrackerPipeline:
             return FrameResult(False, f"lost-in-space: {ident.reason}", "lost_in_space", None, ident.index)
         rows = np.flatnonzero(ident.index >= 0)
         ids = ident.index[rows]
-        self._start(ids, uv[rows], omega_body)
+        self.tracking.start(ids, uv[rows], omega_body, self._jitter)
         solution = self._solve(self.camera.unproject(uv[rows]), self.catalogue.vectors[ids])
         return FrameResult(True, "", "lost_in_space", solution, ident.index, ids, uv[rows], rows)
 
-    def _start(self, ids: np.ndarray, uv: np.ndarray, omega_body: np.ndarray) -> None:
-        if self.tracker_kind == "sna":
-            self.tracker.start(ids, uv)
-        else:
-            if self.aid == "rate":
-                self.tracker.start(ids, uv, None, velocity_sigma=self.sigma_px)
-            else:
-                velocity = image_velocity(self.camera, uv, self._model_rate(omega_body, self._jitter))
-                self.tracker.start(ids, uv, velocity, velocity_sigma=1.0)
-
     def _track(self, uv: np.ndarray, dt: float, omega_body: np.ndarray) -> FrameResult:
         index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
-        if self.tracker_kind == "sna":
-            ids = self.tracker.ids.copy()
-            taken = self.tracker.step(uv, dt, omega_body)
-            hit = taken >= 0
-            ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
-            sig = np.full(len(ids), self.sigma_px)
-        else:
-            shift = None
-            if self.aid == "rate":
-                p = self.tracker.positions
-                shift = predict_centroids(self.camera, p, omega_body, dt) - p
-            elif self.aid == "jitter":   # the image turns by −j dt about the boresight's pixel (eq. 18)
-                self.tracker.turn_image(-self._jitter * dt, self.camera.centre)
-            step = self.tracker.step(uv, dt, self.motion_for(omega_body, self._jitter), shift)
-            hit = step.detection >= 0
-            ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
-            sig = np.minimum(step.position_sigma[hit], self.sigma_px)
+        ids, rows, pos, sig = self.tracking.step(uv, dt, omega_body, self._jitter)
         # verification: drop the stars the fit rejects, one at a time (worst first); each star's direction b
         # and catalogue vector r are computed once, the fit that passes is kept (A_fit)
         b, r = self.camera.unproject(pos), self.catalogue.vectors[ids]
@@ -244,23 +223,7 @@ class StarTrackerPipeline:
             self._forget(ids[~keep])
             ids, rows, pos, sig, b, r = ids[keep], rows[keep], pos[keep], sig[keep], b[keep], r[keep]
         index[rows] = ids
-        inflation = None
-        all_star = None     # the JPDAF's agreement check has solved Wahba's problem over these stars already
-        if self.tracker_kind == "jpdaf":
-            b_measured = self.camera.unproject(uv[rows])
-            agree, delta, filtered, own = self._unbiased(b, sig, b_measured, r)
-            if agree:
-                all_star = filtered
-                if delta is not None:
-                    inflation = np.outer(delta, delta)
-            else:
-                # the filtered stars disagree with this frame's own measurements (a lagging model): restart
-                # the tracks at the measurements and take the attitude from those
-                self.tracker.reseed(ids, uv[rows])
-                self.filter_resets += 1
-                pos, sig, b = uv[rows], np.full(len(ids), self.sigma_px), b_measured
-                A_fit = wahba_matrix(b, r)
-                all_star = own
+        pos, sig, b, A_fit, all_star, inflation = self.tracking.verified(ids, rows, uv, pos, sig, b, r, A_fit)
         if all_star is not None and self.solver == "wahba":
             solution = all_star
         else:
@@ -273,12 +236,158 @@ class StarTrackerPipeline:
             new, _ = self.identifier.match(self.camera.unproject(uv[free]), A_fit, self.verify_radius)
             fresh = (new >= 0) & ~member(new, self.tracker.ids) & ~member(new, ids)
             if fresh.any():
-                self._start(new[fresh], uv[free[fresh]], omega_body)
+                self.tracking.start(new[fresh], uv[free[fresh]], omega_body, self._jitter)
                 index[free[fresh]] = new[fresh]
         return FrameResult(True, "", "tracking", solution, index, ids, pos, rows)
 
-    def _unbiased(self, b: np.ndarray, sig: np.ndarray, b_measured: np.ndarray, r: np.ndarray
-                  ) -> tuple[bool, np.ndarray | None, AttitudeSolution, AttitudeSolution]:
+    def _forget(self, ids: np.ndarray) -> None:
+        self.tracker.drop(~member(self.tracker.ids, ids))
+
+    def _solve(self, b: np.ndarray, r: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
+        """The chosen solver over the stars seen along b (camera frame) with catalogue vectors r; each star's
+        direction has the standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the
+        ifov."""
+        px = np.full(len(r), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
+        sigma = np.maximum(px * self.camera.ifov, 1e-3 * ARCSEC)
+        return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)
+
+
+# ------------------------------------------------------------------------------------------ tracking strategies
+class Verified(NamedTuple):
+    """A tracked frame's verified stars as the tracking strategy hands them to the attitude solver."""
+
+    pos: np.ndarray
+    """(n, 2) their image positions."""
+    sig: np.ndarray
+    """(n,) their position σ (px)."""
+    b: np.ndarray
+    """(n, 3) their directions in the camera frame."""
+    A_fit: np.ndarray
+    """The verified fit's attitude matrix (the new stars are matched with it)."""
+    all_star: AttitudeSolution | None = None
+    """The all-star (Wahba) attitude over these stars when the strategy has solved it already."""
+    inflation: np.ndarray | None = None
+    """(3, 3) added to the reported attitude covariance (None: nothing)."""
+
+
+class SNATracking:
+    """The paper's SNA (tracking.SNATracker): the measured centroid of each star the gate took, at the centroid
+    noise; nothing to check after verification. ``pipe``: the StarTrackerPipeline whose settings it reads."""
+
+    kind = "sna"
+
+    def __init__(self, pipe: StarTrackerPipeline) -> None:
+        self.pipe = pipe
+        self.resets = 0
+        """Always 0: the SNA keeps no filtered state to restart."""
+        self.tracker: SNATracker = self._new_tracker()
+
+    def _new_tracker(self) -> SNATracker:
+        return SNATracker(self.pipe.camera, self.pipe.sigma_px, max_misses=self.pipe.max_misses)
+
+    def reset(self) -> None:
+        """A new, empty tracker."""
+        self.tracker = self._new_tracker()
+
+    def start(self, ids: np.ndarray, uv: np.ndarray, omega_body: np.ndarray, jitter_rate: float) -> None:
+        """Start tracks for the stars ``ids`` identified at the centroids uv."""
+        self.tracker.start(ids, uv)
+
+    def step(self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Follow the stars to the frame's centroids uv: the (ids, rows into uv, positions, σ px) of the stars
+        updated this frame."""
+        ids = self.tracker.ids.copy()
+        taken = self.tracker.step(uv, dt, omega_body)
+        hit = taken >= 0
+        ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
+        return ids, rows, pos, np.full(len(ids), self.pipe.sigma_px)
+
+    def verified(self, ids: np.ndarray, rows: np.ndarray, uv: np.ndarray, pos: np.ndarray, sig: np.ndarray,
+                 b: np.ndarray, r: np.ndarray, A_fit: np.ndarray) -> Verified:
+        """The verified stars (ids, their rows into the frame's centroids uv, positions, σ, directions b,
+        catalogue vectors r, the fit A_fit) as they are: the SNA's positions are the measurements."""
+        return Verified(pos, sig, b, A_fit)
+
+
+class JPDAFTracking:
+    """The JPDAF (tracking.JPDAFTracker) with the pipeline's motion model and rate aiding (module docstring,
+    step 2): the filtered position of each star whose most probable hypothesis is a detection; after
+    verification the agreement of its filtered and measured attitudes (step 3), which restarts the tracks at
+    the measurements (``resets`` counts it) or inflates the reported covariance. ``pipe``: the
+    StarTrackerPipeline whose settings it reads."""
+
+    kind = "jpdaf"
+
+    def __init__(self, pipe: StarTrackerPipeline) -> None:
+        self.pipe = pipe
+        self.resets = 0
+        """Frames whose filtered stars disagreed with their measurements and were restarted."""
+        self._bias: list[float] = []
+        """The agreement statistic d of the last ``BIAS_WINDOW`` frames (unbiased)."""
+        self.tracker: JPDAFTracker = self._new_tracker()
+
+    def _new_tracker(self) -> JPDAFTracker:
+        pipe = self.pipe
+        return JPDAFTracker(ConstantVelocity(pipe.sigma_a), pipe.sigma_px, p_detect=pipe.p_detect,
+                            clutter_density=pipe.clutter_density, gate=pipe.gate, max_misses=pipe.max_misses,
+                            camera=pipe.camera)
+
+    def reset(self) -> None:
+        """A new, empty tracker and no agreement history."""
+        self._bias = []
+        self.tracker = self._new_tracker()
+
+    def _model_rate(self, omega_body: np.ndarray, jitter_rate: float) -> np.ndarray:
+        """The part of the body rate the motion model carries (image velocities), the rest being compensated."""
+        if self.pipe.aid == "jitter":
+            return omega_body - np.array([0.0, 0.0, jitter_rate])
+        return omega_body
+
+    def start(self, ids: np.ndarray, uv: np.ndarray, omega_body: np.ndarray, jitter_rate: float) -> None:
+        """Start tracks for the stars ``ids`` identified at the centroids uv: rate-aided with zero velocity
+        states (known to σ px/s), otherwise with the image velocity the motion model carries (to 1 px/s)."""
+        pipe = self.pipe
+        if pipe.aid == "rate":
+            self.tracker.start(ids, uv, None, velocity_sigma=pipe.sigma_px)
+        else:
+            velocity = image_velocity(pipe.camera, uv, self._model_rate(omega_body, jitter_rate))
+            self.tracker.start(ids, uv, velocity, velocity_sigma=1.0)
+
+    def step(self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Follow the stars to the frame's centroids uv: the (ids, rows into uv, filtered positions, σ px) of
+        the stars whose most probable hypothesis is a detection (σ: the filter's, at most the centroid's)."""
+        pipe, shift = self.pipe, None
+        if pipe.aid == "rate":
+            p = self.tracker.positions
+            shift = predict_centroids(pipe.camera, p, omega_body, dt) - p
+        elif pipe.aid == "jitter":   # the image turns by −j dt about the boresight's pixel (eq. 18)
+            self.tracker.turn_image(-jitter_rate * dt, pipe.camera.centre)
+        step = self.tracker.step(uv, dt, pipe.motion_for(omega_body, jitter_rate), shift)
+        hit = step.detection >= 0
+        ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
+        return ids, rows, pos, np.minimum(step.position_sigma[hit], pipe.sigma_px)
+
+    def verified(self, ids: np.ndarray, rows: np.ndarray, uv: np.ndarray, pos: np.ndarray, sig: np.ndarray,
+                 b: np.ndarray, r: np.ndarray, A_fit: np.ndarray) -> Verified:
+        """The verified stars (ids, their rows into the frame's centroids uv, filtered positions, σ, directions
+        b, catalogue vectors r, the fit A_fit) after the agreement check: the filtered stars with their
+        all-star attitude (and the disagreement as a covariance inflation when suspect), or, when they
+        disagree with this frame's own measurements (a lagging model), the tracks restarted at the
+        measurements and the stars taken from those."""
+        measured = uv[rows]
+        b_measured = self.pipe.camera.unproject(measured)
+        agree, delta, filtered, own = self.unbiased(b, sig, b_measured, r)
+        if agree:
+            return Verified(pos, sig, b, A_fit, filtered, None if delta is None else np.outer(delta, delta))
+        self.tracker.reseed(ids, measured)
+        self.resets += 1
+        return Verified(measured, np.full(len(ids), self.pipe.sigma_px), b_measured, wahba_matrix(b_measured, r),
+                        own)
+
+    def unbiased(self, b: np.ndarray, sig: np.ndarray, b_measured: np.ndarray, r: np.ndarray
+                 ) -> tuple[bool, np.ndarray | None, AttitudeSolution, AttitudeSolution]:
         """Whether the filtered stars (directions b, σ ``sig`` px) agree with the measurements their tracks
         took (directions ``b_measured``; catalogue vectors r) (module docstring, step 3), the disagreement δθ
         to add to the reported covariance (as δθ δθᵀ) when it is suspect, and the two all-star attitudes
@@ -292,8 +401,8 @@ class StarTrackerPipeline:
         the same way, which no residual of a fit shows. Between, a frame with d above ``BIAS_SUSPECT`` (χ²₃ at
         0.99) or a window mean above 3 keeps its filtered attitude but reports the covariance P_f + δθ δθᵀ,
         so that a lag too small to reject is not hidden behind the filter's small P_f."""
-        filtered = wahba(b, r, np.maximum(sig * self.camera.ifov, 1e-3 * ARCSEC))
-        own = wahba(b_measured, r, max(self.sigma, 1e-3 * ARCSEC))
+        filtered = wahba(b, r, np.maximum(sig * self.pipe.camera.ifov, 1e-3 * ARCSEC))
+        own = wahba(b_measured, r, max(self.pipe.sigma, 1e-3 * ARCSEC))
         delta = error_vector(filtered.matrix, own.matrix)
         d = float(delta @ np.linalg.solve(own.covariance, delta))
         self._bias.append(d)
@@ -305,13 +414,7 @@ class StarTrackerPipeline:
         suspect = d > BIAS_SUSPECT or (len(self._bias) == BIAS_WINDOW and mean > 3.0)
         return True, (delta if suspect else None), filtered, own
 
-    def _forget(self, ids: np.ndarray) -> None:
-        self.tracker.drop(~member(self.tracker.ids, ids))
 
-    def _solve(self, b: np.ndarray, r: np.ndarray, sigma_px: np.ndarray | None = None) -> AttitudeSolution:
-        """The chosen solver over the stars seen along b (camera frame) with catalogue vectors r; each star's
-        direction has the standard deviation ``sigma_px`` (px per axis; default the centroid noise) times the
-        ifov."""
-        px = np.full(len(r), self.sigma_px) if sigma_px is None else np.asarray(sigma_px, dtype=float)
-        sigma = np.maximum(px * self.camera.ifov, 1e-3 * ARCSEC)
-        return triad(b, r, sigma) if self.solver == "triad" else wahba(b, r, sigma)
+TRACKING = {"sna": SNATracking, "jpdaf": JPDAFTracking}
+"""The tracking strategy of each ``tracker`` (TRACKERS)."""
+assert tuple(TRACKING) == TRACKERS
