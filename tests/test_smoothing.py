@@ -9,7 +9,7 @@ import pytest
 from scipy.linalg import block_diag
 
 from graph_helpers import script
-from tracker_filters.smoothing import rts_smoother
+from tracker_filters.smoothing import rts_smoother, smooth_estimates
 
 
 def linear_problem(K: int = 12, seed: int = 0):
@@ -79,6 +79,39 @@ def test_rts_refuses_a_wrong_number_of_transitions():
     xs, Ps = np.zeros((3, 2)), np.repeat(np.eye(2)[None], 3, 0)
     with pytest.raises(ValueError, match="need 2 transitions"):
         rts_smoother(xs, Ps, np.repeat(np.eye(2)[None], 3, 0), np.repeat(np.eye(2)[None], 3, 0))
+
+
+class TurningDynamics:
+    """A 2-D state whose transition and process noise depend on the state and the step (to check that
+    smooth_estimates pairs each estimate with the interval that follows it)."""
+
+    labels, frame = ("a", "b"), "test"
+
+    def transition_matrix(self, x: np.ndarray, dt: float) -> np.ndarray:
+        c, s = np.cos(0.1 * x[0] * dt), np.sin(0.1 * x[0] * dt)
+        return np.array([[c, dt * s], [-s / (1.0 + dt), c]])
+
+    def process_noise(self, x: np.ndarray, dt: float) -> np.ndarray:
+        return (0.01 + 0.001 * x[1] ** 2) * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+
+
+def test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates():
+    rng = np.random.default_rng(3)
+    K, dynamics = 9, TurningDynamics()
+    dts = rng.uniform(0.2, 2.0, K - 1)
+    xs = rng.normal(size=(K, 2))
+    L = rng.normal(size=(K, 2, 2))
+    Ps = L @ L.transpose(0, 2, 1) + 0.1 * np.eye(2)
+    Fs = np.array([dynamics.transition_matrix(xs[k], dts[k]) for k in range(K - 1)])
+    Qs = np.array([dynamics.process_noise(xs[k], dts[k]) for k in range(K - 1)])
+    x_s, P_s = smooth_estimates(dynamics, dts, xs, Ps)
+    x_r, P_r = rts_smoother(xs, Ps, Fs, Qs)
+    np.testing.assert_array_equal(x_s, x_r)
+    np.testing.assert_array_equal(P_s, P_r)
+    assert not np.allclose(x_s[:-1], xs[:-1])   # it did smooth
+    x_1, P_1 = smooth_estimates(dynamics, dts[:0], xs[:1], Ps[:1])   # one estimate: nothing to smooth
+    np.testing.assert_array_equal(x_1, xs[:1])
+    np.testing.assert_array_equal(P_1, Ps[:1])
 
 
 def test_the_scorer_runs_a_registered_offline_smoother_over_a_recorded_run(tmp_path: Path):

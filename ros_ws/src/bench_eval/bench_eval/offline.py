@@ -52,13 +52,9 @@ def _rts_check(cfg: dict, source: str, params: dict) -> None:
 def _rts_run(data: BagData, source: str, params: dict) -> Estimates:
     """Fixed-interval RTS smoothing (tracker_filters.smoothing) of ``source``'s estimates, with the source
     filter's own dynamics model between consecutive estimate times."""
-    from tracker_filters.smoothing import rts_smoother
+    from tracker_filters.smoothing import smooth_estimates
     est = data.estimates[source]
-    dynamics = _source_dynamics(data.scenario, source)
-    dts = np.diff(est.t)
-    Fs = np.array([dynamics.transition_matrix(x, dt) for x, dt in zip(est.x[:-1], dts)])
-    Qs = np.array([dynamics.process_noise(x, dt) for x, dt in zip(est.x[:-1], dts)])
-    x, P = rts_smoother(est.x, est.P, Fs, Qs)
+    x, P = smooth_estimates(_source_dynamics(data.scenario, source), np.diff(est.t), est.x, est.P)
     return Estimates(est.steps, est.t, x, P, est.labels, {})
 
 

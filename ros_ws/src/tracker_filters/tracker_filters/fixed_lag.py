@@ -22,7 +22,7 @@ import numpy as np
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, resolve_filters
 from bench_engine.stage import Estimate, Outputs, python_log
-from tracker_filters.smoothing import rts_smoother
+from tracker_filters.smoothing import smooth_estimates
 
 SECTION = "fixed_lag_smoothers"
 
@@ -75,10 +75,8 @@ class FixedLagSmoother:
         """RTS backward pass (tracker_filters.smoothing) from the newest estimate of the window to the oldest."""
         items = list(self.window)
         dts = [(b.t_ns - a.t_ns) * 1e-9 for a, b in zip(items[:-1], items[1:])]
-        Fs = [self.dynamics.transition_matrix(e.x, dt) for e, dt in zip(items, dts)]
-        Qs = [self.dynamics.process_noise(e.x, dt) for e, dt in zip(items, dts)]
-        x_s, P_s = rts_smoother(np.array([e.x for e in items]), np.array([e.P for e in items]), np.array(Fs),
-                                np.array(Qs))
+        x_s, P_s = smooth_estimates(self.dynamics, dts, np.array([e.x for e in items]),
+                                    np.array([e.P for e in items]))
         oldest = items[0]
         return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.conf.name, list(oldest.labels), x_s[0],
                         P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})

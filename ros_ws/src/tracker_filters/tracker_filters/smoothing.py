@@ -8,11 +8,27 @@ Kirubarajan, "Estimation with Applications to Tracking and Navigation", 2001, eq
     C_k     = P_k|k F_k' P_k+1|k^-1
     x_k|N   = x_k|k + C_k (x_k+1|N - F_k x_k|k)
     P_k|N   = P_k|k + C_k (P_k+1|N - P_k+1|k) C_k'
+
+``smooth_estimates`` takes the transitions from a filter's dynamics model between consecutive estimates (the
+offline ``rts`` estimator, bench_eval.offline, and the in-graph fixed-lag smoother, fixed_lag.py).
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
+
+from bench_models.models import DynamicsModel
+
+
+def smooth_estimates(dynamics: DynamicsModel, dts: np.ndarray, xs: np.ndarray, Ps: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """RTS-smoothed means (K, n) and covariances (K, n, n) of a filter's estimates ``xs`` (K, n), ``Ps``
+    (K, n, n), with the transitions F_k = ``dynamics.transition_matrix(x_k|k, dt_k)`` and Q_k =
+    ``dynamics.process_noise(x_k|k, dt_k)`` over ``dts`` (K - 1,), the seconds from each estimate to the next
+    (the callers' own differences: float seconds, or integer nanoseconds × 1e-9)."""
+    Fs = [dynamics.transition_matrix(x, dt) for x, dt in zip(xs, dts)]
+    Qs = [dynamics.process_noise(x, dt) for x, dt in zip(xs, dts)]
+    return rts_smoother(xs, Ps, np.array(Fs), np.array(Qs))
 
 
 def rts_smoother(xs: np.ndarray, Ps: np.ndarray, Fs: np.ndarray, Qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
