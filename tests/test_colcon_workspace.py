@@ -9,7 +9,9 @@ holds the bench's packages installed editable (make setup), so a module or an en
 either. install/setup.sh puts the install space first on PYTHONPATH, which Python searches before the venv's
 site-packages and the paths its .pth files add, and importlib.metadata, like bench_engine.plugins, takes the
 first distribution of a name on sys.path: the installed commands see only the install space's copies. The test
-asserts that for every package and for the registered scenarios, rather than building a second venv.
+asserts that for every package and for the registered scenarios, rather than building a second venv. (Not for
+bench_msgs' C libraries: the wheels' bootstrap re-executes Python with LD_LIBRARY_PATH in no fixed order, so
+they load from the install space or from the venv's build of the same .msg files.)
 """
 from __future__ import annotations
 

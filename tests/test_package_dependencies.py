@@ -32,8 +32,8 @@ LAYERS = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_
 PRESENT = [p for p in LAYERS if (SRC / p / p).is_dir()]
 WORKSPACE_PACKAGES = {p.parent.name for p in SRC.glob("*/package.xml")}
 ROSDEP_KEYS = {
-    # module (or dotted prefix) -> rosdep keys. The python3-*-pip keys other than python3-rosbags-pip are not
-    # in ros/rosdistro: ros_ws/rosdep.yaml defines them.
+    # module (or dotted prefix) -> rosdep keys. The pip keys (*-pip) not in UPSTREAM_PIP_KEYS are not in
+    # ros/rosdistro: ros_ws/rosdep.yaml defines them.
     "numpy": ("python3-numpy",),
     "scipy": ("python3-scipy",),
     "yaml": ("python3-yaml",),
@@ -101,6 +101,7 @@ def ros_packages() -> set[str]:
 
 
 def third_party(module: str, local: set[str]) -> bool:
+    """Whether a module is neither the standard library's, a bench package's nor one of ``local``."""
     top = module.split(".")[0]
     return top not in sys.stdlib_module_names and top != "__future__" and top not in local | set(LAYERS)
 
@@ -169,11 +170,16 @@ def test_the_tests_and_scripts_third_party_modules_are_declared_by_a_package():
     everywhere = set().union(*(declared(p, RUNTIME_TAGS + ("test_depend",)) for p in PRESENT))
     files = sorted((ROOT / "tests").rglob("*.py")) + sorted((ROOT / "scripts").glob("*.py"))
     local = {p.stem for p in files}
-    problems = [f"{path.relative_to(ROOT)}:{line} imports {module}: "
-                + ("unknown module; add it to ROSDEP_KEYS and declare it" if keys_of(module, ros) is None
-                   else f"no package.xml declares {sorted(set(keys_of(module, ros)) - everywhere)}")
-                for path in files for line, module in imported_modules(path)
-                if third_party(module, local) and not set(keys_of(module, ros) or ("?",)) <= everywhere]
+    problems = []
+    for path in files:
+        for line, module in imported_modules(path):
+            if not third_party(module, local):
+                continue
+            keys, where = keys_of(module, ros), f"{path.relative_to(ROOT)}:{line} imports {module}"
+            if keys is None:
+                problems.append(f"{where}: unknown module; add it to ROSDEP_KEYS and declare it in a package.xml")
+            elif not set(keys) <= everywhere:
+                problems.append(f"{where}: no package.xml declares {sorted(set(keys) - everywhere)} (test_depend)")
     assert not problems, "\n".join(problems)
 
 
