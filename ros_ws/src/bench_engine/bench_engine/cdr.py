@@ -1,66 +1,396 @@
-"""The bench's messages on the wire: plain CDR bytes to and from light message objects, without rclpy.
+"""The bench's messages on the wire: CDR bytes to and from light message objects, through rosbags' typestore.
 
-Why: a leo_radar step moves five messages, and rclpy's generated classes cost ~20–30 µs a message each way
-(a message, its header and stamps built, every field assignment type- and range-checked, then converted to C);
-here a message costs ~4–9 µs each way. The nodes build :func:`lite_class` objects (same attribute names and
-defaults, no checks), publish :func:`serialize` bytes (``Publisher.publish(bytes)``) and take raw bytes from
-their subscriptions (``raw=True``) to :func:`deserialize`. A leo_radar run in one process used ~7 % less CPU
-(4.05 s against 4.33 s, four alternated runs). The bytes are those rclpy sends except for alignment padding,
-which rclpy leaves as whatever its reused buffer held and this module zeroes: the digests recorded for four
-studies (tests/test_bag_digests.py) still hold, their padding having been zero, and a star_tracker bag now
-differs from one recorded before only in padding bytes (same decoded content). tests/test_cdr.py checks
-both directions against rclpy on random messages of every type the bench sends.
+Why: rclpy's generated classes cost ~20–30 µs a message each way (a message, its header and stamps built,
+every field assignment type- and range-checked, then converted to C). The nodes build :func:`lite_class`
+objects instead (rclpy's attribute names and defaults, no checks), publish :func:`serialize` bytes
+(``Publisher.publish(bytes)``) and take raw bytes from their subscriptions (``raw=True``) to
+:func:`deserialize`.
 
-Encoding: plain CDR, little endian (encapsulation ``00 01 00 00``, as rmw_fastrtps writes it), the OMG XCDR
-version 1 rules: every primitive aligned to its size counted from the end of the 4-byte encapsulation
-header, padding bytes zero; a string is a uint32 length (the terminating NUL included) then its bytes and the
-NUL; a sequence a uint32 count then its elements (no padding after an empty one); a fixed array its bare
-elements; a nested message its fields in order. Field order and types come from the generated class's
-``SLOT_TYPES`` (rosidl's own description of the type).
+The encoding itself is rosbags' (https://gitlab.com/ternaris/rosbags, pinned in requirements.txt): its
+typestore holds ROS 2 Jazzy's message definitions (``Stores.ROS2_JAZZY``) and compiles a serialiser and a
+deserialiser per type; the bench registers its own types (bench_msgs, and any other type not in the store)
+from the ``.msg`` files rosidl installed (bench_engine.msg_schema). This module only adds the light classes
+(installed as the typestore's classes, so rosbags' deserialiser builds them directly) and, before a message
+is serialised, turns the number sequences codecs set as lists into the numpy arrays rosbags writes. Bytes:
+plain CDR, little endian, padding zeroed, i.e. what rclpy sends except for the padding (rclpy leaves its
+reused buffer's bytes there): the bag digests of tests/test_bag_digests.py did not change when this module
+moved from a hand-written encoder to rosbags. tests/test_cdr.py checks both directions against rclpy on
+random messages of every type the bench sends, its standard views (nav_msgs/Odometry,
+geometry_msgs/PoseWithCovarianceStamped, diagnostic_msgs/DiagnosticArray, visualization_msgs/MarkerArray:
+arrays of messages, which the hand-written encoder did not cover) included.
+
+Conventions of the light messages (where they differ from rclpy's classes):
+
+* number sequences and arrays may be set as lists, tuples, array.array or numpy arrays of any shape (they are
+  sent flattened); :func:`serialize` replaces them on the message by the contiguous 1-D numpy arrays of the
+  field's type it sent; :func:`deserialize` returns writable numpy arrays (rclpy: array.array / numpy);
+* a ``byte`` field is an int in [-128, 127] (rosbags' convention; rclpy holds a 1-byte ``bytes``): 0 by
+  default, as rclpy's ``b"\\x00"``; a message's constants are class attributes, as in rclpy
+  (``DiagnosticStatus.WARN == 1``);
+* arrays of messages are lists of light messages (a fixed-size one of exactly its size).
+
+Costs, one StateEstimate of 6 states built by its codec, then serialised / deserialised (this 2-core machine,
+the medians of ``python -m bench_engine.cdr``): see README, Speed.
+
+:func:`compiled` describes a type's fields for the columnar bag decoder (bench_engine.columns), which reads
+whole topics as numpy columns without building messages.
 """
 from __future__ import annotations
 
-import array
 import struct
 import sys
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
-from operator import attrgetter
-from typing import Any
+from typing import Any, Callable, Iterable
 
 import numpy as np
-import rosidl_parser.definition as idl
+from rosbags.interfaces import Nodetype
+from rosbags.serde import SerdeError
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
 
-from bench_engine.msg_schema import message_class
+from bench_engine.msg_schema import (canonical_type_name, dependencies, interface_file, message_class, msg_text,
+                                     split_type_name)
 
-if sys.byteorder != "little":
-    raise ImportError("bench_engine.cdr packs numbers in the host's byte order and needs a little-endian host")
-ENCAPSULATION = b"\x00\x01\x00\x00"  # plain CDR, little endian, no options
+ENCAPSULATION = b"\x00\x01\x00\x00"  # plain CDR, little endian, no options (what rmw_fastrtps writes)
 HEADER = len(ENCAPSULATION)
-_FORMATS = {  # rosidl primitive -> (numpy dtype, struct format, both little endian)
-    "double": ("<f8", "<d"), "float": ("<f4", "<f"), "int64": ("<i8", "<q"), "uint64": ("<u8", "<Q"),
-    "int32": ("<i4", "<i"), "uint32": ("<u4", "<I"), "int16": ("<i2", "<h"), "uint16": ("<u2", "<H"),
-    "int8": ("i1", "<b"), "uint8": ("u1", "<B"), "octet": ("u1", "<B"), "char": ("u1", "<B"),
-    "boolean": ("?", "<?")}
-_U32 = struct.Struct("<I")
+_DTYPES = {  # rosbags' primitive names -> numpy dtype of the wire values (little endian)
+    "float64": "<f8", "float32": "<f4", "int64": "<i8", "uint64": "<u8", "int32": "<i4", "uint32": "<u4",
+    "int16": "<i2", "uint16": "<u2", "int8": "i1", "uint8": "u1", "byte": "u1", "char": "u1", "octet": "u1",
+    "bool": "?"}
+_LITTLE = sys.byteorder == "little"
 
+
+# --- the typestore ----------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def typestore() -> Typestore:
+    """This process's typestore: ROS 2 Jazzy's types, then the bench's as they are first used. Its classes are
+    the light classes (:func:`lite_class`), so it is the bench's own: to read bags with rosbags' classes, use
+    ``rosbags.typesys.get_typestore`` (it builds a new store each call)."""
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _registered(type_name: str) -> str:
+    """``type_name`` as the typestore spells it (``pkg/msg/Type``), registered from its installed ``.msg`` file
+    (and its dependencies) if the store does not hold it yet."""
+    name = canonical_type_name(type_name)
+    store = typestore()
+    if name not in store.fielddefs:
+        text = msg_text(name)
+        for dep in dependencies(text, split_type_name(name)[0]):
+            _registered(dep)
+        store.register(get_types_from_msg(text, name))
+    return name
+
+
+def _fields(name: str) -> list[tuple[str, tuple]]:
+    return list(typestore().fielddefs[name][1])
+
+
+def _constants(name: str) -> list[tuple[str, str, Any]]:
+    return list(typestore().fielddefs[name][0])
+
+
+def _is_number(desc: tuple) -> bool:
+    """A BASE field descriptor of a number (not a string)."""
+    return desc[0] == Nodetype.BASE and desc[1][0] not in ("string", "wstring")
+
+
+def _dtype(desc: tuple) -> np.dtype:
+    return np.dtype(_DTYPES[desc[1][0]])
+
+
+# --- light classes ----------------------------------------------------------------------------------------
+
+class _Missing:
+    def __repr__(self) -> str:
+        return "<default>"
+
+
+_MISSING = _Missing()
+
+
+@lru_cache(maxsize=None)
+def _lite(name: str) -> type:
+    """The light class of canonical type ``name``, installed as the typestore's class of the type (and of every
+    type it nests) before rosbags compiles any of them."""
+    store = typestore()
+    fields = _fields(name)
+    proto = message_class(name)()
+    ns: dict[str, Any] = {"_M": _MISSING, "_byte": _as_byte}
+    params, body = [], []
+    for i, (attr, desc) in enumerate(fields):
+        kind, sub = desc[0], desc[1]
+        if kind == Nodetype.NAME:
+            ns[f"_f{i}"] = _lite(_registered(sub))
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and sub[0][0] == Nodetype.NAME:
+            cls = _lite(_registered(sub[0][1]))
+            ns[f"_f{i}"] = ((lambda c=cls, n=sub[1]: [c() for _ in range(n)]) if kind == Nodetype.ARRAY else list)
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and _is_number(sub[0]):
+            default = np.array(getattr(proto, attr), dtype=_dtype(sub[0])).reshape(-1)
+            ns[f"_f{i}"] = default.copy
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):  # strings
+            ns[f"_f{i}"] = (lambda v=list(getattr(proto, attr)): list(v))
+        else:
+            value = getattr(proto, attr)
+            if desc[1][0] in ("byte", "char"):
+                ns[f"_d{i}"] = _as_byte(value) if desc[1][0] == "byte" else _as_char(value)
+                params.append(f"{attr}=_d{i}")
+                body.append(f"    self.{attr} = {attr} if {attr}.__class__ is int else _byte({attr})"
+                            if desc[1][0] == "byte" else f"    self.{attr} = {attr}")
+                continue
+            ns[f"_d{i}"] = value
+            params.append(f"{attr}=_d{i}")
+            body.append(f"    self.{attr} = {attr}")
+            continue
+        params.append(f"{attr}=_M")
+        body.append(f"    self.{attr} = _f{i}() if {attr} is _M else {attr}")
+    short = name.rsplit("/", 1)[-1]
+    source = (f"def __init__(self, {', '.join(params)}{', ' if params else ''}**_unknown):\n"
+              + "\n".join(body) + "\n"
+              f"    if _unknown:\n"
+              f"        raise TypeError(f'{short} has no field(s) {{sorted(_unknown)}}')\n")
+    exec(source, ns)  # noqa: S102 - the code is built above from the type's field names only
+    names = tuple(attr for attr, _ in fields)
+
+    def __repr__(self) -> str:
+        return f"{short}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"
+
+    attrs: dict[str, Any] = {"__slots__": names, "__init__": ns["__init__"], "__repr__": __repr__,
+                             "__msgtype__": name, "__doc__": f"Light message of {name} (bench_engine.cdr)."}
+    for const, _ctype, value in _constants(name):
+        attrs[const] = value
+    cls = type(short, (), attrs)
+    store.types[name] = cls
+    return cls
+
+
+def _as_byte(value: Any) -> int:
+    """A ``byte`` field's value as rosbags packs it: a signed int (rclpy: ``b"\\xff"`` -> -1)."""
+    if isinstance(value, (bytes, bytearray)):
+        return int.from_bytes(bytes(value), "little", signed=True)
+    return int(value)
+
+
+def _as_char(value: Any) -> int:
+    return ord(value) if isinstance(value, str) else int(value)
+
+
+def lite_class(type_name: str) -> type:
+    """The light class of ``pkg/msg/Type`` (or ``pkg/Type``): what :func:`serialize` takes and
+    :func:`deserialize` returns. Keyword (or positional, in field order) arguments, rclpy's defaults."""
+    return _lite(_registered(type_name))
+
+
+# --- serialize --------------------------------------------------------------------------------------------
+
+def serialize(type_name: str, msg: Any) -> bytes:
+    """CDR bytes of ``msg`` (a light message of ``type_name``, or any object with its fields: an rclpy
+    message, a rosbags one), as a publisher sends them."""
+    try:
+        return _SERIALIZERS[type_name](msg)
+    except KeyError:
+        if type_name in _SERIALIZERS:
+            raise
+        _SERIALIZERS[type_name] = _serializer(type_name)
+        return _SERIALIZERS[type_name](msg)
+
+
+_SERIALIZERS: dict[str, Callable[[Any], bytes]] = {}
+
+
+def _serializer(type_name: str) -> Callable[[Any], bytes]:
+    name = _registered(type_name)
+    lite, store = _lite(name), typestore()
+    prepare, convert = _preparer(name), _converter(name)
+    msgdef = store.get_msgdef(name)
+    getsize, write = msgdef.getsize_cdr, msgdef.serialize_cdr_le if _LITTLE else msgdef.serialize_cdr_be
+
+    def ser(msg: Any) -> bytes:
+        if msg.__class__ is not lite:
+            msg = convert(msg)
+        prepare(msg)
+        try:
+            raw = bytearray(HEADER + getsize(0, msg, store))
+            raw[1] = _LITTLE
+            write(memoryview(raw)[HEADER:], 0, msg, store)
+        except SerdeError as err:  # e.g. a fixed-size array of messages of another length
+            raise ValueError(f"{type_name}: {err}") from None
+        return bytes(raw)
+    return ser
+
+
+def _coerce(attr: str, dtype: np.dtype, size: int | None) -> Callable[[Any], np.ndarray]:
+    """A number field's value as the contiguous 1-D array of ``dtype`` rosbags writes (``size``: a fixed
+    array's length, checked)."""
+    def coerce(value: Any) -> np.ndarray:
+        out = np.ascontiguousarray(value, dtype=dtype).reshape(-1)
+        if size is not None and len(out) != size:
+            raise ValueError(f"{attr}: {len(out)} values for a {size}-array")
+        return out
+    return coerce
+
+
+@lru_cache(maxsize=None)
+def _needs_preparing(name: str) -> bool:
+    """Whether a type, or a type it nests, has number sequences or byte fields (what rosbags' serialiser cannot
+    take as codecs and rclpy's messages give them). Other nested messages may be any object with their
+    fields: rosbags reads them attribute by attribute."""
+    for _, desc in _fields(name):
+        kind, sub = desc[0], desc[1]
+        if kind == Nodetype.BASE:
+            if sub[0] in ("byte", "char"):
+                return True
+        elif kind == Nodetype.NAME:
+            if _needs_preparing(_registered(sub)):
+                return True
+        elif sub[0][0] == Nodetype.NAME:
+            if _needs_preparing(_registered(sub[0][1])):
+                return True
+        elif _is_number(sub[0]):
+            return True
+    return False
+
+
+@lru_cache(maxsize=None)
+def _preparer(name: str) -> Callable[[Any], None]:
+    """A function that makes a light message of ``name`` ready for rosbags' serialiser, in place: number
+    sequences as contiguous 1-D arrays of their type, byte fields as ints, nested messages that hold such fields
+    as light messages. Only those fields are visited (a type without any gets a no-op)."""
+    if not _needs_preparing(name):
+        return _noop
+    ns: dict[str, Any] = {"_nd": np.ndarray, "_array": np.array, "_byte": _as_byte, "_char": _as_char}
+    lines: list[str] = []
+    for i, (attr, desc) in enumerate(_fields(name)):
+        kind, sub = desc[0], desc[1]
+        if kind == Nodetype.NAME:
+            sub_name = _registered(sub)
+            if not _needs_preparing(sub_name):
+                continue
+            ns[f"_L{i}"], ns[f"_c{i}"], ns[f"_p{i}"] = _lite(sub_name), _converter(sub_name), _preparer(sub_name)
+            lines += [f"  v = msg.{attr}",
+                      f"  if v.__class__ is not _L{i}:",
+                      f"    msg.{attr} = v = _c{i}(v)",
+                      f"  _p{i}(v)"]
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and sub[0][0] == Nodetype.NAME:
+            sub_name = _registered(sub[0][1])
+            if not _needs_preparing(sub_name):
+                continue
+            ns[f"_L{i}"], ns[f"_c{i}"], ns[f"_p{i}"] = _lite(sub_name), _converter(sub_name), _preparer(sub_name)
+            lines += [f"  v = msg.{attr}",
+                      f"  if v.__class__ is not list:",
+                      f"    msg.{attr} = v = list(v)",
+                      "  for j, m in enumerate(v):",
+                      f"    if m.__class__ is not _L{i}:",
+                      f"      v[j] = m = _c{i}(m)",
+                      f"    _p{i}(m)"]
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and _is_number(sub[0]):
+            dtype = _dtype(sub[0])
+            ns[f"_t{i}"] = dtype
+            ns[f"_k{i}"] = _coerce(attr, dtype, sub[1] if kind == Nodetype.ARRAY else None)
+            fixed = kind == Nodetype.ARRAY
+            lines += [f"  v = msg.{attr}",  # a list (what codecs give) of numbers: straight to an array
+                      f"  if v.__class__ is list{f' and len(v) == {sub[1]}' if fixed else ''}:",
+                      f"    msg.{attr} = _array(v, _t{i})",
+                      f"  elif v.__class__ is not _nd or v.dtype is not _t{i} or v.ndim != 1"
+                      f" or not v.flags.c_contiguous{f' or len(v) != {sub[1]}' if fixed else ''}:",
+                      f"    msg.{attr} = _k{i}(v)"]
+        elif kind == Nodetype.BASE and sub[0] in ("byte", "char"):
+            lines += [f"  v = msg.{attr}",
+                      "  if v.__class__ is not int:",
+                      f"    msg.{attr} = {'_byte' if sub[0] == 'byte' else '_char'}(v)"]
+    exec("def prepare(msg):\n" + "\n".join(lines) + "\n", ns)  # noqa: S102 - built from field names only
+    return ns["prepare"]
+
+
+def _noop(msg: Any) -> None:
+    return None
+
+
+@lru_cache(maxsize=None)
+def _converter(name: str) -> Callable[[Any], Any]:
+    """Any object with the fields of ``name`` (rclpy's message, rosbags', a table row) -> a light message."""
+    lite = _lite(name)
+    steps: list[tuple[str, Callable[[Any], Any]]] = []
+    for attr, desc in _fields(name):
+        kind, sub = desc[0], desc[1]
+        if kind == Nodetype.NAME:
+            steps.append((attr, _converter(_registered(sub))))
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and sub[0][0] == Nodetype.NAME:
+            conv = _converter(_registered(sub[0][1]))
+            steps.append((attr, lambda v, c=conv: [c(m) for m in v]))
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and _is_number(sub[0]):
+            steps.append((attr, _coerce(attr, _dtype(sub[0]), sub[1] if kind == Nodetype.ARRAY else None)))
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            steps.append((attr, list))
+        elif sub[0] == "byte":
+            steps.append((attr, _as_byte))
+        elif sub[0] == "char":
+            steps.append((attr, _as_char))
+        else:
+            steps.append((attr, lambda v: v))
+
+    def convert(obj: Any) -> Any:
+        if obj.__class__ is lite:
+            return obj
+        return lite(**{attr: conv(getattr(obj, attr)) for attr, conv in steps})
+    return convert
+
+
+# --- deserialize ------------------------------------------------------------------------------------------
+
+def deserialize(type_name: str, data: bytes) -> Any:
+    """A light message of ``type_name`` from its CDR bytes (plain CDR, either byte order; bytes after the message
+    are ignored, as rclpy does). Number sequences and arrays come as writable numpy arrays."""
+    try:
+        read = _DESERIALIZERS[type_name]
+    except KeyError:
+        read = _DESERIALIZERS[type_name] = _deserializer(type_name)
+    return read(data)
+
+
+_DESERIALIZERS: dict[str, Callable[[bytes], Any]] = {}
+
+
+def _deserializer(type_name: str) -> Callable[[bytes], Any]:
+    name = _registered(type_name)
+    _lite(name)
+    store = typestore()
+    msgdef = store.get_msgdef(name)
+    readers = {b"\x00\x01": msgdef.deserialize_cdr_le, b"\x00\x00": msgdef.deserialize_cdr_be}
+    cls = msgdef.cls
+
+    def read(data: bytes) -> Any:
+        # rosbags' deserialiser for the byte order, called directly: Typestore.deserialize_cdr refuses more than
+        # 3 bytes after the message, and rclpy's serialize_message may leave more (rmw's size estimate).
+        reader = readers.get(bytes(data[:2]))
+        if reader is None:
+            raise ValueError(f"{type_name}: not plain CDR (encapsulation {bytes(data[:2]).hex()})")
+        try:
+            return reader(memoryview(bytearray(data))[HEADER:], 0, cls, store)[0]
+        except (SerdeError, struct.error, ValueError, UnicodeDecodeError, IndexError) as err:
+            raise ValueError(f"{type_name}: message ends early or is of another type: {err}") from None
+    return read
+
+
+# --- the layout the columnar decoder reads ----------------------------------------------------------------
 
 @dataclass(frozen=True)
 class Field:
-    """One field of a compiled message type; ``kind``: prim, array, seq, str, strarray, strseq or msg."""
+    """One field of a type as bench_engine.columns walks it; ``kind``: prim, array, seq, str, strarray, strseq
+    or msg."""
 
     name: str
     kind: str
     dtype: np.dtype | None = None
     size: int = 0                                   # fixed array length
     sub: "MessageType | None" = None                # nested message
-    packer: struct.Struct | None = field(default=None, compare=False)  # a primitive's struct
 
 
 @dataclass(frozen=True)
 class MessageType:
-    """A message type's fields in wire order, and its light class."""
+    """A type's fields in wire order, and its light class."""
 
     name: str
     fields: tuple[Field, ...]
@@ -69,265 +399,62 @@ class MessageType:
 
 @lru_cache(maxsize=None)
 def compiled(type_name: str) -> MessageType:
-    """``pkg/msg/Type`` compiled from its generated class's ``SLOT_TYPES``. Arrays of messages and wide strings
-    (no bench message has them) raise a TypeError naming the field."""
-    cls = message_class(type_name)
-    fields = tuple(_field(name, slot, cls) for name, slot in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES))
-    return MessageType(type_name, fields, _lite(cls, fields))
+    """``pkg/msg/Type``'s fields, from the typestore, for the columnar decoder. Arrays of messages and wide
+    strings (no topic the scorer reads has them) raise a TypeError naming the field: read such a type with
+    :func:`deserialize` (``BagReader.decoded``)."""
+    name = _registered(type_name)
+    return MessageType(name, tuple(_layout_field(name, attr, desc) for attr, desc in _fields(name)), _lite(name))
 
 
-def _field(name: str, slot: Any, cls: type) -> Field:
-    if isinstance(slot, idl.BasicType):
-        return Field(name, "prim", _dtype(slot, name, cls), packer=struct.Struct(_FORMATS[slot.typename][1]))
-    if isinstance(slot, idl.AbstractString) and not isinstance(slot, idl.AbstractWString):
-        return Field(name, "str")
-    if isinstance(slot, idl.NamespacedType):
-        return Field(name, "msg", sub=compiled("/".join([*slot.namespaces, slot.name])))
-    if isinstance(slot, (idl.Array, idl.AbstractSequence)):
-        value, fixed = slot.value_type, isinstance(slot, idl.Array)
-        if isinstance(value, idl.BasicType):
-            return Field(name, "array" if fixed else "seq", _dtype(value, name, cls), slot.size if fixed else 0)
-        if isinstance(value, idl.AbstractString) and not isinstance(value, idl.AbstractWString):
-            return Field(name, "strarray" if fixed else "strseq", size=slot.size if fixed else 0)
-    raise TypeError(f"{cls.__module__}.{cls.__name__}.{name}: arrays of messages and wide strings are not "
-                    f"supported here; use rclpy's serialization for this type")
+def _layout_field(name: str, attr: str, desc: tuple) -> Field:
+    kind, sub = desc[0], desc[1]
+    if kind == Nodetype.BASE and sub[0] == "string":
+        return Field(attr, "str")
+    if kind == Nodetype.BASE and sub[0] in _DTYPES:
+        return Field(attr, "prim", _dtype(desc))
+    if kind == Nodetype.NAME:
+        return Field(attr, "msg", sub=compiled(sub))
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        fixed, size = kind == Nodetype.ARRAY, sub[1] if kind == Nodetype.ARRAY else 0
+        if _is_number(sub[0]) and sub[0][1][0] in _DTYPES:
+            return Field(attr, "array" if fixed else "seq", _dtype(sub[0]), size)
+        if sub[0][0] == Nodetype.BASE and sub[0][1][0] == "string":
+            return Field(attr, "strarray" if fixed else "strseq", size=size)
+    raise TypeError(f"{name}.{attr}: arrays of messages and wide strings have no columnar layout here; "
+                    f"decode this type message by message (bench_engine.cdr.deserialize)")
 
 
-def _dtype(basic: Any, name: str, cls: type) -> np.dtype:
-    if basic.typename not in _FORMATS:
-        raise TypeError(f"{cls.__name__}.{name}: primitive {basic.typename!r} is not supported here")
-    return np.dtype(_FORMATS[basic.typename][0])
+def warm(type_names: Iterable[str]) -> None:
+    """Compile the light class, serialiser and deserialiser of each type now (rosbags compiles ~10 ms of code
+    per type and nested type). The launcher and the Monte Carlo fork server do it before they fork the nodes
+    and runs (bench_engine.views at import), so these inherit the compiled code instead of compiling it each."""
+    for name in type_names:
+        _SERIALIZERS.setdefault(name, _serializer(name))
+        _DESERIALIZERS.setdefault(name, _deserializer(name))
 
 
-def _defaults(cls: type, fields: tuple[Field, ...]) -> list[tuple[str, Any]]:
-    """(field, default) from an instance of the generated class: the .msg file's defaults (a Quaternion's
-    w = 1) and rclpy's own (0, "", empty). A callable default builds a fresh value for each message."""
-    proto = cls()
-    out: list[tuple[str, Any]] = []
-    for f in fields:
-        value = getattr(proto, f.name)
-        if f.kind == "msg":
-            out.append((f.name, f.sub.lite))
-        elif f.kind == "array":
-            out.append((f.name, lambda v=np.array(value, dtype=f.dtype): v.copy()))
-        elif f.kind in ("seq", "strseq", "strarray"):
-            out.append((f.name, lambda v=list(value): list(v)))
-        else:
-            out.append((f.name, value))
-    return out
+def bench_types() -> list[str]:
+    """The message types the bench's nodes send as CDR: every installed bench_msgs type and /clock's."""
+    share = interface_file("bench_msgs/msg/StepAck", ".msg").parent
+    return [f"bench_msgs/msg/{path.stem}" for path in sorted(share.glob("*.msg"))] + ["rosgraph_msgs/msg/Clock"]
 
 
-def _lite(cls: type, fields: tuple[Field, ...]) -> type:
-    """A plain class with the message's attributes and defaults, keyword arguments as the generated class
-    takes them, and no checks."""
-    name, names = cls.__name__, tuple(f.name for f in fields)
-    defaults = _defaults(cls, fields)
+def _timings(repeat: int = 20000) -> None:  # pragma: no cover - `python -m bench_engine.cdr`
+    """Microseconds per StateEstimate of 6 states: built by its codec and serialised; deserialised."""
+    import timeit
 
-    def __init__(self, **values: Any) -> None:
-        for field_name, default in defaults:
-            if field_name in values:
-                setattr(self, field_name, values.pop(field_name))
-            else:
-                setattr(self, field_name, default() if callable(default) else default)
-        if values:
-            raise TypeError(f"{name} has no field(s) {sorted(values)}")
-
-    def __repr__(self) -> str:
-        return f"{name}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"
-
-    return type(name, (), {"__slots__": names, "__init__": __init__, "__repr__": __repr__})
+    from bench_engine.stage import ESTIMATE_CODEC, Estimate
+    name = "bench_msgs/msg/StateEstimate"
+    item = Estimate(3, 1_500_000_000, "eci", "ukf", ["x", "y", "z", "vx", "vy", "vz"], np.arange(6.0),
+                    np.eye(6), 1.5, {"n_eff": 3.0})
+    lite = lite_class(name)
+    data = serialize(name, ESTIMATE_CODEC.encode(item, lite))
+    for label, stmt in (("encode + serialize", lambda: serialize(name, ESTIMATE_CODEC.encode(item, lite))),
+                        ("deserialize", lambda: deserialize(name, data)),
+                        ("deserialize + decode", lambda: ESTIMATE_CODEC.decode(deserialize(name, data)))):
+        best = min(timeit.repeat(stmt, number=repeat, repeat=7)) / repeat * 1e6
+        print(f"{label:24s} {best:6.2f} us")
 
 
-def lite_class(type_name: str) -> type:
-    """The light class of ``pkg/msg/Type``: what :func:`serialize` takes and :func:`deserialize` returns."""
-    return compiled(type_name).lite
-
-
-# --- serialize --------------------------------------------------------------------------------------------
-# Each field compiles once into an "op" that appends the field to the buffer (serialize) or reads it at a
-# position (deserialize): the per-message work is then one call per field, with no dispatch on its kind.
-
-Packer = Callable[[bytearray, Any], None]
-Unpacker = Callable[[bytearray, int], tuple[Any, int]]
-_ZEROS = tuple(bytes(n) for n in range(8))
-_ARRAY_CODES = {"<f8": "d", "<f4": "f", "<i8": "q", "<u8": "Q", "<i4": "i", "<u4": "I", "<i2": "h", "<u2": "H",
-                "|i1": "b", "|u1": "B"}  # dtype -> array.array typecode (this module requires a little-endian host)
-_STRINGS_CACHE = 256                      # distinct string lists (labels, names) kept packed
-
-
-def serialize(type_name: str, msg: Any) -> bytes:
-    """CDR bytes of ``msg`` (a light or generated message object of ``type_name``), as a publisher sends it."""
-    buf = bytearray(ENCAPSULATION)
-    _packer(type_name)(buf, msg)
-    return bytes(buf)
-
-
-@lru_cache(maxsize=None)
-def _packer(type_name: str) -> Packer:
-    mtype = compiled(type_name)
-    names = tuple(f.name for f in mtype.fields)
-    ops = tuple(_op(f, PACK) for f in mtype.fields)
-    getter = attrgetter(*names) if len(names) > 1 else (lambda msg, name=names[0]: (getattr(msg, name),))
-
-    def pack(buf: bytearray, msg: Any) -> None:
-        for op, value in zip(ops, getter(msg)):
-            op(buf, value)
-    return pack
-
-
-def _pack_str(buf: bytearray, text: str) -> None:
-    data = text.encode("utf-8")
-    buf += _ZEROS[-(len(buf) - HEADER) % 4]
-    buf += _U32.pack(len(data) + 1)
-    buf += data
-    buf += b"\x00"
-
-
-def _prim_packer(size: int, pack: Callable[[Any], bytes]) -> Packer:
-    def op(buf: bytearray, value: Any) -> None:
-        buf += _ZEROS[-(len(buf) - HEADER) % size]
-        buf += pack(value)
-    return op
-
-
-def _numbers_packer(f: Field) -> Packer:
-    dtype, size, fixed = f.dtype, f.dtype.itemsize, f.kind == "array"
-    code = _ARRAY_CODES.get(dtype.str)
-
-    def op(buf: bytearray, value: Any) -> None:
-        if code is not None and isinstance(value, (list, tuple)):
-            data = array.array(code, value).tobytes()
-        else:
-            data = np.asarray(value, dtype=dtype).tobytes()
-        n = len(data) // size
-        if fixed and n != f.size:
-            raise ValueError(f"{f.name}: {n} values for a {f.size}-array")
-        if not fixed:
-            buf += _ZEROS[-(len(buf) - HEADER) % 4]
-            buf += _U32.pack(n)
-        if n:
-            buf += _ZEROS[-(len(buf) - HEADER) % size]
-            buf += data
-    return op
-
-
-def _strings_packer(f: Field) -> Packer:
-    """A sequence (or fixed array) of strings; the same list at the same alignment packs to the same bytes,
-    kept for the next message (a topic's labels and names rarely change)."""
-    cache: dict[tuple, bytes] = {}
-
-    def op(buf: bytearray, value: Any) -> None:
-        if f.kind == "strarray" and len(value) != f.size:
-            raise ValueError(f"{f.name}: {len(value)} strings for a {f.size}-array")
-        key = ((len(buf) - HEADER) % 4, *value)
-        packed = cache.get(key)
-        if packed is None:
-            part = bytearray(ENCAPSULATION + bytes(key[0]))  # the same alignment as in buf
-            if f.kind == "strseq":
-                part += _ZEROS[-key[0] % 4]
-                part += _U32.pack(len(value))
-            for text in value:
-                _pack_str(part, text)
-            if len(cache) >= _STRINGS_CACHE:
-                cache.clear()
-            packed = cache[key] = bytes(part[HEADER + key[0]:])
-        buf += packed
-    return op
-
-
-# --- deserialize ------------------------------------------------------------------------------------------
-
-def deserialize(type_name: str, data: bytes) -> Any:
-    """A light message of ``type_name`` from its CDR bytes (little-endian plain CDR, as rclpy writes it).
-    Number sequences and arrays come as writable numpy arrays (rclpy gives array.array / numpy)."""
-    if data[:2] != ENCAPSULATION[:2]:
-        raise ValueError(f"{type_name}: not little-endian plain CDR (encapsulation {bytes(data[:2]).hex()})")
-    buf = bytearray(data)
-    try:
-        msg, end = _unpacker(type_name)(buf, HEADER)
-    except struct.error as err:
-        raise ValueError(f"{type_name}: message ends early (truncated or another type): {err}") from None
-    if end > len(buf):
-        raise ValueError(f"{type_name}: message ends {end - len(buf)} bytes early (truncated or another type)")
-    return msg
-
-
-@lru_cache(maxsize=None)
-def _unpacker(type_name: str) -> Unpacker:
-    mtype = compiled(type_name)
-    lite = mtype.lite
-    ops = tuple((f.name, _op(f, UNPACK)) for f in mtype.fields)
-
-    def unpack(buf: bytearray, pos: int) -> tuple[Any, int]:
-        msg = lite.__new__(lite)
-        for name, op in ops:
-            value, pos = op(buf, pos)
-            setattr(msg, name, value)
-        return msg, pos
-    return unpack
-
-
-def _count(buf: bytearray, pos: int) -> tuple[int, int]:
-    pos += -(pos - HEADER) % 4
-    return _U32.unpack_from(buf, pos)[0], pos + 4
-
-
-def _prim_unpacker(size: int, unpack_from: Callable) -> Unpacker:
-    def op(buf: bytearray, pos: int) -> tuple[Any, int]:
-        pos += -(pos - HEADER) % size
-        return unpack_from(buf, pos)[0], pos + size
-    return op
-
-
-def _unpack_str(buf: bytearray, pos: int) -> tuple[str, int]:
-    n, pos = _count(buf, pos)
-    return buf[pos:pos + max(n - 1, 0)].decode("utf-8"), pos + n
-
-
-def _numbers_unpacker(f: Field) -> Unpacker:
-    dtype, size, fixed = f.dtype, f.dtype.itemsize, f.kind == "array"
-
-    def op(buf: bytearray, pos: int) -> tuple[Any, int]:
-        if fixed:
-            n = f.size
-        else:
-            n, pos = _count(buf, pos)
-        if not n:
-            return np.empty(0, dtype), pos
-        pos += -(pos - HEADER) % size
-        return np.frombuffer(buf, dtype, n, pos), pos + n * size
-    return op
-
-
-def _strings_unpacker(f: Field) -> Unpacker:
-    def op(buf: bytearray, pos: int) -> tuple[list[str], int]:
-        if f.kind == "strarray":
-            n = f.size
-        else:
-            n, pos = _count(buf, pos)
-        out = []
-        for _ in range(n):
-            text, pos = _unpack_str(buf, pos)
-            out.append(text)
-        return out, pos
-    return op
-
-
-# --- one packer and one unpacker per kind of field --------------------------------------------------------
-
-PACK, UNPACK = 0, 1
-_OPS: dict[str, tuple[Callable[[Field], Packer], Callable[[Field], Unpacker]]] = {
-    "prim": (lambda f: _prim_packer(f.dtype.itemsize, f.packer.pack),
-             lambda f: _prim_unpacker(f.dtype.itemsize, f.packer.unpack_from)),
-    "msg": (lambda f: _packer(f.sub.name), lambda f: _unpacker(f.sub.name)),
-    "str": (lambda f: _pack_str, lambda f: _unpack_str),
-    "array": (_numbers_packer, _numbers_unpacker),
-    "seq": (_numbers_packer, _numbers_unpacker),
-    "strarray": (_strings_packer, _strings_unpacker),
-    "strseq": (_strings_packer, _strings_unpacker),
-}
-
-
-def _op(f: Field, direction: int) -> Callable:
-    """The op that appends field ``f`` to a buffer (PACK) or reads it at a position (UNPACK)."""
-    return _OPS[f.kind][direction](f)
+if __name__ == "__main__":  # pragma: no cover
+    _timings()
