@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from bench_engine.config import load_scenario, scenario_seed, select_variant
-from bench_engine.graph import TRUTH_TOPIC, measurement_topic, resolve_filters
+from bench_engine.graph import TRUTH_TOPIC, measurement_topic, resolve_estimators
 from bench_engine.inprocess import run_in_process
 from star_tracker.camera_stage import StarCameraStage, read_cameras
 from star_tracker.tracker_stage import StarTrackerStage, read_trackers
@@ -62,7 +62,7 @@ def main() -> None:
     cfg = select_variant(load_scenario(args.scenario, args.set), args.variant)
     seed = scenario_seed(cfg) if args.seed is None else args.seed
     requested = args.filters.split(",") if args.filters else None
-    filters = [n for n in read_trackers(cfg) if n in resolve_filters(cfg, requested)]
+    filters = [n for n in read_trackers(cfg) if n in resolve_estimators(cfg, requested)]
     runs = [time_cores(cfg, filters, seed) for _ in range(args.repeat)]
     frames = len(next(iter(runs[0].values())))
     print(f"{args.scenario}{' --variant ' + args.variant if args.variant else ''}: {frames} frames, seed {seed}, "

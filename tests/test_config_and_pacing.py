@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
-from bench_engine.graph import build_graph, filter_config
+from bench_engine.graph import build_graph
+from tracker_filters.filter_stage import filter_config
 from bench_engine.launcher import validate
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time

@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 from rclpy.node import Node
 
 from bench_engine.config import ScenarioError, load_scenario
-from bench_engine.graph import build_graph, node_kinds, resolve_filters
+from bench_engine.graph import build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import YAML_SUFFIX, flatten, node_settings, parameters_file, unflatten
 from bench_engine import plugins
 
@@ -74,7 +74,7 @@ def test_conflicting_parameters_are_refused() -> None:
 @pytest.mark.parametrize("scenario", sorted(plugins.names("scenarios")))
 def test_every_node_of_every_study_gets_its_kinds_settings_back(scenario: str) -> None:
     cfg = load_scenario(scenario)
-    graph = build_graph(cfg, resolve_filters(cfg, None))
+    graph = build_graph(cfg, resolve_estimators(cfg, None))
     for spec in graph.nodes:
         assert node_settings(cfg, spec.kind, spec.name) == _numbers_as_floats(
             node_kinds()[spec.kind].settings(cfg, spec.name)), spec.name
@@ -91,7 +91,7 @@ def test_a_filter_is_given_its_own_settings_and_the_models_it_reads_only() -> No
 @pytest.mark.parametrize("scenario", ["leo_radar", "grace_velocity", "star_tracker"])
 def test_rcl_reads_the_parameters_files_as_written(tmp_path, scenario: str) -> None:
     cfg = load_scenario(scenario)
-    graph = build_graph(cfg, resolve_filters(cfg, None))
+    graph = build_graph(cfg, resolve_estimators(cfg, None))
     context = rclpy.Context()
     files = []
     for spec in graph.nodes:

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench_engine.config import ScenarioError, apply_overrides, available_scenarios, load_scenario, override_strings
-from bench_engine.graph import build_graph, resolve_filters
+from bench_engine.graph import build_graph, resolve_estimators
 from bench_engine.launcher import validate
 
 
@@ -32,7 +32,7 @@ VALUES = st.one_of(
 def plan_or_clean_error(scenario: str, overrides: dict) -> None:
     try:
         cfg = apply_overrides(load_scenario(scenario), override_strings(overrides))
-        filters = resolve_filters(cfg, None)
+        filters = resolve_estimators(cfg, None)
         validate(cfg, filters, "truth")
         build_graph(cfg, filters)
     except ScenarioError as err:

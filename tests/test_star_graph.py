@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, override_strings, select_variant
-from bench_engine.graph import build_graph, resolve_filters
+from bench_engine.graph import build_graph, resolve_estimators
 from bench_engine.inprocess import run_in_process
 from bench_engine.launcher import validate
 from graph_helpers import read_bag, script, stamp
@@ -88,7 +88,7 @@ def test_any_override_gives_a_run_plan_or_a_clean_error(data):
     overrides = {k: data.draw(VALUES) for k in keys}
     try:
         cfg = apply_overrides(load_scenario("star_tracker"), override_strings(overrides))
-        filters = resolve_filters(cfg, None)
+        filters = resolve_estimators(cfg, None)
         validate(cfg, filters, "truth")
         build_graph(cfg, filters)
     except ScenarioError as err:
@@ -100,7 +100,7 @@ def test_every_variant_and_sweep_cell_resolves():
     cfg = load_scenario("star_tracker")
     for variant in cfg["variants"]:
         one = select_variant(cfg, variant)
-        validate(one, resolve_filters(one, None), "truth")
+        validate(one, resolve_estimators(one, None), "truth")
     grid = load_grid("star_tracker", "tables")
     assert len(grid.cells) == 18
     from bench_studies.star_tracker.report import paper_case
@@ -198,5 +198,5 @@ def test_truth_is_the_attitude_of_the_frames():
 def test_bad_configuration_is_a_clean_error(bad):
     cfg = apply_overrides(load_scenario("star_tracker"), override_strings(bad))
     with pytest.raises(ScenarioError):
-        filters = resolve_filters(cfg, None)
+        filters = resolve_estimators(cfg, None)
         validate(cfg, filters, "truth")

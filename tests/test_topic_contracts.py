@@ -75,3 +75,30 @@ def test_repeated_labels_are_refused_rather_than_matched_at_random() -> None:
     data = _bag(["x", "x"], ["x", "y"], np.zeros((1, 2)), np.zeros((1, 2, 2)), np.zeros((1, 2)))
     with pytest.raises(ValueError, match="repeats state labels"):
         track_of(data, "f")
+
+
+def _kind(name: str, claims=None, takes_unclaimed: bool = False):
+    from bench_engine.graph import NodeKind
+    return NodeKind(name, "estimator", "x:Y", instances=lambda cfg, names: names,
+                    spec=lambda cfg, n: NodeSpec(n, name), claims=claims, takes_unclaimed=takes_unclaimed)
+
+
+def test_each_selected_estimator_belongs_to_the_one_kind_whose_section_defines_it() -> None:
+    from bench_engine.graph import owners
+    filters = _kind("filter", lambda cfg: ["ukf"], takes_unclaimed=True)
+    stars = _kind("star_tracker", lambda cfg: ["sna", "jpdaf"])
+    lag = _kind("fixed_lag")
+    assert owners({}, ["ukf", "sna", "cqkf"], [filters, stars, lag]) == {"filter": ["ukf", "cqkf"],
+                                                                          "star_tracker": ["sna"]}
+    with pytest.raises(ScenarioError, match="'sna' is defined by more than one"):
+        owners({}, ["sna"], [filters, stars, _kind("other", lambda cfg: ["sna"])])
+    with pytest.raises(ScenarioError, match="no section of the scenario defines estimator 'cqkf'"):
+        owners({}, ["cqkf"], [stars])
+
+
+def test_the_star_tracker_scenario_gives_its_trackers_to_their_kind_and_nothing_to_the_filters() -> None:
+    from bench_engine.config import load_scenario
+    from bench_engine.graph import build_graph
+    cfg = load_scenario("star_tracker")
+    kinds = {n.name: n.kind for n in build_graph(cfg, None, record=False).of_role("estimator")}
+    assert set(kinds.values()) == {"star_tracker"} and set(kinds) == set(cfg["default_filters"])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario
-from bench_engine.graph import resolve_filters
+from bench_engine.graph import resolve_estimators
 from bench_engine.inprocess import run_in_process
 from bench_engine.launcher import validate
 from bench_engine.stage import DetectionSet, Measurement
@@ -186,10 +186,10 @@ def test_detection_set_codec_round_trip(n):
 ])
 def test_bad_tracker_and_clutter_keys_are_named(override, named):
     cfg = load_scenario(DEMO)
-    validate(cfg, resolve_filters(cfg, None), "truth")  # the scenario itself is valid
+    validate(cfg, resolve_estimators(cfg, None), "truth")  # the scenario itself is valid
     bad = apply_overrides(cfg, [override])
     with pytest.raises(ScenarioError, match=named.replace(".", r"\.")):
-        validate(bad, resolve_filters(bad, None), "truth")
+        validate(bad, resolve_estimators(bad, None), "truth")
 
 
 # ---- the tracker --------------------------------------------------------------------------------------------

@@ -25,7 +25,9 @@ setup(
         "tracking_bench.sections": [
             "trackers = tracker_filters.tracker_stage:read_trackers",
             "derived_measurements = tracker_filters.derived:read_derived",
-            "fixed_lag_smoothers = tracker_filters.fixed_lag:read_fixed_lag"],
+            "fixed_lag_smoothers = tracker_filters.fixed_lag:read_fixed_lag",
+            "filters = tracker_filters.filter_stage:read_filters",
+            "filter_defaults = tracker_filters.filter_stage:read_filters"],
         "tracking_bench.node_kinds": [
             "filter = tracker_filters.filter_stage:FILTER",
             "tracker = tracker_filters.tracker_stage:TRACKER",

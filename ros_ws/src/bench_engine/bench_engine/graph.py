@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, merge
+from bench_engine.config import ScenarioError
 
 TRUTH_TOPIC = "/truth/state"
 CLOCK_TOPIC = "/clock"
@@ -80,8 +80,8 @@ class NodeSpec:
 
 @dataclass(frozen=True)
 class NodeKind:
-    """A registered kind of node. ``instances(cfg, requested)`` names the kind's nodes in a scenario
-    (``requested``: the run's --filters selection, or None); ``spec(cfg, name)`` gives one node's
+    """A registered kind of node. ``instances(cfg, selected)`` names the kind's nodes in a scenario
+    (``selected``: the run's selected estimators, see ``claims``); ``spec(cfg, name)`` gives one node's
     :class:`NodeSpec` (topics); ``check(cfg, name)`` builds its core objects once and raises ScenarioError
     naming a bad key; ``stage(cfg, name, run)`` builds the rclpy-free core the node and the in-process
     runner (bench_engine.inprocess) drive."""
@@ -89,12 +89,20 @@ class NodeKind:
     name: str
     role: str
     node: str
-    instances: Callable[[dict, list[str] | None], list[str]]
+    instances: Callable[[dict, list[str]], list[str]]
     spec: Callable[[dict, str], NodeSpec]
     check: Callable[[dict, str], None] | None = None
     stage: Callable[[dict, str, dict], object] | None = None
     order: int = 0
     """Build order among kinds of one role (lower first)."""
+    claims: Callable[[dict], list[str]] | None = None
+    """For an estimator kind whose nodes a run selects by name (``--filters``, ``default_filters``): the names
+    its own scenario section defines. Each selected name belongs to the one kind claiming it (or, unclaimed, to
+    the kind that ``takes_unclaimed``), and such a kind's ``instances`` receives only its own names; every
+    other kind receives the whole selection (e.g. a smoother of a selected filter)."""
+    takes_unclaimed: bool = False
+    """This kind owns the selected names no kind claims (the filter kind: a name without a section is a
+    filter of that type)."""
     reads: Callable[[dict, str], dict] | None = None
     """``reads(cfg, name)``: the part of the scenario node ``name``'s core reads, which is all it is given (its
     ROS parameters, bench_engine.parameters); None: every key but the launcher's own (RUN_ONLY_KEYS)."""
@@ -166,33 +174,37 @@ class Graph:
         return list(reversed(self.topological()))
 
 
-def resolve_filters(cfg: dict, requested: list[str] | None) -> list[str]:
-    """The filter node names of the run: ``requested`` or the scenario's ``default_filters``."""
-    filters = cfg.get("filters") or {}
-    if not isinstance(filters, dict):
-        raise ScenarioError(f"'filters' must be a mapping of filter names to settings, got {filters!r}")
-    names = requested or cfg.get("default_filters") or list(filters)
+def resolve_estimators(cfg: dict, requested: list[str] | None) -> list[str]:
+    """The run's selected estimators, of any kind: ``requested`` (the launcher's ``--filters``), else the
+    scenario's ``default_filters``, else every estimator a kind's section defines (``NodeKind.claims``)."""
+    names = requested or cfg.get("default_filters") or [
+        n for k in node_kinds().values() if k.claims is not None for n in k.claims(cfg)]
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise ScenarioError(f"'default_filters' must be a list of filter names, got {names!r}")
+        raise ScenarioError(f"'default_filters' must be a list of estimator names, got {names!r}")
     if not names:
-        raise ScenarioError("no filters requested and the scenario has no 'default_filters'")
+        raise ScenarioError("no estimators requested and the scenario has no 'default_filters'")
     if len(set(names)) != len(names):
-        raise ScenarioError(f"filter names must be unique, got {names}")
+        raise ScenarioError(f"estimator names must be unique, got {names}")
     for name in names:
         if not name.replace("_", "").isalnum():
-            raise ScenarioError(f"filter name '{name}' must be letters, digits and underscores")
+            raise ScenarioError(f"estimator name '{name}' must be letters, digits and underscores")
     return list(names)
 
 
-def filter_config(cfg: dict, name: str) -> dict:
-    """A filter's settings: ``filter_defaults`` merged with ``filters.NAME`` (type defaults to NAME)."""
-    defaults, own = cfg.get("filter_defaults") or {}, (cfg.get("filters") or {}).get(name) or {}
-    for key, value in (("filter_defaults", defaults), (f"filters.{name}", own)):
-        if not isinstance(value, dict):
-            raise ScenarioError(f"'{key}' must be a mapping of settings, got {value!r}")
-    merged = merge(defaults, own)
-    merged.setdefault("type", name)
-    return merged
+def owners(cfg: dict, selected: list[str], kinds: list[NodeKind]) -> dict[str, list[str]]:
+    """Kind name -> the selected estimators it owns: each name belongs to the one kind that claims it, or to
+    the kind that takes unclaimed names (ScenarioError for a name two kinds claim, or that no kind takes)."""
+    claims = {k.name: set(k.claims(cfg)) for k in kinds if k.claims is not None}
+    fallback = [k.name for k in kinds if k.name in claims and k.takes_unclaimed]
+    owned: dict[str, list[str]] = {kind: [] for kind in claims}
+    for name in selected:
+        claim = [kind for kind, names in claims.items() if name in names]
+        if len(claim) > 1:
+            raise ScenarioError(f"estimator '{name}' is defined by more than one kind's section: {claim}")
+        if not claim and not fallback:
+            raise ScenarioError(f"no section of the scenario defines estimator '{name}'")
+        owned[(claim or fallback)[0]].append(name)
+    return owned
 
 
 def node_kinds() -> dict[str, NodeKind]:
@@ -200,39 +212,43 @@ def node_kinds() -> dict[str, NodeKind]:
     return plugins.registered("node_kinds")
 
 
-def _kind_nodes(kind: NodeKind, cfg: dict, requested: list[str] | None) -> list[NodeSpec]:
+def _kind_nodes(kind: NodeKind, cfg: dict, selected: list[str]) -> list[NodeSpec]:
     specs = []
-    for name in kind.instances(cfg, requested):
+    for name in kind.instances(cfg, selected):
         spec = kind.spec(cfg, name)
         spec.kind, spec.role, spec.node = kind.name, kind.role, kind.node
         specs.append(spec)
     return specs
 
 
-def build_graph(cfg: dict, filters: list[str] | None, record: bool = True, source: str = "truth") -> Graph:
+def build_graph(cfg: dict, estimators: list[str] | None, record: bool = True, source: str = "truth") -> Graph:
     """Nodes of a run: the pacing source (``truth``, or the bag ``player`` on replay), every registered
-    sensor-role and estimator-role kind's instances, and the recorder. Raises ScenarioError for a topic
-    nobody publishes, a topic two nodes publish, a duplicate node name or a cycle."""
+    sensor-role and estimator-role kind's instances for the selected ``estimators`` (None: the scenario's,
+    :func:`resolve_estimators`), and the recorder. Raises ScenarioError for a topic nobody publishes, a topic
+    two nodes publish, a duplicate node name or a cycle."""
     kinds = sorted(node_kinds().values(), key=lambda k: (ROLES.index(k.role), k.order, k.name))
     by_name = {k.name: k for k in kinds}
     if source not in by_name or by_name[source].role not in ("source", "replay"):
         sources = [k.name for k in kinds if k.role in ("source", "replay")]
         raise ScenarioError(f"unknown pacing source {source!r}; registered sources: {sources}")
-    truth = [s for k in kinds if k.role == "source" for s in _kind_nodes(k, cfg, filters)]
-    sensors = [s for k in kinds if k.role == "sensor" for s in _kind_nodes(k, cfg, filters)]
-    estimators = [s for k in kinds if k.role == "estimator" for s in _kind_nodes(k, cfg, filters)]
+    selected = resolve_estimators(cfg, estimators)
+    owned = owners(cfg, selected, [k for k in kinds if k.role == "estimator"])
+
+    def of_role(role: str) -> list[NodeSpec]:
+        return [s for k in kinds if k.role == role for s in _kind_nodes(k, cfg, owned.get(k.name, selected))]
+    truth, sensors, estimator_nodes = of_role("source"), of_role("sensor"), of_role("estimator")
     if by_name[source].role == "source":
         nodes = [s for s in truth if s.kind == source] + sensors
     else:  # replay: the player publishes what the truth and the sensors recorded
-        player = _kind_nodes(by_name[source], cfg, filters)[0]
+        player = _kind_nodes(by_name[source], cfg, selected)[0]
         for spec in truth + sensors:
             player.publishes.update(spec.publishes)
         nodes = [player]
-    nodes += estimators
+    nodes += estimator_nodes
     _check_topic_contract(nodes)
     _resolve_topics(nodes)
     if record:
-        recorder = [s for k in kinds if k.role == "recorder" for s in _kind_nodes(k, cfg, filters)]
+        recorder = of_role("recorder")
         for spec in recorder:
             for node in nodes:
                 spec.subscribes.update(node.publishes)

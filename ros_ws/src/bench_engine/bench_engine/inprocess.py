@@ -15,7 +15,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from bench_engine.config import scenario_seed
-from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_settings
 from bench_engine.stage import Item, Log
 
@@ -40,7 +40,7 @@ def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None
     truth and the sensors only (the measurements, without estimators)."""
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
-    graph = build_graph(cfg, resolve_filters(cfg, filters), record=False)
+    graph = build_graph(cfg, resolve_estimators(cfg, filters), record=False)
     run = InProcessRun(graph, {t: [] for t in graph.data_topics() if t != CLOCK_TOPIC})
     context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()

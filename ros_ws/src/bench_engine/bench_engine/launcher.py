@@ -21,15 +21,14 @@ from bench_engine import phases, plugins
 from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
                                  select_variant)
 from bench_engine.domains import DomainInUse, reserve
-from bench_engine.graph import Graph, build_graph, node_kinds, resolve_filters
+from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import flatten, node_settings, parameters_file
 from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 
 ENGINE_KEYS = ("scenario", "description", "seed", "time", "default_filters", "variants", "sweeps")
-"""Top-level keys the engine reads itself; the other sections are registered (``tracking_bench.sections``)
-or read by the node kinds (``sensors``, ``filters``, ``filter_defaults``)."""
-NODE_SECTIONS = ("sensors", "filters", "filter_defaults")
+"""Top-level keys the engine reads itself (``default_filters``: the run's estimators, of any kind); every
+other section is registered by the package that reads it (``tracking_bench.sections``)."""
 MAX_DOMAIN_ID = 101
 
 
@@ -84,7 +83,7 @@ def validate(cfg: dict, filters: list[str], source: str) -> None:
     top.get("default_filters", list, [])
     top.get("variants", dict, {})
     top.get("sweeps", dict, {})
-    top.mark(*ENGINE_KEYS, *NODE_SECTIONS, *sections)
+    top.mark(*ENGINE_KEYS, *sections)
     top.finish()
     build_time(cfg)
     for read in sections.values():
@@ -114,7 +113,7 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
         cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
-    names = resolve_filters(cfg, filters)
+    names = resolve_estimators(cfg, filters)
     validate(cfg, names, source)
     graph = build_graph(cfg, names, record, source)
     out = Path(out).resolve()

@@ -34,9 +34,9 @@ class OfflineEstimator:
 
 
 def _source_dynamics(cfg: dict, source: str):
-    from bench_engine.graph import resolve_filters
+    from bench_engine.graph import resolve_estimators
     from tracker_filters.builders import build_filter_stack
-    if source not in (cfg.get("filters") or {}) and source not in resolve_filters(cfg, None):
+    if source not in (cfg.get("filters") or {}) and source not in resolve_estimators(cfg, None):
         raise ScenarioError(f"'scoring.offline': source '{source}' is not a filter of the scenario")
     return build_filter_stack(cfg, source).filter.dynamics
 

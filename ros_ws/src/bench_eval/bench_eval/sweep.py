@@ -37,7 +37,8 @@ from typing import Any, Mapping
 
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
-from bench_engine.graph import filter_config, resolve_filters
+from bench_engine.graph import resolve_estimators
+from tracker_filters.filter_stage import filter_config
 from bench_eval.metrics import json_ready
 from bench_eval.study import study
 
@@ -224,7 +225,7 @@ def run_dir(out: Path, cell: Cell, i: int) -> Path:
 def cell_record(grid: Grid, cell: Cell) -> dict:
     """The JSON description of a cell (its score is added when it has run)."""
     filters = {}
-    for name in resolve_filters(cell.cfg, None):
+    for name in resolve_estimators(cell.cfg, None):
         dyn = filter_config(cell.cfg, name).get("dynamics") or {}
         filters[name] = {"model": dyn.get("model"), "sigma_accel": dyn.get("sigma_accel")}
     found = study(grid.scenario)

@@ -32,7 +32,7 @@ from functools import lru_cache
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section, merge
-from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic, resolve_filters
+from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from star_tracker.camera_stage import camera_config, read_cameras
 from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame
@@ -178,11 +178,6 @@ class StarTrackerStage:
         return out
 
 
-def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
-    running = resolve_filters(cfg, requested)
-    return [n for n in read_trackers(cfg) if n in running]
-
-
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = tracker_config(cfg, name)
     return NodeSpec(name, "star_tracker", publishes={estimate_topic(name): ESTIMATE_TYPE,
@@ -196,5 +191,6 @@ def _check(cfg: dict, name: str) -> None:
     build_pipeline(cfg, name)
 
 
-STAR_TRACKER = NodeKind("star_tracker", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
-                        spec=_spec, check=_check, stage=StarTrackerStage)
+STAR_TRACKER = NodeKind("star_tracker", "estimator", "bench_engine.stage_node:StageNode",
+                        instances=lambda cfg, names: list(names), spec=_spec, check=_check, stage=StarTrackerStage,
+                        claims=lambda cfg: list(read_trackers(cfg)))

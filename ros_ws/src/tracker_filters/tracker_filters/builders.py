@@ -21,13 +21,13 @@ import numpy as np
 from orbit_sim import relative
 from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine import plugins
-from bench_engine.graph import filter_config
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
 from radar_sensor.sensor import Sensor, build_sensor
 from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
 from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
+from tracker_filters.filter_stage import filter_config
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.models import DynamicsModel, ScanPositionModel

@@ -20,9 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section
-from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, resolve_filters
+from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Outputs, python_log
-from tracker_filters.smoothing import smooth_estimates
 
 SECTION = "fixed_lag_smoothers"
 
@@ -73,6 +72,7 @@ class FixedLagSmoother:
 
     def _smoothed_oldest(self) -> Estimate:
         """RTS backward pass (tracker_filters.smoothing) from the newest estimate of the window to the oldest."""
+        from tracker_filters.smoothing import smooth_estimates   # scipy: not for every node reading the kind
         items = list(self.window)
         dts = [(b.t_ns - a.t_ns) * 1e-9 for a, b in zip(items[:-1], items[1:])]
         x_s, P_s = smooth_estimates(self.dynamics, dts, np.array([e.x for e in items]),
@@ -82,9 +82,9 @@ class FixedLagSmoother:
                         P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
 
 
-def _instances(cfg: dict, requested: list[str] | None) -> list[str]:
-    running = resolve_filters(cfg, requested)
-    return [n for n, c in read_fixed_lag(cfg).items() if c.source in running]
+def _instances(cfg: dict, selected: list[str]) -> list[str]:
+    """The smoothers of the run's selected estimators."""
+    return [n for n, c in read_fixed_lag(cfg).items() if c.source in selected]
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:

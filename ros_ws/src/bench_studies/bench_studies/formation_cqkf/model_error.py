@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section, apply_overrides
-from bench_engine.graph import filter_config, resolve_filters
+from bench_engine.graph import resolve_estimators
+from tracker_filters.filter_stage import filter_config
 from orbit_sim.truth import build_truth
 
 INTERVALS_S = (1.0, 10.0)
@@ -36,7 +37,7 @@ def filter_dynamics(cfg: dict) -> dict[str, object]:
     """Each default filter's dynamics model, built exactly as the filter node builds it."""
     from tracker_filters.builders import build_dynamics
     return {name: build_dynamics(Section(filter_config(cfg, name).get("dynamics"), f"filters.{name}.dynamics"), cfg)
-            for name in resolve_filters(cfg, None)}
+            for name in resolve_estimators(cfg, None)}
 
 
 def truth_acceleration(t: np.ndarray, states: np.ndarray) -> np.ndarray:
