@@ -14,14 +14,12 @@ from typing import Any, Callable, Iterable
 
 import yaml
 
-
-class ScenarioError(ValueError):
-    """A scenario key or value is wrong; the message names the key and what is allowed."""
+from bench_engine import plugins
+from bench_engine.errors import ScenarioError   # defined below plugins, which raises it too; imported from here
 
 
 def _registered_scenarios() -> dict[str, Path]:
     """Scenario files registered by the studies (entry-point group ``tracking_bench.scenarios``)."""
-    from bench_engine import plugins
     return {name: Path(str(plugins.load("scenarios", name))) for name in plugins.names("scenarios")}
 
 

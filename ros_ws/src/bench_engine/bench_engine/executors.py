@@ -19,7 +19,7 @@ import signal
 from dataclasses import replace
 from typing import Callable
 
-from bench_engine.batch import RunResult, RunSpec, complete, run_one
+from bench_engine.batch_run import RunResult, RunSpec, complete, run_one
 
 RUN_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "OPENBLAS_NUM_THREADS": "1"}
 PR_SET_PDEATHSIG = 1

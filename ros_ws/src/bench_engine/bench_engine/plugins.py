@@ -17,7 +17,7 @@ from __future__ import annotations
 from functools import lru_cache
 from importlib.metadata import entry_points
 
-from bench_engine.config import ScenarioError
+from bench_engine.errors import ScenarioError
 
 GROUPS = {
     "node_kinds": "tracking_bench.node_kinds",      # NodeKind (bench_engine.graph)

