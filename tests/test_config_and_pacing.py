@@ -5,7 +5,7 @@ import pytest
 
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
 from bench_engine.graph import build_graph
-from tracker_filters.filter_stage import filter_config
+from tracker_filters.filter_settings import filter_config
 from bench_engine.launcher import validate
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
@@ -58,7 +58,10 @@ def test_graph_expects_every_subscriber_before_starting() -> None:
     assert graph.expected_subscribers("/radar/measurement") == 3  # ekf + ukf + recorder
     assert graph.expected_subscribers("/ukf/estimate") == 1
     assert set(graph.data_topics()) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate",
-                                        "/ukf/estimate"}
+                                        "/ukf/estimate", "/truth/odometry", "/truth/pose", "/truth/markers",
+                                        *(f"/{n}/{v}" for n in ("ekf", "ukf")  # standard views (bench_engine.views)
+                                          for v in ("odometry", "pose", "attitude", "diagnostics", "markers"))}
+    assert graph.expected_subscribers("/ukf/odometry") == 1  # the recorder
 
 
 def test_time_grid_uses_integer_nanoseconds() -> None:

@@ -26,8 +26,8 @@ setup(
             "trackers = tracker_filters.tracker_stage:read_trackers",
             "derived_measurements = tracker_filters.derived:read_derived",
             "fixed_lag_smoothers = tracker_filters.fixed_lag:read_fixed_lag",
-            "filters = tracker_filters.filter_stage:read_filters",
-            "filter_defaults = tracker_filters.filter_stage:read_filters"],
+            "filters = tracker_filters.filter_settings:read_filters",
+            "filter_defaults = tracker_filters.filter_settings:read_filters"],
         "tracking_bench.node_kinds": [
             "filter = tracker_filters.filter_stage:FILTER",
             "tracker = tracker_filters.tracker_stage:TRACKER",

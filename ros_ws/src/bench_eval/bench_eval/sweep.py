@@ -38,7 +38,7 @@ from typing import Any, Mapping
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
 from bench_engine.graph import resolve_estimators
-from tracker_filters.filter_stage import filter_config
+from tracker_filters.filter_settings import filter_config
 from bench_eval.metrics import json_ready
 from bench_eval.study import study
 

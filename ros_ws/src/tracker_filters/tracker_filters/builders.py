@@ -27,7 +27,7 @@ from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
 from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
-from tracker_filters.filter_stage import filter_config
+from tracker_filters.filter_settings import filter_config
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.models import DynamicsModel, ScanPositionModel

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, merge
+from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
 from radar_sensor.sensor_types import sensor_names
 from tracker_filters.derived import read_derived
+from tracker_filters.filter_settings import filter_config
 
 
 class FilterStage:
@@ -103,29 +104,6 @@ def _reads(cfg: dict, name: str) -> dict:
 def _check(cfg: dict, name: str) -> None:
     from tracker_filters.builders import build_filter_stack
     build_filter_stack(cfg, name)
-
-
-def filter_config(cfg: dict, name: str) -> dict:
-    """A filter's settings: ``filter_defaults`` merged with ``filters.NAME`` (type defaults to NAME)."""
-    defaults, own = cfg.get("filter_defaults") or {}, (cfg.get("filters") or {}).get(name) or {}
-    for key, value in (("filter_defaults", defaults), (f"filters.{name}", own)):
-        if not isinstance(value, dict):
-            raise ScenarioError(f"'{key}' must be a mapping of settings, got {value!r}")
-    merged = merge(defaults, own)
-    merged.setdefault("type", name)
-    return merged
-
-
-def read_filters(cfg: dict) -> dict[str, dict]:
-    """The ``filters`` section (registered reader of ``filters`` and ``filter_defaults``): each filter's merged
-    settings by name. The settings themselves are checked when each filter is built (builders)."""
-    filters = cfg.get("filters") or {}
-    if not isinstance(filters, dict):
-        raise ScenarioError(f"'filters' must be a mapping of filter names to settings, got {filters!r}")
-    for name in filters:
-        if not str(name).replace("_", "").isalnum():
-            raise ScenarioError(f"filter name '{name}' must be letters, digits and underscores")
-    return {name: filter_config(cfg, name) for name in filters}
 
 
 FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode",

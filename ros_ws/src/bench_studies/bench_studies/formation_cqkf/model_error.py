@@ -15,7 +15,7 @@ import numpy as np
 
 from bench_engine.config import ScenarioError, Section, apply_overrides
 from bench_engine.graph import resolve_estimators
-from tracker_filters.filter_stage import filter_config
+from tracker_filters.filter_settings import filter_config
 from orbit_sim.truth import build_truth
 
 INTERVALS_S = (1.0, 10.0)
