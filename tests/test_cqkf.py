@@ -251,3 +251,27 @@ def test_bearing_across_the_wrap_matches_the_rotated_problem(order):
         assert a.nis == pytest.approx(b.nis, rel=1e-3) and a.nis < 30.0
         assert np.allclose(rotate(wrapped.x, turn), rotated.x, atol=1e-3)
     assert np.all(np.abs(wrapped.x[:2] - truth[:2]) < 5.0)
+
+
+def test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario():
+    """formation_cqkf as configured (J2 truth of both spacecraft, range/angles every 1 s, one orbit; the CQKF
+    n' = 2 with the Schweighart-Sedwick model and the scenario's sigma), three seeded runs in process
+    (bench_engine.inprocess, no ROS), scored by the bench's own NEES code (bench_eval.metrics.nees_summary on
+    the scorer's tracks): the time-averaged NEES of position and velocity lies in the 95 % chi-square band of
+    the three-run average, chi2(6 N) / N (the rule the scenario's sigma was chosen by; the sweep measured 6.6).
+    A covariance 4x too large (NEES / 4) or too small (x 4) falls outside it."""
+    from scipy.special import chdtri
+    from bench_engine.config import load_scenario
+    from bench_eval.metrics import nees_summary
+    from bench_eval.scoring import track_of
+    from inprocess_bags import bag_data
+
+    cfg = load_scenario("formation_cqkf")
+    tracks = [track_of(bag_data(cfg, ["ss"], seed), "ss") for seed in (1, 2, 3)]
+    assert tracks[0].labels == ["x", "y", "z", "vx", "vy", "vz"] and tracks[0].t[-1] > 5900.0
+    summary = nees_summary(tracks)
+    lo, hi = summary["bounds"]
+    np.testing.assert_allclose([lo, hi], chdtri(18, [0.975, 0.025]) / 3, rtol=1e-12)
+    assert lo < summary["mean"] < hi, f"NEES {summary['mean']:.2f} outside [{lo:.2f}, {hi:.2f}]"
+    assert 4.0 * summary["mean"] > hi and summary["mean"] / 4.0 < lo     # the band tells a factor 4 apart
+    assert summary["fraction_inside"] > 0.7

@@ -148,3 +148,104 @@ def test_matching_from_a_known_attitude_identifies_new_stars(catalogue, pyramid)
     real = frame.truth >= 0
     np.testing.assert_array_equal(index[real], frame.truth[real])
     assert np.all(index[~real] == UNIDENTIFIED) and np.all(np.isinf(dist[~real]))
+
+
+# ------------------------------------------------------------------------------------------------------------
+# The Pyramid steps themselves, on star geometry built directly (no later stage may do their work for them).
+
+def _noise_free_frame(catalogue, seed: int = 0):
+    """Catalogue indices (brightest first) and camera-frame unit vectors b = A v of the stars in view."""
+    A = Rotation.from_euler("zyx", [40.0 + 25.0 * seed, -20.0, 10.0], degrees=True).as_matrix()
+    idx, _ = DEFAULT_CAMERA.stars_in_view(catalogue, A)
+    return A, idx, catalogue.vectors[idx] @ A.T
+
+
+def _theta(b):
+    from star_tracker.catalogue import angle_between
+    return angle_between(b[:, None, :], b[None, :, :])
+
+
+def test_the_triangle_step_refuses_a_mirrored_triangle_by_its_handedness(catalogue, pyramid):
+    """A mirror image has the same three angles as the catalogue triangle, so only the sign of the triple
+    product tells them apart: the triangle step must return the true triangle for the real stars and refuse
+    it for their mirror image (x -> -x in the camera frame), before any pyramid or attitude check."""
+    from star_tracker.pyramid import triple_product
+    checked = 0
+    for seed in range(3):
+        _, idx, b = _noise_free_frame(catalogue, seed)
+        theta = _theta(b)
+        for i, j, k in [(0, 1, 2), (1, 2, 3), (0, 2, 4)]:
+            s_obs = triple_product(b[i], b[j], b[k])
+            if abs(s_obs) < 1e-3:                              # a flat triangle carries no handedness
+                continue
+            true = (idx[i], idx[j], idx[k])
+            found = pyramid._triangle_candidates(b, theta, i, j, k, {})
+            assert true in set(map(tuple, found)), f"true triangle {true} not among {found}"
+            mirrored = b * np.array([-1.0, 1.0, 1.0])
+            np.testing.assert_allclose(_theta(mirrored), theta, atol=1e-15)   # the same angles ...
+            refused = pyramid._triangle_candidates(mirrored, theta, i, j, k, {})
+            assert true not in set(map(tuple, refused)), "a mirrored triangle was taken for the real one"
+            v = catalogue.vectors
+            for a, bb, c in refused:                           # ... and every candidate has its handedness
+                assert np.sign(triple_product(v[a], v[bb], v[c])) == np.sign(triple_product(*mirrored[[i, j, k]]))
+            checked += 1
+    assert checked >= 6
+
+
+def _fake_star(catalogue, pyramid, tri, X: int, sides: str):
+    """A direction whose nearest catalogue star is X and whose angles to the triangle's catalogue stars equal
+    X's on the named ``sides`` ("a", "b", "c" or two of them) only: moved along the circle about one triangle
+    star (one side kept), or reflected through the plane of two of them (two sides kept). None when X does not
+    give such a direction (the moved point must stay nearest to X, and be farther than two match radii)."""
+    from scipy.spatial.transform import Rotation as R
+    from star_tracker.catalogue import angle_between
+    v = catalogue.vectors
+    corners = dict(zip("abc", v[list(tri)]))
+    x = v[X]
+    if len(sides) == 1:
+        axis = corners[sides]
+        turn = 12.0 * pyramid.epsilon / np.sin(angle_between(axis, x))
+        options = [R.from_rotvec(s * turn * axis).as_matrix() @ x for s in (1.0, -1.0)]
+    else:
+        n = np.cross(corners[sides[0]], corners[sides[1]])
+        n /= np.linalg.norm(n)
+        options = [x - 2.0 * (x @ n) * n]
+    for p in options:
+        change = np.abs(angle_between(v[list(tri)], p) - angle_between(v[list(tri)], x))
+        kept = "".join(s for s, d in zip("abc", change) if d <= pyramid.epsilon)
+        sep = angle_between(p, x)
+        if (kept == sides and catalogue.tree.query(p)[1] == X
+                and 2.0 * pyramid.match_radius < sep < 40.0 * pyramid.match_radius):
+            return p
+    return None
+
+
+@pytest.mark.parametrize("sides", ["a", "b", "c", "ab", "ac", "bc"])
+def test_a_fourth_star_confirms_only_when_all_three_of_its_angles_match(catalogue, pyramid, sides):
+    """Step 2 (the pyramid): a fourth star confirms a triangle only if its nearest catalogue star is within ε
+    of the observed angle on all three sides. A false star built to match one or two sides exactly (and the
+    third by far more than ε) must not count as a confirmation; the real stars of the frame all do."""
+    from star_tracker.pyramid import UNIDENTIFIED as NONE
+    for seed in range(6):
+        A, idx, b = _noise_free_frame(catalogue, seed)
+        tri = tuple(int(i) for i in idx[:3])
+        for X in idx[3:]:
+            p = _fake_star(catalogue, pyramid, tri, int(X), sides)
+            if p is not None:
+                break
+        else:
+            continue
+        keep = idx != X                                    # X itself is not in the frame, only the fake near it
+        frame = np.vstack([b[keep], A @ p])
+        result = pyramid._confirm(frame, _theta(frame), (0, 1, 2), tri)
+        assert result is not None and result.ok
+        real_others = int(keep.sum()) - 3
+        assert result.stats["pyramid_confirmations"] == real_others, \
+            f"a false star matching side(s) {sides} only was counted as a confirmation"
+        assert result.index[-1] == NONE
+        # the control: the real star X in the same place is a confirmation
+        control = np.vstack([b[keep], b[idx == X]])
+        assert pyramid._confirm(control, _theta(control), (0, 1, 2), tri).stats["pyramid_confirmations"] \
+            == real_others + 1
+        return
+    pytest.fail(f"no star of six frames gives a fake matching side(s) {sides} only")
