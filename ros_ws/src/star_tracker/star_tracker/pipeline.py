@@ -51,13 +51,10 @@ from star_tracker.attitude import AttitudeSolution, error_vector, residuals, tri
 from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, StarCatalogue
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
+from star_tracker.options import AIDS, MOTIONS, SOLVERS, TRACKERS
 from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier
 from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, member, predict_centroids
 
-TRACKERS = ("sna", "jpdaf")
-SOLVERS = ("wahba", "triad")
-MOTIONS = ("constant_velocity", "coordinated_turn")
-AIDS = ("rate", "jitter", "none")
 BIAS_WINDOW = 10
 """Frames over which the JPDAF's filtered-versus-measured agreement is averaged (JPDAFTracking.unbiased)."""
 BIAS_MEAN = 6.0

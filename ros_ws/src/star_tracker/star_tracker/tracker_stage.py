@@ -36,6 +36,7 @@ from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from star_tracker.camera_stage import camera_config, read_cameras
 from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame
+from star_tracker.options import AIDS, MOTIONS, SOLVERS, TRACKERS
 
 SECTION = "star_trackers"
 DEFAULTS = "star_tracker_defaults"
@@ -66,7 +67,6 @@ class TrackerConfig:
 
 
 def _read_one(name: str, data: dict, cameras: list[str]) -> TrackerConfig:
-    from star_tracker.pipeline import AIDS, MOTIONS, SOLVERS, TRACKERS
     e = Section(data, f"{SECTION}.{name}")
     if not cameras:
         raise ScenarioError(f"star tracker '{name}' needs a camera: the scenario has no 'star_cameras'")
