@@ -26,7 +26,10 @@ def multiprocess_run(tmp_path_factory) -> Path:
 
 def test_bag_has_every_step_and_topic(multiprocess_run: Path) -> None:
     bag = read_bag(multiprocess_run / "bag")
-    assert set(bag) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate", "/ukf/estimate"}
+    assert set(bag) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate", "/ukf/estimate",
+                        # the standard views that have messages (bench_engine.views)
+                        "/truth/odometry", "/truth/markers",
+                        *(f"/{n}/{v}" for n in ("ekf", "ukf") for v in ("odometry", "diagnostics", "markers"))}
     truth = [m for _, m in bag["/truth/state"]]
     assert [m.step for m in truth] == list(range(STEPS))
     t = np.array([stamp(m) for m in truth])

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import shutil
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -21,6 +22,25 @@ import yaml
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError
 from bench_engine.executors import run_dask
+
+
+VIEWS_SWITCH = "standard_views"
+"""The scenario key of the standard views (bench_engine.views.SWITCH): a batch makes its runs without them
+(``--set standard_views=false``, unless a run's own overrides set it): they double a leo_radar step's messages
+(README, Speed) and the scorer does not read them."""
+
+
+def without_views(spec: RunSpec) -> RunSpec:
+    """``spec`` with the standard views turned off, unless its overrides set them."""
+    if any(o.split("=", 1)[0].strip() == VIEWS_SWITCH for o in spec.overrides):
+        return spec
+    return replace(spec, overrides=[f"{VIEWS_SWITCH}=false", *spec.overrides])
+
+
+def _comparable(cfg: dict) -> dict:
+    """A resolved scenario without the views switch: the views change no estimate, and a batch sets the switch
+    in its runs (without_views), not in the configuration its caller expects."""
+    return {k: v for k, v in cfg.items() if k != VIEWS_SWITCH}
 
 
 def reusable_run(out: Path, expected: dict, resume: bool) -> bool:
@@ -35,7 +55,7 @@ def reusable_run(out: Path, expected: dict, resume: bool) -> bool:
     if not complete(out):
         shutil.rmtree(out)
         return False
-    if yaml.safe_load((out / "bag" / "run_config.yaml").read_text())["scenario"] != expected:
+    if _comparable(yaml.safe_load((out / "bag" / "run_config.yaml").read_text())["scenario"]) != _comparable(expected):
         raise ScenarioError(f"{out} was run with another configuration or seed: remove it or choose another --out")
     if crosstalk(out / "bag", recorded_steps(out / "bag")):
         raise ScenarioError(f"{out} holds messages of another graph: remove it to run it again")
@@ -48,7 +68,9 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     """Run every spec, ``jobs`` at a time with a progress bar; ``domains`` (one per job) pins the ROS domains,
     else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread).
     ``scheduler``: run on a Dask cluster instead (an address or ``"local"``; bench_engine.executors), each
-    run retried up to ``retries`` times if it raises or its worker is lost."""
+    run retried up to ``retries`` times if it raises or its worker is lost. Runs are made without the standard
+    views (:func:`without_views`)."""
+    specs = [without_views(s) for s in specs]
     if scheduler is not None:
         return run_dask(specs, scheduler, jobs, desc, on_done, retries)
     from tqdm import tqdm

@@ -12,9 +12,13 @@ deserialiser per type; the bench registers its own types (bench_msgs, and any ot
 from the ``.msg`` files rosidl installed (bench_engine.msg_schema). This module only adds the light classes
 (installed as the typestore's classes, so rosbags' deserialiser builds them directly) and, before a message
 is serialised, turns the number sequences codecs set as lists into the numpy arrays rosbags writes. Bytes:
-plain CDR, little endian, padding zeroed, i.e. what rclpy sends except for the padding (rclpy leaves its
-reused buffer's bytes there): the bag digests of tests/test_bag_digests.py did not change when this module
-moved from a hand-written encoder to rosbags. tests/test_cdr.py checks both directions against rclpy on
+plain CDR, little endian, alignment padding zeroed, i.e. what rclpy sends except for the padding (rclpy leaves
+its reused buffer's bytes there), and a message is padded with zeros to a multiple of 4 bytes: DDS pads a
+payload it sends to another process so, and without it a message of another length (one ending in a string or
+a bool, as a DiagnosticArray or a Marker) would reach the recorder with 1–3 more bytes from a node in another
+process than from one in the same process (``--single-process``). Readers ignore the bytes after a message.
+The bag digests of tests/test_bag_digests.py did not change when this module moved from a hand-written
+encoder to rosbags (the bench's own messages are multiples of 4 bytes long). tests/test_cdr.py checks both directions against rclpy on
 random messages of every type the bench sends, its standard views (nav_msgs/Odometry,
 geometry_msgs/PoseWithCovarianceStamped, diagnostic_msgs/DiagnosticArray, visualization_msgs/MarkerArray:
 arrays of messages, which the hand-written encoder did not cover) included.
@@ -212,7 +216,8 @@ def _serializer(type_name: str) -> Callable[[Any], bytes]:
             msg = convert(msg)
         prepare(msg)
         try:
-            raw = bytearray(HEADER + getsize(0, msg, store))
+            size = getsize(0, msg, store)
+            raw = bytearray(HEADER + size + (-size & 3))  # zero padding to a multiple of 4 bytes (module doc)
             raw[1] = _LITTLE
             write(memoryview(raw)[HEADER:], 0, msg, store)
         except SerdeError as err:  # e.g. a fixed-size array of messages of another length

@@ -245,6 +245,8 @@ def build_graph(cfg: dict, estimators: list[str] | None, record: bool = True, so
             player.publishes.update(spec.publishes)
         nodes = [player]
     nodes += estimator_nodes
+    from bench_engine.views import add_standard_views  # (views imports this module)
+    add_standard_views(nodes, cfg)
     _check_topic_contract(nodes)
     _resolve_topics(nodes)
     if record:

@@ -21,6 +21,7 @@ from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DO
                                 node_kinds)
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
+from bench_engine.views import item_publishers
 
 
 class SourceNode(BenchNode):
@@ -131,8 +132,8 @@ class CoreSourceNode(SourceNode):
         self.core = node_kinds()[self.spec.kind].stage(self.settings, self.get_name(), self.run)
         self.steps = self.core.steps
         super().setup()
-        self.outputs = {topic: self.item_publisher(topic, type_name)
-                        for topic, type_name in self.spec.publishes.items() if topic != CLOCK_TOPIC}
+        self.outputs = item_publishers(self, {topic: type_name for topic, type_name in self.spec.publishes.items()
+                                              if topic != CLOCK_TOPIC})  # with the standard views (bench_engine.views)
 
     def publish_step(self, k: int) -> None:
         for topic, item in self.core.outputs(k):

@@ -16,6 +16,7 @@ from bench_engine.cdr import deserialize
 from bench_engine.graph import node_kinds
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Item, codec
+from bench_engine.views import item_publishers
 
 
 class StageNode(BenchNode):
@@ -30,8 +31,7 @@ class StageNode(BenchNode):
         self.stage.log = self._log
         self.consumed = 0
         self._last_step = 0
-        self.outputs = {topic: self.item_publisher(topic, type_name)
-                        for topic, type_name in self.spec.publishes.items()}
+        self.outputs = item_publishers(self, self.spec.publishes)  # with the standard views (bench_engine.views)
         self._resolved: dict[str, str] = {}
         """Graph topic -> the name it resolved to (namespace, remaps), as the node's warnings name it."""
         for topic, type_name in self.spec.subscribes.items():

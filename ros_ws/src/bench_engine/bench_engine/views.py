@@ -1,0 +1,437 @@
+"""The standard ROS views of the bench's estimates and truth: what RViz, Foxglove or any ROS tool can show.
+
+Every node that publishes estimates (``/NAME/estimate``, bench_msgs/StateEstimate) or the truth (``/NAME/state``,
+bench_msgs/TruthState) also publishes, on topics beside it, the standard messages that view each item, where the
+item's state holds what they need (selected by label, never by position). The topic suffixes are a contract
+(the constants below); :func:`add_standard_views` adds the topics to the graph (bench_engine.graph.build_graph),
+so the recorder records them and the pacing counts them, and :func:`item_publishers` is the node shells' one
+call that publishes them. A view topic whose message an item cannot fill gets nothing (a state without
+velocity gets no Odometry): pacing and the recorder count what was published, zero included. The scorer reads
+only ``/NAME/measurement``, ``/NAME/estimate`` and ``/truth/state``.
+
+Everything here is a pure conversion (item -> light message, bench_engine.cdr) except :func:`item_publishers`,
+which only calls the shell's own publisher methods; nothing imports rclpy. tests/test_views.py checks the
+conversions, tests/test_standard_outputs_graph.py a bag.
+
+Conventions:
+
+* frames: ``header.frame_id`` is the item's frame (``eci``, ``lvlh``, ``icrs``); an Odometry's
+  ``child_frame_id`` is the body as the publishing node sees it, named after the node (``ukf``, ``truth``): the
+  bench's states have no body names, and one child frame per estimator keeps a TF tree unambiguous;
+* Odometry (REP-103, nav_msgs): position x y z, velocity vx vy vz; the orientation is the identity, so the
+  child frame's axes are the header frame's and the twist (nav_msgs: in the child frame) is the state's
+  velocity as it is; orientation and angular velocity are unknown: their variances are :data:`UNKNOWN_VARIANCE`
+  (a large value rather than −1, which tools that draw covariance ellipsoids or take square roots mishandle).
+  pose.covariance and twist.covariance are 6 × 6 row-major over (x, y, z, rotation about x, y, z) and
+  (vx, vy, vz, wx, wy, wz): the position and velocity blocks of the estimate's covariance (their cross terms
+  have no place in Odometry); the truth's known blocks are zero (exact);
+* attitude (labels qw qx qy qz, scalar first, A = R(q) the body(camera)-from-reference rotation, star_tracker's
+  convention): geometry_msgs/PoseWithCovarianceStamped, the pose of the body in the reference frame, i.e. the
+  orientation is q's conjugate (R(q)ᵀ rotates body coordinates into reference ones); its rotation covariance is
+  the estimate's attitude-error covariance (rx ry rz, body frame: bench_models.states) rotated into the
+  reference frame, Aᵀ P A; position x y z if the state has them, else zero and unknown. And
+  bench_msgs/AttitudeEstimate, the bench's own compact attitude: q as the estimate gives it (reference -> body),
+  the error covariance in the body frame, and the stars used (the diagnostic ``stars``);
+* diagnostic_msgs/DiagnosticArray: one status per estimate, named after the estimator, level OK after an update
+  and WARN when the estimate had none (NIS NaN: coasting, a gated or rejected measurement); values ``step``,
+  ``nis`` and every diagnostic (``n_eff``, ``gated``, …) written with ``repr`` (float() reads them back exactly);
+* visualization_msgs/Marker: the trajectory as line-strip segments, one marker per segment (the previous drawn
+  position to this one), at most one per :data:`MARKER_PERIOD_S` of sim time, each with its own id in the
+  namespace of the node and no lifetime: a viewer accumulates them, and every message is the same few bytes. A
+  Marker rather than a MarkerArray: it opens with its header, so the recorder logs it at its sim time
+  (bench_engine.bag.SimClock), as every other view.
+"""
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, Callable
+
+import numpy as np
+
+from bench_engine import cdr
+from bench_engine.config import ScenarioError
+from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
+from bench_engine.msg_schema import message_class
+from bench_engine.stage import Estimate, Item
+
+ODOMETRY = "odometry"
+"""``/NAME/odometry`` (nav_msgs/Odometry): position and velocity with their covariance, for a state with
+x y z vx vy vz (orbit and relative-navigation states)."""
+POSE = "pose"
+"""``/NAME/pose`` (geometry_msgs/PoseWithCovarianceStamped): the attitude of a state with qw qx qy qz, as the
+pose of the body in the item's frame."""
+ATTITUDE = "attitude"
+"""``/NAME/attitude`` (bench_msgs/AttitudeEstimate): an estimate's attitude in the bench's own convention
+(estimates only)."""
+DIAGNOSTICS = "diagnostics"
+"""``/NAME/diagnostics`` (diagnostic_msgs/DiagnosticArray): an estimate's NIS and diagnostics (estimates only)."""
+MARKERS = "markers"
+"""``/NAME/markers`` (visualization_msgs/Marker): the trajectory of a state with x y z."""
+SUFFIXES = (ODOMETRY, POSE, ATTITUDE, DIAGNOSTICS, MARKERS)
+
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
+ATTITUDE_TYPE = "bench_msgs/msg/AttitudeEstimate"
+DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+MARKERS_TYPE = "visualization_msgs/msg/Marker"
+ESTIMATE_VIEWS = {ODOMETRY: ODOMETRY_TYPE, POSE: POSE_TYPE, ATTITUDE: ATTITUDE_TYPE, DIAGNOSTICS: DIAGNOSTICS_TYPE,
+                  MARKERS: MARKERS_TYPE}
+"""The views of every ``/NAME/estimate`` topic."""
+TRUTH_VIEWS = {ODOMETRY: ODOMETRY_TYPE, POSE: POSE_TYPE, MARKERS: MARKERS_TYPE}
+"""The views of every topic of TruthState (``/truth/state``)."""
+
+UNKNOWN_VARIANCE = 1.0e16
+"""The variance of a component a view does not know (an Odometry's orientation and angular velocity, an
+attitude pose's position): far above any variance a bench state has in SI units (a position across the Earth,
+~1e14 m²; a rotation, ~10 rad²)."""
+MARKER_PERIOD_S = 1.0
+"""Sim time between two trajectory markers of one node (a 10 Hz leo_radar run: 1 marker in 10 estimates)."""
+MARKER_WIDTH = 2.0e-3
+"""A trajectory line's width as a fraction of the first drawn position's distance from the frame's origin
+(leo_radar, ECI: ~13 km), at least 1 m."""
+TRUTH_COLOR = (0.1, 0.8, 0.1)
+PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.1), (0.1, 0.8, 0.8),
+           (0.55, 0.35, 0.9))
+"""Estimators' trajectory colours, picked by a stable hash of the node name."""
+
+POSITION = ("x", "y", "z")
+VELOCITY = ("vx", "vy", "vz")
+QUATERNION = ("qw", "qx", "qy", "qz")
+ROTATION = ("rx", "ry", "rz")
+"""An attitude estimate's covariance is over its error rotation: labels with the quaternion replaced by
+rx ry rz at qw's place (bench_models.states.error_labels; bench_engine sits below bench_models)."""
+
+
+# --- the graph --------------------------------------------------------------------------------------------
+
+def view_topics(topic: str, type_name: str) -> dict[str, str]:
+    """The view topics (with their types) of a data topic: ``/NAME/estimate`` of StateEstimate gives
+    ESTIMATE_VIEWS, a TruthState topic ``/NAME/state`` TRUTH_VIEWS, anything else none."""
+    parts = topic.split("/")
+    if len(parts) != 3 or parts[0] or not parts[1]:
+        return {}
+    if type_name == ESTIMATE_TYPE and topic_owner(topic, ESTIMATE) is not None:
+        views = ESTIMATE_VIEWS
+    elif type_name == TRUTH_TYPE and parts[2] == "state":
+        views = TRUTH_VIEWS
+    else:
+        return {}
+    return {f"/{parts[1]}/{suffix}": view_type for suffix, view_type in views.items()}
+
+
+SWITCH = "standard_views"
+"""The scenario key that turns the views on (default) or off: ``--set standard_views=false``. Monte Carlo batches
+(bench_engine.batch) turn them off: they double a leo_radar step's messages (sim/wall ratio of the graph ~40 %
+lower, README Speed) and the scorer does not read them."""
+
+
+def standard_views(cfg: dict) -> bool:
+    """The scenario's ``standard_views`` (a registered section: a bool, default true)."""
+    value = cfg.get(SWITCH, True)
+    if not isinstance(value, bool):
+        raise ScenarioError(f"'{SWITCH}' must be true or false, got {value!r}")
+    return value
+
+
+def add_standard_views(nodes: list[NodeSpec], cfg: dict) -> None:
+    """Add to each node's published topics the views of its estimate and truth topics, unless the scenario
+    turns them off (build_graph's one call): the recorder then records them, the readiness barrier waits for
+    their subscribers and the pacing counts them, like any data topic. A bag player (role ``replay``)
+    replays the recorded truth and measurements only, so a replayed run's bag has no truth views."""
+    if not standard_views(cfg):
+        return
+    for node in nodes:
+        if node.role == "replay":
+            continue
+        for topic, type_name in list(node.publishes.items()):
+            for view, view_type in view_topics(topic, type_name).items():
+                node.publishes.setdefault(view, view_type)
+
+
+# --- state layout -----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Layout:
+    """Where a state's components are: indices into the state vector and into its covariance (None: absent)."""
+
+    position: tuple[int, ...] | None
+    velocity: tuple[int, ...] | None
+    quaternion: tuple[int, ...] | None
+    cov_position: tuple[int, ...] | None
+    cov_velocity: tuple[int, ...] | None
+    cov_rotation: tuple[int, ...] | None
+
+
+def covariance_labels(labels: tuple[str, ...], n: int) -> tuple[str, ...] | None:
+    """The labels of an n × n covariance of a state with ``labels``: the labels themselves, or for an attitude
+    state with one row fewer, its error labels (rx ry rz in place of qw qx qy qz); None if neither fits."""
+    if n == len(labels):
+        return labels
+    if n == len(labels) - 1 and all(q in labels for q in QUATERNION):
+        i = labels.index("qw")
+        return labels[:i] + ROTATION + tuple(lab for lab in labels[i:] if lab not in QUATERNION)
+    return None
+
+
+@lru_cache(maxsize=256)
+def layout(labels: tuple[str, ...], n_cov: int) -> Layout:
+    """The :class:`Layout` of a state with ``labels`` and an ``n_cov`` × ``n_cov`` covariance (0: none)."""
+    def find(names: tuple[str, ...], within: tuple[str, ...] | None) -> tuple[int, ...] | None:
+        if within is None or not all(n in within for n in names):
+            return None
+        return tuple(within.index(n) for n in names)
+    cov = covariance_labels(labels, n_cov)
+    return Layout(find(POSITION, labels), find(VELOCITY, labels), find(QUATERNION, labels),
+                  find(POSITION, cov), find(VELOCITY, cov), find(ROTATION, cov))
+
+
+def _block(P: np.ndarray, rows: tuple[int, ...], cols: tuple[int, ...]) -> np.ndarray:
+    """P[rows, cols] (3 × 3), by slicing when the indices are consecutive (the usual layouts)."""
+    r, c = rows[0], cols[0]
+    if rows == (r, r + 1, r + 2) and cols == (c, c + 1, c + 2):
+        return P[r:r + 3, c:c + 3]
+    return P[np.ix_(rows, cols)]
+
+
+@dataclass(frozen=True)
+class State:
+    """An item's state as the views read it: labels, values, covariance (None for the truth) and layout."""
+
+    labels: tuple[str, ...]
+    x: np.ndarray
+    P: np.ndarray | None
+    layout: Layout
+
+
+def state_of(item: Item) -> State:
+    """The :class:`State` of an estimate or a truth sample."""
+    if isinstance(item, Estimate):
+        P = np.asarray(item.P, dtype=float)
+        P = P if P.size else None
+        labels = tuple(item.labels)
+        return State(labels, np.asarray(item.x, dtype=float), P, layout(labels, 0 if P is None else len(P)))
+    labels = tuple(item.labels)
+    return State(labels, np.asarray(item.state, dtype=float), None, layout(labels, 0))
+
+
+def attitude_matrix(q: np.ndarray) -> np.ndarray:
+    """R(q) of a scalar-first unit quaternion (normalised first): the body-from-reference matrix A."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+# --- the views --------------------------------------------------------------------------------------------
+
+_ODOMETRY = cdr.lite_class(ODOMETRY_TYPE)
+_POSE = cdr.lite_class(POSE_TYPE)
+_ATTITUDE = cdr.lite_class(ATTITUDE_TYPE)
+_DIAGNOSTICS = cdr.lite_class(DIAGNOSTICS_TYPE)
+_STATUS = cdr.lite_class("diagnostic_msgs/msg/DiagnosticStatus")
+_KEY_VALUE = cdr.lite_class("diagnostic_msgs/msg/KeyValue")
+_MARKER = cdr.lite_class(MARKERS_TYPE)
+_POINT = cdr.lite_class("geometry_msgs/msg/Point")
+cdr.warm([*cdr.bench_types(), *ESTIMATE_VIEWS.values()])  # before the launcher and the fork server fork
+_UNKNOWN_BLOCK = np.diag([0.0, 0.0, 0.0, UNKNOWN_VARIANCE, UNKNOWN_VARIANCE, UNKNOWN_VARIANCE])
+"""A 6 × 6 covariance whose first three components are exact and last three unknown."""
+
+
+def _header(msg: Any, item: Item) -> None:
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(item.t_ns), 1_000_000_000)
+    msg.header.frame_id = item.frame_id
+
+
+def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any | None:
+    """nav_msgs/Odometry of an estimate or truth sample with x y z vx vy vz; None without them. (``state``:
+    the item's, if already read.)"""
+    st = state or state_of(item)
+    x, P, lay = st.x, st.P, st.layout
+    if lay.position is None or lay.velocity is None:
+        return None
+    msg = _ODOMETRY(child_frame_id=child_frame_id)
+    _header(msg, item)
+    p, v = msg.pose.pose.position, msg.twist.twist.linear
+    p.x, p.y, p.z = (float(x[i]) for i in lay.position)
+    v.x, v.y, v.z = (float(x[i]) for i in lay.velocity)
+    pose, twist = _UNKNOWN_BLOCK.copy(), _UNKNOWN_BLOCK.copy()
+    if P is not None:
+        if lay.cov_position is not None:
+            pose[:3, :3] = _block(P, lay.cov_position, lay.cov_position)
+        else:
+            pose[0, 0] = pose[1, 1] = pose[2, 2] = UNKNOWN_VARIANCE
+        if lay.cov_velocity is not None:
+            twist[:3, :3] = _block(P, lay.cov_velocity, lay.cov_velocity)
+        else:
+            twist[0, 0] = twist[1, 1] = twist[2, 2] = UNKNOWN_VARIANCE
+    msg.pose.covariance = pose.reshape(36)
+    msg.twist.covariance = twist.reshape(36)
+    return msg
+
+
+def pose(item: Item, state: State | None = None) -> Any | None:
+    """geometry_msgs/PoseWithCovarianceStamped of an estimate or truth sample with qw qx qy qz; None without."""
+    st = state or state_of(item)
+    x, P, lay = st.x, st.P, st.layout
+    if lay.quaternion is None:
+        return None
+    q = x[list(lay.quaternion)]
+    q = q / np.linalg.norm(q)
+    A = attitude_matrix(q)
+    msg = _POSE()
+    _header(msg, item)
+    o = msg.pose.pose.orientation
+    o.w, o.x, o.y, o.z = float(q[0]), -float(q[1]), -float(q[2]), -float(q[3])  # the conjugate: R(q)ᵀ
+    cov = np.zeros((6, 6))
+    if lay.position is not None:
+        p = msg.pose.pose.position
+        p.x, p.y, p.z = (float(x[i]) for i in lay.position)
+    if P is None:  # the truth: exact, where the state holds it
+        if lay.position is None:
+            cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_VARIANCE
+    else:
+        if lay.cov_position is not None:
+            cov[:3, :3] = _block(P, lay.cov_position, lay.cov_position)
+        else:
+            cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_VARIANCE
+        if lay.cov_rotation is not None:
+            cov[3:, 3:] = A.T @ _block(P, lay.cov_rotation, lay.cov_rotation) @ A
+            if lay.cov_position is not None:
+                cov[:3, 3:] = _block(P, lay.cov_position, lay.cov_rotation) @ A
+                cov[3:, :3] = cov[:3, 3:].T
+        else:
+            cov[3, 3] = cov[4, 4] = cov[5, 5] = UNKNOWN_VARIANCE
+    msg.pose.covariance = cov.reshape(36)
+    return msg
+
+
+def attitude(item: Item, state: State | None = None) -> Any | None:
+    """bench_msgs/AttitudeEstimate of an estimate with qw qx qy qz (the estimate's convention and body-frame
+    error covariance, NaN if it has none); None for anything else."""
+    if not isinstance(item, Estimate):
+        return None
+    st = state or state_of(item)
+    x, P, lay = st.x, st.P, st.layout
+    if lay.quaternion is None:
+        return None
+    msg = _ATTITUDE(step=int(item.step), estimator_name=item.source,
+                    stars_used=max(0, int(item.diagnostics.get("stars", 0.0))))
+    _header(msg, item)
+    o = msg.orientation
+    o.w, o.x, o.y, o.z = (float(x[i]) for i in lay.quaternion)
+    msg.covariance = (np.ascontiguousarray(_block(P, lay.cov_rotation, lay.cov_rotation)).reshape(9)
+                      if lay.cov_rotation is not None else np.full(9, np.nan))
+    return msg
+
+
+def diagnostics(item: Item, state: State | None = None) -> Any | None:
+    """diagnostic_msgs/DiagnosticArray of an estimate: its NIS and diagnostics; None for anything else."""
+    if not isinstance(item, Estimate):
+        return None
+    nis = float(item.nis)
+    updated = nis == nis
+    values = [_KEY_VALUE(key="step", value=str(int(item.step))), _KEY_VALUE(key="nis", value=repr(nis))]
+    values += [_KEY_VALUE(key=str(k), value=repr(float(v))) for k, v in item.diagnostics.items()]
+    status = _STATUS(level=_STATUS.OK if updated else _STATUS.WARN, name=item.source,
+                     message="" if updated else "no measurement update (NIS NaN)", values=values)
+    msg = _DIAGNOSTICS(status=[status])
+    _header(msg, item)
+    return msg
+
+
+def color(name: str) -> tuple[float, float, float]:
+    """A node's trajectory colour: the truth's green, an estimator's from PALETTE by a stable hash."""
+    return TRUTH_COLOR if name == "truth" else PALETTE[zlib.crc32(name.encode()) % len(PALETTE)]
+
+
+class TrajectoryMarkers:
+    """The trajectory of one node's items as line-strip segments (module docstring): call it with each item;
+    it returns a Marker for a segment, or None (no position, or less than MARKER_PERIOD_S since the last)."""
+
+    def __init__(self, name: str, period_s: float = MARKER_PERIOD_S) -> None:
+        self.name = name
+        self.period_ns = int(round(period_s * 1e9))
+        self.color = color(name)
+        self.count = 0
+        self.last: tuple[float, float, float] | None = None
+        self.last_t_ns = 0
+        self.width = 0.0
+
+    def __call__(self, item: Item, state: State | None = None) -> Any | None:
+        st = state or state_of(item)
+        x, lay = st.x, st.layout
+        if lay.position is None:
+            return None
+        if self.last is not None and item.t_ns - self.last_t_ns < self.period_ns:
+            return None
+        here = tuple(float(x[i]) for i in lay.position)
+        if self.last is None:
+            self.width = max(1.0, MARKER_WIDTH * float(np.linalg.norm(here)))
+        marker = _MARKER(ns=self.name, id=self.count, type=_MARKER.LINE_STRIP, action=_MARKER.ADD,
+                         points=[_POINT(x=a, y=b, z=c) for a, b, c in (self.last or here, here)])
+        _header(marker, item)
+        marker.scale.x = self.width
+        c = marker.color
+        c.r, c.g, c.b, c.a = (*self.color, 1.0)
+        self.count += 1
+        self.last, self.last_t_ns = here, int(item.t_ns)
+        return marker
+
+
+class StandardViews:
+    """The views of one data topic's items, for the view topics the graph gave the node (``topics``: suffix ->
+    topic). ``messages(item)`` -> [(view topic, type, light message)], in a fixed order."""
+
+    def __init__(self, node: str, topics: dict[str, str]) -> None:
+        self.topics = topics
+        makers: list[tuple[str, str, Callable[[Item, State], Any | None]]] = []
+        for suffix, make in ((ODOMETRY, lambda item, st: odometry(item, node, st)), (POSE, pose),
+                             (ATTITUDE, attitude), (DIAGNOSTICS, diagnostics), (MARKERS, TrajectoryMarkers(node))):
+            if suffix in topics:
+                makers.append((topics[suffix], (ESTIMATE_VIEWS | TRUTH_VIEWS)[suffix], make))
+        self.makers = makers
+
+    def messages(self, item: Item) -> list[tuple[str, str, Any]]:
+        st = state_of(item)
+        out = []
+        for topic, type_name, make in self.makers:
+            msg = make(item, st)
+            if msg is not None:
+                out.append((topic, type_name, msg))
+        return out
+
+
+# --- the shells' call -------------------------------------------------------------------------------------
+
+def item_publishers(node: Any, publishes: dict[str, str]) -> dict[str, Callable[[Item], None]]:
+    """A node shell's publishers (bench_engine.bench_node.BenchNode: ``item_publisher``, ``data_publisher``,
+    ``publish_data``), by data topic: for each topic of ``publishes`` that is not a view, the shell's item
+    publisher; an item published on a topic with views in ``publishes`` then goes out on each of them, as CDR
+    bytes (bench_engine.cdr). The node's name names its Odometry child frame and its markers."""
+    owner = {view: topic for topic, type_name in publishes.items()
+             for view in view_topics(topic, type_name) if view in publishes}
+    out: dict[str, Callable[[Item], None]] = {}
+    for topic, type_name in publishes.items():
+        if topic in owner:
+            continue
+        publish = node.item_publisher(topic, type_name)
+        mine = {view.rsplit("/", 1)[1]: view for view, base in owner.items() if base == topic}
+        if mine:
+            for view in mine.values():
+                node.data_publisher(message_class(publishes[view]), view)
+            publish = _with_views(publish, StandardViews(node.get_name(), mine), node.publish_data)
+        out[topic] = publish
+    return out
+
+
+def _with_views(publish: Callable[[Item], None], views: StandardViews,
+                publish_data: Callable[[str, bytes], None]) -> Callable[[Item], None]:
+    serialize = cdr.serialize
+
+    def publish_with_views(item: Item) -> None:
+        publish(item)
+        for topic, type_name, msg in views.messages(item):
+            publish_data(topic, serialize(type_name, msg))
+    return publish_with_views
