@@ -13,6 +13,7 @@ fail, no mutation result would mean anything, and the script stops.
     .venv/bin/python scripts/mutate.py --list              # the mutations and their tests, nothing run
     .venv/bin/python scripts/mutate.py --only kf_update_sign,pyramid_no_handedness
     .venv/bin/python scripts/mutate.py --rev HEAD          # the committed tree instead of the working tree
+    .venv/bin/python scripts/mutate.py --only cubature_radius --tests tests/test_cqkf.py::test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario
 
 Exit status: 0 when every mutation run was caught; 1 when one survived (or its snippet is gone or ambiguous,
 or its run errored); 2 on bad arguments or when the unmutated tests fail.
@@ -26,7 +27,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -152,6 +153,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--list", action="store_true", help="list the mutations and their tests, run nothing")
     p.add_argument("--only", metavar="NAME[,NAME…]", help="run only these mutations (comma-separated names)")
+    p.add_argument("--tests", nargs="+", metavar="TEST",
+                   help="run these pytest arguments (files, node ids) for every chosen mutation instead of each "
+                        "one's own list: does this one test catch them?")
     p.add_argument("--rev", metavar="REV", help="mutate this git revision (git archive) instead of the working tree")
     p.add_argument("--timeout", type=float, default=900.0, metavar="S",
                    help="seconds one mutation's tests may take (default 900); past it the run counts as caught "
@@ -236,6 +240,8 @@ def _apply(path: Path, m: Mutation) -> str | None:
 def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
     chosen = _selected(args.only)
+    if args.tests:
+        chosen = [replace(m, tests=tuple(args.tests)) for m in chosen]
     if args.list:
         for m in chosen:
             count = (ROOT / m.file).read_text().count(m.original) if (ROOT / m.file).is_file() else 0
