@@ -147,6 +147,11 @@ MUTATIONS = [
 ]
 
 
+def _fail(message: str, status: int = 2) -> SystemExit:
+    print(f"mutate.py: error: {message}", file=sys.stderr)
+    return SystemExit(status)
+
+
 def _parse(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__,
                                 epilog="Mutations: " + ", ".join(m.name for m in MUTATIONS),
@@ -171,7 +176,7 @@ def _selected(only: str | None) -> list[Mutation]:
     known = {m.name: m for m in MUTATIONS}
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise SystemExit(f"mutate.py: error: unknown mutation(s) {', '.join(unknown)}; --list shows them")
+        raise _fail(f"unknown mutation(s) {', '.join(unknown)}; --list shows them")
     return [known[n] for n in names]
 
 
@@ -189,7 +194,7 @@ def _copy_tree(dest: Path, rev: str | None) -> None:
     archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev, *COPIED],
                              capture_output=True, check=False)
     if archive.returncode != 0:
-        raise SystemExit(f"mutate.py: error: git archive {rev} failed: {archive.stderr.decode().strip()}")
+        raise _fail(f"git archive {rev} failed: {archive.stderr.decode().strip()}")
     subprocess.run(["tar", "-x", "-C", str(dest)], input=archive.stdout, check=True)
 
 
@@ -207,8 +212,7 @@ def _check_imports(tree: Path, env: dict[str, str]) -> None:
                          cwd=tree, check=False)
     files = out.stdout.split()
     if out.returncode != 0 or len(files) != len(PACKAGES) or not all(Path(f).is_relative_to(tree) for f in files):
-        raise SystemExit(f"mutate.py: error: the scratch copy's packages are not the ones imported:\n"
-                         f"{out.stdout}{out.stderr}")
+        raise _fail(f"the scratch copy's packages are not the ones imported:\n{out.stdout}{out.stderr}")
 
 
 def _pytest(tree: Path, env: dict[str, str], tests: tuple[str, ...], timeout: float) -> tuple[int | None, str]:
@@ -262,8 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         rc, output = _pytest(pristine, env, tests, args.timeout * 2)
         if rc != 0:
             print(output[-4000:] if rc is not None else "(timed out)")
-            print(f"mutate.py: the unmutated tests fail (pytest exit {rc}): fix them first", file=sys.stderr)
-            return 2
+            raise _fail(f"the unmutated tests fail (pytest exit {rc}): fix them first")
         print(f"  passed in {time.monotonic() - start:.0f} s\n", flush=True)
         rows, failed = [], 0
         width = max(len(m.name) for m in chosen)
