@@ -37,13 +37,13 @@ def _doctored_copy(bag: Path, out: Path) -> None:
 
 def test_bad_measurements_are_rejected_and_filters_stay_sane(tmp_path: Path) -> None:
     original = tmp_path / "orig"
-    res = script("launch.py", "leo_radar", "--out", str(original), "--domain-id", "56", "--no-score",
+    res = script("launch.py", "leo_radar", "--out", str(original), "--no-score",
                  "--set", "sensors.radar.p_detect=1.0", *SHORT_PASS)
     assert res.returncode == 0, res.stderr[-2000:]
     doctored = tmp_path / "doctored"
     _doctored_copy(original / "bag", doctored)
     replay = tmp_path / "replay"
-    res = script("replay.py", str(doctored), "--filters", "ekf,ukf", "--out", str(replay), "--domain-id", "57")
+    res = script("replay.py", str(doctored), "--filters", "ekf,ukf", "--out", str(replay))
     assert res.returncode == 0, res.stderr[-2000:]
     before, after = read_bag(original / "bag"), read_bag(replay / "bag")
     for name in ("ekf", "ukf"):

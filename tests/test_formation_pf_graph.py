@@ -26,7 +26,7 @@ SETTINGS = ["--set", "time.duration=60", "--set", f"filters.pf.params.n_particle
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("formation_pf") / "run"
-    res = script("launch.py", "formation_pf", "--single-process", "--out", str(out), "--domain-id", "54",
+    res = script("launch.py", "formation_pf", "--single-process", "--out", str(out),
                  "--seed", "2", *SETTINGS)
     assert res.returncode == 0, res.stderr[-3000:]
     return out

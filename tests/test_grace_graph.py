@@ -29,7 +29,7 @@ PAIR = ["x1", "y1", "z1", "vx1", "vy1", "vz1", "x2", "y2", "z2", "vx2", "vy2", "
 @pytest.fixture(scope="module")
 def graph_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("grace") / "run"
-    res = script("launch.py", "grace_velocity", "--out", str(out), "--domain-id", "66", "--json", *ARGS,
+    res = script("launch.py", "grace_velocity", "--out", str(out), "--json", *ARGS,
                  timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     return out, read_bag(out / "bag"), json.loads(res.stdout)
@@ -115,7 +115,7 @@ def test_outages_and_gross_outliers_give_a_well_defined_run(tmp_path) -> None:
     """Variant faults: receiver 1 is out for 10 minutes and 1 % of fixes carry a 30 m error. The run completes,
     the filters gate the outliers (logged), bridge the outage and resume, and every score stays finite."""
     out = tmp_path / "faults"
-    res = script("launch.py", "grace_velocity", "--out", str(out), "--domain-id", "67", "--json", "--variant",
+    res = script("launch.py", "grace_velocity", "--out", str(out), "--json", "--variant",
                  "faults", "--set", "time.duration=3600", timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")

@@ -18,7 +18,7 @@ STEPS = 201
 @pytest.fixture(scope="module")
 def multiprocess_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("mp") / "run"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "61", "--seed", "3", "--json",
+    res = script("launch.py", "leo_radar", "--out", str(out), "--seed", "3", "--json",
                  *SHORT_PASS)
     assert res.returncode == 0, res.stderr[-3000:]
     return out
@@ -66,7 +66,7 @@ def test_scores_printed_and_saved(multiprocess_run: Path) -> None:
 def test_single_process_gives_identical_data(multiprocess_run: Path, tmp_path: Path) -> None:
     """Same seed, all nodes in one process: identical measurements and estimates."""
     out = tmp_path / "sp"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "62", "--seed", "3",
+    res = script("launch.py", "leo_radar", "--out", str(out), "--seed", "3",
                  "--single-process", "--no-score", *SHORT_PASS)
     assert res.returncode == 0, res.stderr[-3000:]
     a, b = read_bag(multiprocess_run / "bag"), read_bag(out / "bag")
@@ -83,8 +83,7 @@ def test_single_process_gives_identical_data(multiprocess_run: Path, tmp_path: P
 def test_replay_reproduces_the_filter(multiprocess_run: Path, tmp_path: Path) -> None:
     """Replaying the recorded measurements into a fresh UKF gives the recorded UKF estimates."""
     out = tmp_path / "replay"
-    res = script("replay.py", str(multiprocess_run / "bag"), "--filters", "ukf", "--out", str(out),
-                 "--domain-id", "63")
+    res = script("replay.py", str(multiprocess_run / "bag"), "--filters", "ukf", "--out", str(out))
     assert res.returncode == 0, res.stderr[-3000:]
     a, b = read_bag(multiprocess_run / "bag"), read_bag(out / "bag")
     assert "/ekf/estimate" not in b
@@ -105,7 +104,7 @@ def test_score_script_reads_bags(multiprocess_run: Path, tmp_path: Path) -> None
 def test_pass_through_north_gives_no_innovation_spike(tmp_path: Path) -> None:
     """The leo_radar pass crosses azimuth 0/2pi at t ~ 4446 s: wrapped innovations keep the NIS bounded."""
     out = tmp_path / "north"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "58", "--no-score",
+    res = script("launch.py", "leo_radar", "--out", str(out), "--no-score",
                  "--filters", "ekf,ukf", "--set", "time.start=4426.0", "--set", "time.duration=40")
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")

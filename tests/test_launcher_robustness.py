@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Iterable
 
 import pytest
 from graph_helpers import ROOT, SHORT_PASS, read_bag, script
@@ -27,7 +29,7 @@ from graph_helpers import ROOT, SHORT_PASS, read_bag, script
 ])
 def test_bad_input_stops_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "bad"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--domain-id", "64", *args, timeout=60)
+    res = script("launch.py", "leo_radar", "--out", str(out), *args, timeout=60)
     assert res.returncode == 2
     assert message in res.stderr
     assert not (out / "bag").exists()
@@ -39,10 +41,11 @@ def test_unknown_scenario_lists_the_available_ones(tmp_path: Path) -> None:
     assert "leo_radar" in res.stderr
 
 
-def _launch_background(out: Path, domain: int, *extra: str) -> subprocess.Popen:
+def _launch_background(out: Path, *extra: str) -> subprocess.Popen:
+    """A launch on a free ROS domain (the launcher takes one), its output piped."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     return subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                             "--domain-id", str(domain), "--no-score", "--set", "time.pacing_window=0", *extra],
+                             "--no-score", "--set", "time.pacing_window=0", *extra],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -60,7 +63,7 @@ def _wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0)
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_leaves_a_complete_readable_bag(tmp_path: Path, sig: int) -> None:
     out = tmp_path / "sig"
-    proc = _launch_background(out, 65 if sig == signal.SIGINT else 66)
+    proc = _launch_background(out)
     _wait_for_stepping(out, proc)
     proc.send_signal(sig)
     proc.wait(timeout=60)
@@ -73,7 +76,7 @@ def test_signal_leaves_a_complete_readable_bag(tmp_path: Path, sig: int) -> None
 
 def test_dead_node_is_named_and_bag_closed(tmp_path: Path) -> None:
     out = tmp_path / "dead"
-    proc = _launch_background(out, 67)
+    proc = _launch_background(out)
     _wait_for_stepping(out, proc)
     found = subprocess.run(["pgrep", "-f", "--", f"--name ekf --config {out.resolve()}"], capture_output=True, text=True)
     os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
@@ -87,7 +90,7 @@ def test_a_killed_recorder_is_named_and_its_bag_recovered(tmp_path: Path) -> Non
     """SIGKILL leaves the recorder no chance to close the bag; the launcher names it and rebuilds the bag from
     the chunks it flushed (every second of sim time), which the independent reader then opens."""
     out = tmp_path / "killed"
-    proc = _launch_background(out, 69)
+    proc = _launch_background(out)
     _wait_for_stepping(out, proc)
     found = subprocess.run(["pgrep", "-f", "--", f"--name recorder --config {out.resolve()}"], capture_output=True,
                            text=True)
@@ -103,22 +106,66 @@ def test_a_killed_recorder_is_named_and_its_bag_recovered(tmp_path: Path) -> Non
     assert {"/radar/measurement", "/ekf/estimate", "/ukf/estimate"} <= set(bag)
 
 
-def _shm_files() -> set[str]:
-    return {p.name for p in Path("/dev/shm").glob("fastrtps_*")} if Path("/dev/shm").is_dir() else set()
+SHM = Path("/dev/shm")
 
 
+def _shm_files_of(pids: Iterable[str]) -> set[str]:
+    """The Fast DDS files in /dev/shm that processes ``pids`` map (segments, port queues) or hold open (their
+    ``_el`` lock files)."""
+    found = set()
+    for pid in pids:
+        try:
+            found.update(re.findall(r"/dev/shm/(fastrtps_\S+)", Path(f"/proc/{pid}/maps").read_text()))
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith("/dev/shm/fastrtps_"):
+                    found.add(target[len("/dev/shm/"):])
+        except OSError:  # the process ended meanwhile, or is not ours to read
+            continue
+    return found
+
+
+def _pids(*, command_with: str = "", also: int | None = None) -> list[str]:
+    """Every process (``command_with``: only those whose command line contains it, and ``also``)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            if command_with in (entry / "cmdline").read_bytes().decode(errors="replace") or entry.name == str(also):
+                pids.append(entry.name)
+        except OSError:
+            continue
+    return pids
+
+
+@pytest.mark.skipif(not SHM.is_dir() or not Path("/proc/self/maps").is_file(), reason="needs /dev/shm and /proc")
 def test_normal_runs_leave_no_shared_memory_behind(tmp_path: Path) -> None:
-    before = _shm_files()
-    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "shm"), "--domain-id", "68", "--no-score",
-                 "--set", "time.duration=5")
-    assert res.returncode == 0, res.stderr[-2000:]
-    assert _shm_files() - before == set()
+    """Only this run's Fast DDS files count (other test sessions and runs share /dev/shm): those its own
+    processes (the launcher and every node, found by the run's output path) map or hold while it runs and that
+    were not there before it started. None of them may be left once it has ended, unless another live process
+    uses it now. (Files the run used but found there, e.g. a port queue another run left, are not its own.)"""
+    out = tmp_path / "shm"
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    before = {p.name for p in SHM.glob("fastrtps_*")}
+    log = tmp_path / "launch.log"
+    with open(log, "w") as f:
+        proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
+                                 "--no-score", "--set", "time.duration=5"], env=env, stdout=f, stderr=f)
+    ours: set[str] = set()
+    while proc.poll() is None:
+        ours |= _shm_files_of(_pids(command_with=str(out), also=proc.pid))
+        time.sleep(0.02)
+    assert proc.returncode == 0, log.read_text()[-2000:]
+    assert ours, "the run's processes were never seen using Fast DDS shared memory"
+    left = {name for name in ours - before if (SHM / name).exists()}
+    assert left - _shm_files_of(_pids()) == set()
 
 
 def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> None:
     out = tmp_path / "mc"
     res = script("montecarlo.py", "leo_radar", "--runs", "3", "--jobs", "2", "--out", str(out), "--json",
-                 "--domain-base", "70", *SHORT_PASS, timeout=600)
+                 *SHORT_PASS, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     scored = json.loads(res.stdout)
     assert scored["runs"] == 3 and set(scored["filters"]) == {"ekf", "ukf"}
@@ -132,18 +179,19 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
 
 def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
     from bench_engine.domains import reserve
-    held = reserve(75)
+    held = reserve(None)  # a free one: another test session may hold any fixed id
     try:
-        res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", "75", timeout=60)
+        res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", str(held.domain),
+                     timeout=60)
     finally:
         held.release()
     assert res.returncode == 2
-    assert "ROS_DOMAIN_ID 75 is in use by another bench run" in res.stderr
+    assert f"ROS_DOMAIN_ID {held.domain} is in use by another bench run" in res.stderr
 
 
 def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path) -> None:
     out = tmp_path / "orphan"
-    proc = _launch_background(out, 76)
+    proc = _launch_background(out)
     _wait_for_stepping(out, proc)
     proc.kill()
     proc.wait()
@@ -161,7 +209,7 @@ def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path
 
 def test_a_run_with_nothing_to_score_ends_with_one_line(tmp_path: Path) -> None:
     """A radar that never detects: the filters publish nothing; the launcher says so in one line, exit 1."""
-    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "none"), "--domain-id", "65",
+    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "none"),
                  "--set", "time.duration=5", "--set", "sensors.radar.p_detect=0.0", timeout=120)
     assert res.returncode == 1 and "Traceback" not in res.stderr
     assert "error: no estimates in" in res.stderr and (tmp_path / "none" / "bag" / "metadata.yaml").is_file()

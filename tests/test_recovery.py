@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import time
 from pathlib import Path
 
 import pytest
@@ -47,10 +46,9 @@ def crashed_copy(tmp_path: Path, flushed: int, unflushed: int, cut_last_chunk: b
         writer.write("/truth/state", truth(k), 1_000 + k)
         if k % 10 == 9:
             writer.flush()
-    writer.flush()
+    writer.flush(wait=True)  # the file holds every flushed message: what a crash would leave from here on
     for k in range(flushed, flushed + unflushed):
-        writer.write("/truth/state", truth(k), 1_000 + k)
-    time.sleep(0.2)  # the writer thread has handled the queue: the file is what a crash would leave now
+        writer.write("/truth/state", truth(k), 1_000 + k)  # into the chunk in progress, not the file
     crashed = tmp_path / "crashed"
     shutil.copytree(tmp_path / "live", crashed)
     if cut_last_chunk:
@@ -108,8 +106,7 @@ def test_sim_log_times_out_of_order_are_kept_with_the_file_order(tmp_path: Path)
             written.append((topic, t_ns, t_ns - 7, truth(step)))
             writer.write(topic, truth(step), t_ns, t_ns - 7)
         if k % 10 == 9:
-            writer.flush()
-    time.sleep(0.2)
+            writer.flush(wait=k == 39)
     shutil.copytree(tmp_path / "live", tmp_path / "crashed")
     writer.close()
     done = recover(tmp_path / "crashed")

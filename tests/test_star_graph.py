@@ -21,7 +21,7 @@ TRACKERS = ["sna_triad", "sna_wahba", "jpdaf_triad", "jpdaf_wahba"]
 
 def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
     out = tmp_path / "run"
-    res = script("launch.py", "star_tracker", "--variant", "short,faults", "--out", str(out), "--domain-id", "82",
+    res = script("launch.py", "star_tracker", "--variant", "short,faults", "--out", str(out),
                  "--json", timeout=240)
     assert res.returncode == 0, res.stdout + res.stderr
     bag = read_bag(out / "bag")

@@ -21,19 +21,19 @@ def _final_position_errors(bag: dict, filters: list[str]) -> dict[str, float]:
     return errors
 
 
-@pytest.mark.parametrize("scenario, filters, extra, bound_m, domain", [
+@pytest.mark.parametrize("scenario, filters, extra, bound_m", [
     ("formation_pf", ["ekf", "ukf", "pf"], ["--set", "time.duration=120",
-                                            "--set", "filters.pf.params.n_particles=2000"], 1.0, 47),
+                                            "--set", "filters.pf.params.n_particles=2000"], 1.0),
     # formation_cqkf gives each filter its own dynamics model: the extra filters say which one they use
     ("formation_cqkf", ["ekf", "ukf", "cw"], ["--set", "time.duration=600", "--set", "filters.ekf.dynamics.model=ss",
-                                              "--set", "filters.ukf.dynamics.model=ss"], 5.0, 48),
-    ("leo_radar", ["ukf", "cqkf"], ["--set", "time.duration=120"], 20_000.0, 49),
+                                              "--set", "filters.ukf.dynamics.model=ss"], 5.0),
+    ("leo_radar", ["ukf", "cqkf"], ["--set", "time.duration=120"], 20_000.0),
 ])
 def test_filters_run_unchanged_on_other_scenarios(tmp_path: Path, scenario: str, filters: list[str],
-                                                  extra: list[str], bound_m: float, domain: int) -> None:
+                                                  extra: list[str], bound_m: float) -> None:
     out = tmp_path / scenario
     res = script("launch.py", scenario, "--filters", ",".join(filters), "--out", str(out), "--single-process",
-                 "--domain-id", str(domain), "--no-score", *extra)
+                 "--no-score", *extra)
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     errors = _final_position_errors(bag, filters)

@@ -78,10 +78,10 @@ def test_invalid_cell_value_or_grid_fails_before_any_run(tmp_path):
                                       "set": ["filters.cw.dynamics.sigma_accel"]}}}}
     path = str(scenario_with(tmp_path, bad))
     out = tmp_path / "out"
-    res = script("sweep.py", path, "--grid", "bad", "--out", str(out), "--domain-base", "80")
+    res = script("sweep.py", path, "--grid", "bad", "--out", str(out))
     assert res.returncode == 2
     assert "cell sigma--1" in res.stderr and "filters.cw.dynamics.sigma_accel" in res.stderr
-    res = script("sweep.py", path, "--grid", "missing", "--out", str(out), "--domain-base", "80")
+    res = script("sweep.py", path, "--grid", "missing", "--out", str(out))
     assert res.returncode == 2
     assert "unknown grid 'missing'" in res.stderr
     assert not out.exists()
@@ -112,7 +112,7 @@ def test_two_cell_sweep_runs_through_the_graph(tmp_path):
                       "axes": {"rho": {"1km": [], "10km": ["size10km"]}}}}
     out = tmp_path / "sweep"
     cmd = [sys.executable, str(SCRIPTS / "sweep.py"), str(scenario_with(tmp_path, grids)), "--grid", "tiny",
-           "--runs", "1", "--jobs", "2", "--out", str(out), "--domain-base", "81", "--set", "time.duration=60"]
+           "--runs", "1", "--jobs", "2", "--out", str(out), "--set", "time.duration=60"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads((out / "sweep.json").read_text())

@@ -344,11 +344,21 @@ class BagWriter:
         self._check_open()
         self._custom_data = {**self._custom_data, **_string_pairs(items)}
 
-    def flush(self) -> None:
+    def flush(self, wait: bool = False) -> None:
         """End the chunk in progress and write it to the file (asynchronously, in call order): what a crash
-        of this process loses is then only what is written after this call."""
+        of this process loses is then only what is written after this call. With ``wait`` the call returns
+        once the writer thread has handed that chunk to the operating system, i.e. once the file on disk holds
+        every message written before the call (for a reader or a copy of the file while it is written; the
+        recorder does not wait)."""
         self._check_open()
-        self._pending.append((_FLUSH,))
+        if not wait:
+            self._pending.append((_FLUSH,))
+            return
+        done = threading.Event()
+        self._pending.append((_FLUSH, done))
+        while not done.wait(10 * POLL_S) and self._thread.is_alive():
+            pass
+        self._raise_error()
 
     def close(self) -> None:
         """Finish the bag: drain queued messages, write the MCAP summary and ``metadata.yaml``. Idempotent and
@@ -399,6 +409,8 @@ class BagWriter:
             if item[0] is _FLUSH:
                 self._mcap.flush()
                 self._file.flush()
+                if len(item) > 1:
+                    item[1].set()  # flush(wait=True) returns
             elif isinstance(item[0], _Topic):
                 self._register(*item)
             else:
@@ -519,10 +531,22 @@ class BagReader:
             return [self.path]
         metadata = self.path / "metadata.yaml"
         if metadata.is_file():
-            info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-            if info["storage_identifier"] != STORAGE_IDENTIFIER:
-                raise ValueError(f"{self.path}: storage {info['storage_identifier']!r} is not mcap")
-            return [self.path / PurePath(p).name for p in info["relative_file_paths"]]
+            try:
+                info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+                storage, relative = info["storage_identifier"], list(info["relative_file_paths"])
+            except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
+                mark = getattr(err, "problem_mark", None)
+                where = f" (line {mark.line + 1})" if mark is not None else ""
+                raise BagDamaged(f"{metadata} is not rosbag2 metadata{where}: rebuild it with "
+                                 f"scripts/recover_bag.py --force {self.path}") from err
+            if storage != STORAGE_IDENTIFIER:
+                raise BagDamaged(f"{self.path}: storage {storage!r} is not mcap")
+            files = [self.path / PurePath(str(p)).name for p in relative]
+            missing = [f.name for f in files if not f.is_file()]
+            if missing or not files:
+                raise BagDamaged(f"{self.path}: metadata.yaml names {', '.join(missing) or 'no file'}, which is "
+                                 "not there: the bag is incomplete (copy its .mcap file too)")
+            return files
         files = sorted(self.path.glob("*.mcap"))
         if not files:
             raise FileNotFoundError(f"no metadata.yaml or .mcap file in {self.path}")

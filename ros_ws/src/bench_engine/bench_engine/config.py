@@ -78,7 +78,13 @@ def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:
     """Read a scenario file and apply overrides; returns the raw mapping (validate with the builders)."""
     path = scenario_path(name_or_path)
     with open(path, encoding="utf-8") as f:
-        cfg = yaml.safe_load(f) or {}
+        try:
+            cfg = yaml.safe_load(f) or {}
+        except yaml.YAMLError as err:
+            mark = getattr(err, "problem_mark", None)
+            where = f", line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+            what = " ".join(str(getattr(err, "problem", None) or "a syntax error").split())
+            raise ScenarioError(f"{path}{where}: not valid YAML ({what}): fix the file's syntax") from err
     if not isinstance(cfg, dict):
         raise ScenarioError(f"{path}: a scenario must be a YAML mapping")
     cfg = apply_overrides(cfg, overrides)

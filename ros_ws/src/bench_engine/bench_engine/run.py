@@ -2,7 +2,6 @@
 
 The argument parser is shared with scripts/launch.py (which adds scoring). DDS stays on this host
 (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) and the run takes a ROS domain no other bench run holds.
-Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128+N if interrupted by signal N.
 """
 from __future__ import annotations
 
@@ -17,10 +16,21 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per process: see launcher.local_dds_env
 
 from bench_engine import phases  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
 from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_engine.timegrid import build_time  # noqa: E402
+
+RUN_EXIT_CODES = {
+    "c0": "the run completed (the bag is closed and complete)",
+    "c1": "a node failed (named, with the tail of its log; the bag is closed, or recovered)",
+    "c2": "bad input, stopped before any node started: an unknown or invalid scenario (a YAML syntax error "
+          "names the file and line), filter, variant, --set key or value, a ROS domain held by another run, or "
+          "an output directory that cannot be written (a file, read-only, no space left)",
+    "c124": "the run did not end within its time limit (the nodes were stopped)",
+}
+"""Exit codes of one run (``--help``); 128+N on signal N leaves the bag closed and complete."""
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -51,8 +61,9 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     phases.mark_process_start("launcher", out.resolve())
     filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
     try:
-        plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
-                           extra={"executor": args.executor})
+        with writing(out):  # a file error (a file in the way, read-only, no space) is told in one line
+            plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
+                               extra={"executor": args.executor})
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2, None
@@ -72,9 +83,13 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_run_arguments(p)
-    return launch(p.parse_args(argv))[0]
+    """One run of the command line; the exit codes of RUN_EXIT_CODES, every failure told in one line but a bug's
+    (bench_engine.cli.guard)."""
+    def run(args: list[str] | None) -> int:
+        p = ArgumentParser(description=__doc__, epilog=exit_codes(**RUN_EXIT_CODES))
+        add_run_arguments(p)
+        return launch(p.parse_args(args))[0]
+    return run_main(run, argv)
 
 
 if __name__ == "__main__":

@@ -15,9 +15,9 @@ import numpy as np
 import yaml
 
 from bench_engine import plugins
-from bench_engine.bag import BagReader
+from bench_engine.bag import BagDamaged, BagReader
 from bench_engine.columns import Table
-from bench_engine.config import Section
+from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.stage import codec
 from bench_eval import metrics
@@ -115,7 +115,11 @@ def load_bag(bag_dir: Path | str) -> BagData:
     config = bag_dir / "run_config.yaml"
     if not config.is_file():
         raise FileNotFoundError(f"{bag_dir} has no run_config.yaml: not a bag recorded by this bench")
-    data = BagData(yaml.safe_load(config.read_text()))
+    try:
+        data = BagData(yaml.safe_load(config.read_text()))
+        data.scenario.get("scenario")
+    except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError, AttributeError) as err:
+        raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err
     reader = BagReader(bag_dir)
     types = reader.topics()
     sensors = {t: topic_owner(t, MEASUREMENT) for t in types}
@@ -173,7 +177,8 @@ class NothingToScore(ValueError):
 def _scenario_name(runs: list[BagData]) -> str:
     names = {d.scenario.get("scenario") for d in runs}
     if len(names) != 1:
-        raise ValueError(f"bags of different scenarios cannot be scored together: {sorted(map(str, names))}")
+        raise ScenarioError(f"bags of different scenarios cannot be scored together: {sorted(map(str, names))}; "
+                            "score each scenario's bags separately")
     return names.pop()
 
 

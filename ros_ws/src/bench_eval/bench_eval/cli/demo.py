@@ -11,7 +11,6 @@ Example:
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -23,8 +22,15 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads
 
 from bench_engine import plugins  # noqa: E402
 from bench_engine.batch import RunSpec, run_batch  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
 from bench_eval.report import write_report  # noqa: E402
-from bench_eval.scoring import print_summary, score_bags  # noqa: E402
+from bench_eval.scoring import NothingToScore, print_summary, score_bags  # noqa: E402
+
+EPILOG = exit_codes(
+    c0="every study ran and was scored; the report is written",
+    c1="a study's run failed (its logs named), or its filters published nothing to score",
+    c2="bad input, stopped before any run started: an unknown study, --runs < 1, or an output directory that "
+       "cannot be written (a file, read-only, no space left)")
 
 
 def run_study(name: str, out: Path, runs: int) -> list[Path]:
@@ -40,9 +46,9 @@ def run_study(name: str, out: Path, runs: int) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run, score and report the chosen studies; 0 ok, 1 a study's run failed."""
+    """Run, score and report the chosen studies; the exit codes of EPILOG."""
     studies = plugins.names("studies")
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory (default runs/demo)")
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per study (default 1)")
     p.add_argument("--studies", default=",".join(studies), help=f"comma-separated subset of {studies}")
@@ -51,24 +57,28 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(chosen) - set(studies))
     if unknown or args.runs < 1:
         p.error(f"unknown study {unknown}; registered: {studies}" if unknown else "--runs must be >= 1")
+    check_writable(args.out)  # a file, read-only or full: one line (run_main), before any run starts
     scored_all, series_all = {}, {}
     for name in chosen:
         try:
-            bags = run_study(name, args.out, args.runs)
+            with writing(args.out):
+                bags = run_study(name, args.out, args.runs)
         except RuntimeError as err:
             print(f"error: {err}", file=sys.stderr)
             return 1
         scored, series = score_bags(bags, with_series=True)
-        (args.out / name / "score.json").write_text(json.dumps(scored, indent=1))
+        with writing(args.out / name):
+            (args.out / name / "score.json").write_text(json.dumps(scored, indent=1))
         print(print_summary(scored))
         scored_all[name] = scored["filters"]
         if series:
             series_all[name] = series
-    report = write_report(args.out, scored_all, series_all)
+    with writing(args.out):
+        report = write_report(args.out, scored_all, series_all)
     print(f"[demo] report: {report}", file=sys.stderr)
     return 0
 
 
 def command() -> None:
-    """Console script ``bench_demo``."""
-    sys.exit(main())
+    """Console script ``bench_demo``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
+    sys.exit(run_main(main, expected={NothingToScore: 1}))

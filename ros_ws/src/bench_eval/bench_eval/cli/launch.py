@@ -7,21 +7,22 @@ Examples:
   .venv/bin/python scripts/launch.py leo_radar --variant table3_angles
 
 DDS stays on this host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST); each run uses its own ROS_DOMAIN_ID.
-Exit code: 0 on success, 1 if a node failed, 2 for a bad scenario/parameter, 128+N if interrupted by signal N.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 
 from bench_engine import phases
+from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
 from bench_engine.process import exit_now
-from bench_engine.run import add_run_arguments, launch
+from bench_engine.run import RUN_EXIT_CODES, add_run_arguments, launch
+
+EPILOG = exit_codes(**{**RUN_EXIT_CODES, "c1": RUN_EXIT_CODES["c1"] + ", or the filters published nothing to score"})
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run, then score the bag unless --no-score; the exit code of the module docstring."""
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Run, then score the bag unless --no-score; the exit codes of EPILOG."""
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     add_run_arguments(p)
     p.add_argument("--no-score", action="store_true", help="do not score the bag after the run")
     p.add_argument("--json", action="store_true", help="print the score as JSON")
@@ -40,6 +41,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def command() -> None:
-    """Console script ``bench_launch``: ``main`` on the command line, then exit without the interpreter's
-    teardown (bench_engine.process.exit_now)."""
-    exit_now(main())
+    """Console script ``bench_launch``: ``main`` on the command line (its failures told in one line:
+    bench_engine.cli.guard), then exit without the interpreter's teardown (bench_engine.process.exit_now)."""
+    exit_now(run_main(main))

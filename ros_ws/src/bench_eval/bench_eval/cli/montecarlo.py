@@ -27,14 +27,24 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine import phases  # noqa: E402
+from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
+                                    run_main, writing)
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.montecarlo import MonteCarlo, run_montecarlo  # noqa: E402
-from bench_eval.scoring import print_summary  # noqa: E402
+from bench_eval.scoring import NothingToScore, print_summary  # noqa: E402
+
+EPILOG = exit_codes(
+    c0="every run completed; scores and report written",
+    c1="a run failed (each failed run is named with its log; the others are scored), none could be scored, or "
+       "the Dask scheduler could not be reached",
+    c2="bad input, stopped before any run started: an unknown or invalid scenario (a YAML syntax error names the "
+       "file and line), filter, variant or --set key or value, run directories already in OUT (without "
+       "--resume), or an output directory that cannot be written (a file, read-only, no space left)")
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("scenario", help="scenario name or YAML path")
     p.add_argument("--runs", type=int, required=True, help="number of Monte Carlo runs")
     p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
@@ -68,19 +78,23 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the Monte Carlo of the command line; 0 ok, 1 a run failed, 2 a bad scenario."""
+    """Run the Monte Carlo of the command line; the exit codes of EPILOG."""
     args = parse_args(argv)
     mc = MonteCarlo(args.scenario, args.out or Path(f"runs/mc-{Path(args.scenario).stem}"), args.runs, args.seed0,
                     args.filters, args.variant, args.overrides, args.multiprocess)
     phases.mark_process_start("montecarlo", mc.out.resolve())
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
+    check_writable(mc.out)  # a file, read-only or full: one line (run_main), before anything starts
     try:
-        scored, failures = run_montecarlo(mc, args.jobs, domains, args.scheduler, args.resume, args.retries)
+        with writing(mc.out):
+            scored, failures = run_montecarlo(mc, args.jobs, domains, args.scheduler, args.resume, args.retries)
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except (RuntimeError, OSError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        if is_file_error(err):
+            raise  # an output that cannot be written: run_main tells it (exit code 2)
+        print(f"error: {' '.join(str(err).split())}", file=sys.stderr)  # e.g. no Dask scheduler there
         return 1
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
     print(f"[montecarlo] report: {mc.out / 'report' / 'report.md'}", file=sys.stderr)
@@ -90,6 +104,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def command() -> None:
-    """Console script ``bench_montecarlo``: ``main`` on the command line, then exit without the interpreter's
-    teardown (bench_engine.process.exit_now)."""
-    exit_now(main())
+    """Console script ``bench_montecarlo``: ``main`` on the command line (its failures told in one line:
+    bench_engine.cli.guard), then exit without the interpreter's teardown (bench_engine.process.exit_now)."""
+    exit_now(run_main(main, expected={NothingToScore: 1}))

@@ -10,7 +10,6 @@ Examples:
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -21,13 +20,37 @@ import yaml
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
+from bench_engine.bag import BagDamaged, BagReader  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 
+EPILOG = exit_codes(
+    c0="the replay completed and its bag was scored",
+    c1="a node failed (named, with the tail of its log), or the new filters published nothing to score",
+    c2="bad input, stopped before any node started: a directory that is not a bag recorded by this bench, a "
+       "damaged bag, an invalid filter or --set key or value, a ROS domain held by another run, or an output "
+       "directory that cannot be written (a file, read-only, no space left)",
+    c124="the replay did not end within its time limit")
+
+
+def recorded_run(bag: Path) -> dict:
+    """The bag's run_config.yaml (its resolved scenario), after checking that the bag can be read at all."""
+    config = bag / "run_config.yaml"
+    if not config.is_file():
+        raise ScenarioError(f"{bag} is not a bag recorded by this bench (no run_config.yaml)")
+    BagReader(bag).topics()  # no .mcap, a damaged metadata.yaml or file: BagDamaged, before anything starts
+    try:
+        recorded = yaml.safe_load(config.read_text())
+        recorded["scenario"]["scenario"]
+    except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
+        raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err
+    return recorded
+
 
 def main(argv: list[str] | None = None) -> int:
-    """Replay the bag of the command line into fresh filters; 0 ok, 2 a bad bag or scenario, else the run's code."""
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Replay the bag of the command line into fresh filters; the exit codes of EPILOG."""
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("bag", type=Path, help="bag directory recorded by launch.py / montecarlo.py")
     p.add_argument("--filters", required=True, help="comma-separated filter names to run on the bag's data")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/replay-TIMESTAMP)")
@@ -38,28 +61,29 @@ def main(argv: list[str] | None = None) -> int:
                    help="ROS_DOMAIN_ID (default: the first one no other bench run holds)")
     p.add_argument("--json", action="store_true", help="print the score as JSON")
     args = p.parse_args(argv)
-    config = args.bag / "run_config.yaml"
-    if not config.is_file():
-        print(f"error: {args.bag} is not a bag recorded by this bench (no run_config.yaml)", file=sys.stderr)
-        return 2
-    recorded = yaml.safe_load(config.read_text())
     out = args.out or Path(f"runs/replay-{time.strftime('%Y%m%d-%H%M%S')}")
     try:
+        recorded = recorded_run(args.bag)
         cfg = apply_overrides(recorded["scenario"], args.overrides)
-        plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"), source="player",
-                           extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
-    except ScenarioError as err:
+        with writing(out):
+            plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"),
+                               source="player", extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
+    except (ScenarioError, BagDamaged) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['filters']}", file=sys.stderr)
     code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code
-    from bench_eval.scoring import score_run
-    print(score_run(plan.out, args.json))
+    from bench_eval.scoring import NothingToScore, score_run
+    try:
+        print(score_run(plan.out, args.json))
+    except NothingToScore as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     return 0
 
 
 def command() -> None:
-    """Console script ``bench_replay``."""
-    sys.exit(main())
+    """Console script ``bench_replay``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
+    sys.exit(run_main(main))

@@ -3,7 +3,6 @@
 Several bags of the same scenario are Monte Carlo runs: RMSE is taken per time step over the runs
 (paper 000 eq. 35). Prints a summary table, or JSON with --json; --plots DIR writes report.md and PNGs.
 A bag a killed recorder left incomplete is recovered first (bench_engine.recovery).
-Exit code: 0 on success, 2 for a directory that is not a bag, an unrecoverable bag or one with nothing to score.
 
 Examples:
   .venv/bin/python scripts/score.py runs/demo/leo_radar/bag
@@ -11,15 +10,20 @@ Examples:
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
+from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
+
+EPILOG = exit_codes(c0="the bags were scored", c2="bad input: a directory that is not a bag, an unrecoverable or "
+                    "damaged bag, bags of different scenarios, a bag whose scenario needs a component not "
+                    "registered here, a bag with nothing to score, or a --plots directory that cannot be written")
+
 
 def main(argv: list[str] | None = None) -> int:
     """Score the bags of the command line; the exit code of the module docstring."""
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("bags", nargs="+", type=Path, help="bag directories (metadata.yaml + .mcap) of one scenario")
     p.add_argument("--json", action="store_true", help="print the scores as JSON")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write report.md and plots into DIR")
@@ -28,14 +32,11 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f"error: not a bag directory (no metadata.yaml or .mcap file): {', '.join(missing)}", file=sys.stderr)
         return 2
-    from bench_engine.bag import BagDamaged
-    from bench_engine.config import ScenarioError
-    from bench_engine.recovery import BagUnrecoverable
     from bench_eval.report import write_report
     from bench_eval.scoring import NothingToScore, print_summary, score_bags
     try:
         scored, series = score_bags(args.bags, with_series=True)
-    except (NothingToScore, BagDamaged, BagUnrecoverable, ScenarioError, FileNotFoundError) as err:
+    except NothingToScore as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
@@ -47,5 +48,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def command() -> None:
-    """Console script ``bench_score``."""
-    sys.exit(main())
+    """Console script ``bench_score``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
+    sys.exit(run_main(main))

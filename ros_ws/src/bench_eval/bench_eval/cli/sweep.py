@@ -14,7 +14,6 @@ Examples:
   .venv/bin/python scripts/sweep.py formation_cqkf --grid tables --runs 40 --scheduler tcp://head:8786 --out /shared/t
   .venv/bin/python scripts/sweep.py formation_cqkf --grid interval --runs 4 --out runs/sweep-interval
   .venv/bin/python scripts/sweep.py formation_cqkf --grid noise --runs 2 --set time.duration=600
-Exit code: 0 on success, 1 if a run or a cell's scoring failed, 2 for a bad grid/scenario/argument.
 """
 from __future__ import annotations
 
@@ -27,13 +26,23 @@ from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
+from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
+                                    run_main, writing)
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outputs  # noqa: E402
 
+EPILOG = exit_codes(
+    c0="every run completed and every cell was scored; sweep.json and table.md written",
+    c1="a run or a cell's scoring failed (each named; the other cells are reported), or the Dask scheduler could "
+       "not be reached",
+    c2="bad input, stopped before any run started: an unknown or invalid scenario (a YAML syntax error names the "
+       "file and line), grid, cell value or --set key or value, runs already in OUT (without --resume), or an "
+       "output directory that cannot be written (a file, read-only, no space left)")
+
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("scenario", help="scenario name or YAML path (with a 'sweeps' section)")
     p.add_argument("--grid", required=True, help="name of the grid in the scenario's 'sweeps' section")
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per cell (default 1)")
@@ -70,7 +79,7 @@ def invoked_as() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the grid of the command line; the exit code of the module docstring."""
+    """Run the grid of the command line; the exit codes of EPILOG."""
     args = parse_args(argv)
     args.out = args.out or Path(f"runs/sweep-{Path(args.scenario).stem}-{args.grid}")
     try:
@@ -80,20 +89,25 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    check_writable(args.out)  # a file, read-only or full: one line (run_main), before any run starts
     print(f"[sweep] {grid.scenario}/{grid.name}: {len(grid.cells)} cells x {args.runs} runs "
           f"({len(done)} reused), {args.jobs} jobs, out {args.out}", file=sys.stderr)
     started = time.monotonic()
     sweep_run = SweepRun(grid, args.out, args.runs, args.seed0, done)
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
     try:
-        sweep_run.run(args.jobs, domains, args.scheduler, args.retries)
-    except OSError as err:  # e.g. no Dask scheduler at that address
-        print(f"error: {err}", file=sys.stderr)
+        with writing(args.out):
+            sweep_run.run(args.jobs, domains, args.scheduler, args.retries)
+    except OSError as err:
+        if is_file_error(err):
+            raise  # an output that cannot be written: run_main tells it (exit code 2)
+        print(f"error: {' '.join(str(err).split())}", file=sys.stderr)  # e.g. no Dask scheduler at that address
         return 1
     wall = time.monotonic() - started
     command = " ".join([invoked_as()] + (sys.argv[1:] if argv is None else argv))
-    sweep = write_outputs(sweep_run, {"runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs,
-                                      "wall_s": round(wall, 1), "runs_reused": len(done), "command": command})
+    with writing(args.out):
+        sweep = write_outputs(sweep_run, {"runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs,
+                                          "wall_s": round(wall, 1), "runs_reused": len(done), "command": command})
     print(json.dumps(sweep, indent=1) if args.json else (args.out / "table.md").read_text())
     print(f"[sweep] {len(sweep_run.specs)} runs in {wall:.0f} s; table {args.out / 'table.md'}", file=sys.stderr)
     for r in sweep_run.reruns:
@@ -104,6 +118,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def command() -> None:
-    """Console script ``bench_sweep``: ``main`` on the command line, then exit without the interpreter's
-    teardown (bench_engine.process.exit_now)."""
-    exit_now(main())
+    """Console script ``bench_sweep``: ``main`` on the command line (its failures told in one line:
+    bench_engine.cli.guard), then exit without the interpreter's teardown (bench_engine.process.exit_now)."""
+    exit_now(run_main(main))
