@@ -161,7 +161,10 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--tests", nargs="+", metavar="TEST",
                    help="run these pytest arguments (files, node ids) for every chosen mutation instead of each "
                         "one's own list: does this one test catch them?")
-    p.add_argument("--rev", metavar="REV", help="mutate this git revision (git archive) instead of the working tree")
+    p.add_argument("--rev", metavar="REV",
+                   help="mutate this git revision (git archive) instead of the working tree. Its components are "
+                        "registered by this checkout's installed metadata (make setup), so a revision whose entry "
+                        "points differ may fail its unmutated run; pass --tests to leave such tests out")
     p.add_argument("--timeout", type=float, default=900.0, metavar="S",
                    help="seconds one mutation's tests may take (default 900); past it the run counts as caught "
                         "(TIMEOUT: a hang fails a test suite too)")
