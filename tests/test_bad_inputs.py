@@ -69,7 +69,13 @@ class Inputs:
     read_only_bag: Path  # a crashed bag (no metadata.yaml) in a directory nobody may write into, nor into it
 
     def out(self, name: str) -> str:
+        """An output directory that does not exist yet."""
         return str(self.root / "out" / name)
+
+    def existing_out(self, name: str) -> str:
+        """An empty output directory that exists (a command checks it before validating anything)."""
+        (self.root / "out" / name).mkdir()
+        return self.out(name)
 
     def crashed_copy(self, name: str) -> str:
         """A copy of the leo_radar bag as a killed recorder leaves it (no metadata.yaml)."""
@@ -113,7 +119,7 @@ TABLE = [
          "a_file is a file, not a directory"),
     Case("score-plots-read-only", "score.py", lambda i: [str(i.leo), "--plots", str(i.read_only)], 2,
          "(read-only or no permission)"),
-    Case("score-plots-full-disk", "score.py", lambda i: [str(i.leo), "--plots", i.out("s1")], 2,
+    Case("score-plots-full-disk", "score.py", lambda i: [str(i.leo), "--plots", i.existing_out("s1")], 2,
          "(the disk is full or a file size limit is reached)", full_disk=True),
     # --- replay
     Case("replay-no-mcap", "replay.py", lambda i: [str(i.no_mcap), "--filters", "ukf", "--out", i.out("r1")], 2,
@@ -130,7 +136,7 @@ TABLE = [
          "a_file is a file, not a directory"),
     Case("replay-out-read-only", "replay.py",
          lambda i: [str(i.leo), "--filters", "ukf", "--out", str(i.read_only)], 2, "(read-only or no permission)"),
-    Case("replay-full-disk", "replay.py", lambda i: [str(i.leo), "--filters", "ukf", "--out", i.out("r5")], 2,
+    Case("replay-full-disk", "replay.py", lambda i: [str(i.leo), "--filters", "ukf", "--out", i.existing_out("r5")], 2,
          "(the disk is full or a file size limit is reached)", full_disk=True),
     # --- recover_bag
     Case("recover-no-mcap", "recover_bag.py", lambda i: [str(i.no_mcap)], 2, "no .mcap file"),
@@ -161,7 +167,8 @@ TABLE = [
          "a_file is a file, not a directory"),
     Case("sweep-out-read-only", "sweep.py",
          lambda i: [str(i.grid_yaml), "--grid", "one", "--out", str(i.read_only)], 2, "(read-only or no permission)"),
-    Case("sweep-full-disk", "sweep.py", lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.out("w3")], 2,
+    Case("sweep-full-disk", "sweep.py", lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.existing_out("w3")],
+         2,
          "(the disk is full or a file size limit is reached)", full_disk=True),
     # --- demo
     Case("demo-unknown-study", "demo.py", lambda i: ["--studies", "leo_radr", "--out", i.out("d1")], 2,

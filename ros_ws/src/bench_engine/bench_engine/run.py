@@ -16,7 +16,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per process: see launcher.local_dds_env
 
 from bench_engine import phases  # noqa: E402
-from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
 from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
@@ -62,6 +62,7 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
     try:
         with writing(out):  # a file error (a file in the way, read-only, no space) is told in one line
+            check_output(out)  # before the validation, which may take seconds
             plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
                                extra={"executor": args.executor})
     except ScenarioError as err:

@@ -124,6 +124,20 @@ def check_writable(directory: str | Path) -> None:
         probe.unlink(missing_ok=True)
 
 
+def check_output(path: str | Path) -> None:
+    """Stop a command early, before it validates or builds anything, when ``path`` cannot be its output
+    directory: a file is in the way (``path`` itself or a parent), or ``path`` exists and takes no file
+    (read-only, full: :func:`check_writable`). Creates nothing; raises the OSError."""
+    path = Path(path)
+    for part in [path, *path.parents]:
+        if part.exists():
+            if not part.is_dir():
+                raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(part))
+            if part == path:
+                check_writable(path)
+            return
+
+
 @contextmanager
 def writing(path: str | Path) -> Iterator[None]:
     """Name ``path`` in a file error raised inside the block without a file name of its own (a ``write`` on an

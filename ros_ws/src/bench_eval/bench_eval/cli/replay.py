@@ -21,7 +21,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
 from bench_engine.bag import BagDamaged, BagReader  # noqa: E402
-from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 
@@ -66,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         recorded = recorded_run(args.bag)
         cfg = apply_overrides(recorded["scenario"], args.overrides)
         with writing(out):
+            check_output(out)  # before the validation
             plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"),
                                source="player", extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
     except (ScenarioError, BagDamaged) as err:

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
+from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
 
 EPILOG = exit_codes(c0="the bags were scored", c2="bad input: a directory that is not a bag, an unrecoverable or "
                     "damaged bag, bags of different scenarios, a bag whose scenario needs a component not "
@@ -32,6 +32,8 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f"error: not a bag directory (no metadata.yaml or .mcap file): {', '.join(missing)}", file=sys.stderr)
         return 2
+    if args.plots:
+        check_output(args.plots)  # a file in the way, read-only, full: said before the bags are read
     from bench_eval.report import write_report
     from bench_eval.scoring import NothingToScore, print_summary, score_bags
     try:
@@ -41,8 +43,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
     if args.plots:
-        path = write_report(args.plots, {scored["scenario"]: scored["filters"]},
-                            {scored["scenario"]: series} if series else {})
+        with writing(args.plots):
+            path = write_report(args.plots, {scored["scenario"]: scored["filters"]},
+                                {scored["scenario"]: series} if series else {})
         print(f"report: {path}", file=sys.stderr)
     return 0
 

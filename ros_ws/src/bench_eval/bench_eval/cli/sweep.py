@@ -26,8 +26,8 @@ from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
-from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
-                                    run_main, writing)
+from bench_engine.cli.guard import (ArgumentParser, check_output, check_writable, exit_codes,  # noqa: E402
+                                    is_file_error, run_main, writing)
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outputs  # noqa: E402
@@ -82,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the grid of the command line; the exit codes of EPILOG."""
     args = parse_args(argv)
     args.out = args.out or Path(f"runs/sweep-{Path(args.scenario).stem}-{args.grid}")
+    check_output(args.out)  # a file in the way, or an existing OUT that takes no file: before the validation
     try:
         grid = load_grid(args.scenario, args.grid, args.overrides)
         validate(grid, args.seed0)
