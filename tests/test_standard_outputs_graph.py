@@ -14,7 +14,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from bench_engine import views
-from bench_engine.batch import VIEWS_SWITCH, RunSpec, reusable_run, without_views
+from bench_engine.batch import RunSpec, reusable_run
 from bench_engine.config import ScenarioError
 from graph_helpers import read_bag, script, stamp
 
@@ -134,19 +134,17 @@ def test_star_tracker_attitudes_are_poses_and_attitude_estimates(tmp_path):
 
 def test_a_batch_makes_its_runs_without_views(tmp_path):
     spec = RunSpec("leo_radar", tmp_path / "run_000", 1, overrides=["time.duration=5"])
-    off = without_views(spec)
-    assert off.overrides == [f"{VIEWS_SWITCH}=false", "time.duration=5"] and spec.overrides == ["time.duration=5"]
-    assert VIEWS_SWITCH == views.SWITCH
-    assert "--set" in off.command(None) and f"{VIEWS_SWITCH}=false" in off.command(None)
-    on = RunSpec("leo_radar", tmp_path / "x", 1, overrides=[f"{VIEWS_SWITCH}=true"])
-    assert without_views(on) is on
+    assert " ".join(spec.command(None)).endswith(f"--set {views.SWITCH}=false --set time.duration=5")
+    on = RunSpec("leo_radar", tmp_path / "x", 1, overrides=[f"{views.SWITCH}=true"])
+    assert f"{views.SWITCH}=false" not in on.command(None)
+    assert f"{views.SWITCH}=false" not in RunSpec("leo_radar", tmp_path / "y", 1, standard_views=True).command(None)
     # a batch's run is resumed although its bag records the switch its caller did not set
     bag = tmp_path / "run_000" / "bag"
     bag.mkdir(parents=True)
     (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": {
         "topics_with_message_count": [{"topic_metadata": {"name": "/truth/state"}, "message_count": 51}]}}))
     scenario = {"scenario": "leo_radar", "time": {"start": 4320.8, "duration": 5.0, "dt": 0.1}, "seed": 1}
-    (bag / "run_config.yaml").write_text(yaml.safe_dump({"scenario": {**scenario, VIEWS_SWITCH: False}}))
+    (bag / "run_config.yaml").write_text(yaml.safe_dump({"scenario": {**scenario, views.SWITCH: False}}))
     assert reusable_run(tmp_path / "run_000", scenario, resume=True)
     with pytest.raises(ScenarioError, match="another configuration"):
         reusable_run(tmp_path / "run_000", {**scenario, "seed": 2}, resume=True)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import shutil
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -22,24 +21,12 @@ import yaml
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError
 from bench_engine.executors import run_dask
-
-
-VIEWS_SWITCH = "standard_views"
-"""The scenario key of the standard views (bench_engine.views.SWITCH): a batch makes its runs without them
-(``--set standard_views=false``, unless a run's own overrides set it): they double a leo_radar step's messages
-(README, Speed) and the scorer does not read them."""
-
-
-def without_views(spec: RunSpec) -> RunSpec:
-    """``spec`` with the standard views turned off, unless its overrides set them."""
-    if any(o.split("=", 1)[0].strip() == VIEWS_SWITCH for o in spec.overrides):
-        return spec
-    return replace(spec, overrides=[f"{VIEWS_SWITCH}=false", *spec.overrides])
+from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 
 def _comparable(cfg: dict) -> dict:
     """A resolved scenario without the views switch: the views change no estimate, and a batch sets the switch
-    in its runs (without_views), not in the configuration its caller expects."""
+    in its runs (RunSpec.standard_views), not in the configuration its caller expects."""
     return {k: v for k, v in cfg.items() if k != VIEWS_SWITCH}
 
 
@@ -69,8 +56,7 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread).
     ``scheduler``: run on a Dask cluster instead (an address or ``"local"``; bench_engine.executors), each
     run retried up to ``retries`` times if it raises or its worker is lost. Runs are made without the standard
-    views (:func:`without_views`)."""
-    specs = [without_views(s) for s in specs]
+    views unless their spec asks for them (RunSpec.standard_views)."""
     if scheduler is not None:
         return run_dask(specs, scheduler, jobs, desc, on_done, retries)
     from tqdm import tqdm

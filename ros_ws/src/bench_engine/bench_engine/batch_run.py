@@ -23,6 +23,7 @@ import yaml
 
 from bench_engine import phases
 from bench_engine.graph import TRUTH_TOPIC
+from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 CROSSTALK_RETRIES = 2
 CROSSTALK_EXIT = 3
@@ -39,6 +40,9 @@ class RunSpec:
     variant: str | None = None
     overrides: list[str] = field(default_factory=list)
     multiprocess: bool = False
+    standard_views: bool = False
+    """Publish the standard views (bench_engine.views)? Off in batches unless ``overrides`` set the switch: they
+    double a leo_radar step's messages (README, Speed) and the scorer does not read them."""
 
     def command(self, domain: int | None) -> list[str]:
         cmd = [sys.executable, "-m", "bench_engine.run", self.scenario, "--seed", str(self.seed), "--out",
@@ -51,6 +55,8 @@ class RunSpec:
             cmd += ["--variant", self.variant]
         if not self.multiprocess:
             cmd.append("--single-process")
+        if not self.standard_views and not any(o.split("=", 1)[0].strip() == VIEWS_SWITCH for o in self.overrides):
+            cmd += ["--set", f"{VIEWS_SWITCH}=false"]
         for o in self.overrides:
             cmd += ["--set", o]
         return cmd
