@@ -38,11 +38,14 @@ from __future__ import annotations
 
 import collections
 import enum
+import heapq
+import io
 import os
 import struct
 import sys
 import threading
 import time
+import zlib
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePath
@@ -52,11 +55,12 @@ import lz4.frame
 import yaml
 import zstandard
 from mcap.data_stream import ReadDataStream
-from mcap.reader import make_reader
-from mcap.records import Chunk
+from mcap.opcode import Opcode
+from mcap.records import AttachmentIndex, Channel, ChunkIndex, Message, MetadataIndex, Schema, Statistics
 from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
+from bench_engine.bag_errors import BagDamaged, BagError, BagUnsupported, MessageDamaged  # noqa: F401 - re-exported
 from bench_engine.columns import Table, table
 from bench_engine.msg_schema import canonical_type_name, message_class, schema_text, type_hash
 
@@ -478,37 +482,367 @@ class BagWriter:
         }
 
 
+# --- reader ------------------------------------------------------------------------------------------------
+#
+# The reader walks MCAP records itself, defensively: a damaged or hostile file (tests/test_fuzz_readers.py) ends
+# in a BagError naming the file and what is wrong (bench_engine.bag_errors), never in a library's error, a hang
+# or an allocation its bytes do not justify. Every offset and length is checked against the bytes that are
+# there (the file's size, the record's, the chunk's) before it is used; a chunk's claimed uncompressed size
+# against MAX_CHUNK_BYTES before anything is decompressed, and the output grows only with the data really there
+# (in reads of at most _PIECE bytes, never past the claim); CRCs are checked where the file has them (summary,
+# chunks), so a flipped bit reads as damage, not as other numbers.
+
+MAX_CHUNK_BYTES = 1 << 30
+"""The largest uncompressed chunk the reader accepts. rosbag2 and :class:`BagWriter` write chunks of 768 KiB; a
+chunk holding one large message is about as large as that message. A chunk claiming more is refused before
+anything is allocated."""
+_PIECE = 8 << 20  # decompressed bytes per read: the most a chunk's claimed size makes the reader allocate ahead
+_MAGIC = b"\x89MCAP0\r\n"
 _RECORD_PREFIX = 1 + 8  # an MCAP record's opcode (uint8) and length (uint64)
-_MESSAGE_HEADER = 2 + 4 + 8 + 8  # a message record's channel id, sequence, log time and publish time
-_OPCODE_MESSAGE = 0x05
+_MESSAGE_HEADER = struct.Struct("<HIQQ")  # a message record's channel id, sequence, log time and publish time
+_CHUNK_HEADER = struct.Struct("<QQQII")  # message start and end time, uncompressed size and CRC, compression length
+_FOOTER = struct.Struct("<BQQQI")  # opcode, length (20), summary start, summary offset start, summary CRC
 _U64, _U16 = struct.Struct("<Q"), struct.Struct("<H")
+_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = (int(Opcode.SCHEMA), int(Opcode.CHANNEL), int(Opcode.MESSAGE),
+                                                   int(Opcode.CHUNK))
+_OP_FOOTER, _OP_DATA_END = int(Opcode.FOOTER), int(Opcode.DATA_END)
+_SUMMARY_RECORDS = {int(Opcode.SCHEMA): Schema, int(Opcode.CHANNEL): Channel, int(Opcode.CHUNK_INDEX): ChunkIndex,
+                    int(Opcode.STATISTICS): Statistics, int(Opcode.METADATA_INDEX): MetadataIndex,
+                    int(Opcode.ATTACHMENT_INDEX): AttachmentIndex}
+_COMPRESSIONS = ("", "zstd", "lz4")
 
 
-def _chunk_records(chunk: Chunk) -> bytes:
-    """A chunk's records, decompressed."""
-    if chunk.compression == "zstd":
-        return zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
-    if chunk.compression == "lz4":
-        return lz4.frame.decompress(chunk.data)
-    if chunk.compression == "":
-        return chunk.data
-    raise BagDamaged(f"chunk compression {chunk.compression!r} is not one MCAP defines")
+class _Cut(Exception):
+    """A record parser read past its record's end."""
 
 
-def _collect_messages(records: bytes, wanted: dict[int, list[bytes]]) -> None:
-    """Append the data of each message record of ``records`` whose channel id is in ``wanted``."""
+class _RecordBody(ReadDataStream):
+    """One record's bytes for mcap's record parsers: reading past them raises :class:`_Cut` (mcap's own stream
+    returns fewer bytes, or allocates whatever a length field claims)."""
+
+    def __init__(self, body: bytes | memoryview) -> None:
+        super().__init__(io.BytesIO())
+        self._body = body
+
+    def read(self, length: int) -> bytes:
+        if length < 0 or self._count + length > len(self._body):
+            raise _Cut
+        start = self._count
+        self._count += length
+        return bytes(self._body[start:self._count])
+
+
+def _parse(record_class: type, body: bytes | memoryview, path: Path, what: str) -> Any:
+    """A record of ``record_class`` (mcap.records) parsed from its body, which must hold it."""
+    try:
+        return record_class.read(_RecordBody(body))
+    except (_Cut, UnicodeDecodeError, struct.error):
+        raise BagDamaged(f"{path}: {what} is cut short or garbled") from None
+
+
+def _read_at(f: BinaryIO, size: int, offset: int, length: int, path: Path, what: str) -> bytes:
+    """``length`` bytes of the file at ``offset``, refused unless the file (``size`` bytes) holds them."""
+    if offset < 0 or length < 0 or offset + length > size:
+        raise BagDamaged(f"{path}: {what} at byte {offset} claims {length} bytes, past the end of the file "
+                         f"({size} bytes)")
+    f.seek(offset)
+    data = f.read(length)
+    if len(data) != length:
+        raise BagDamaged(f"{path}: {what} at byte {offset}: the file ended early (did it change while read?)")
+    return data
+
+
+def _records(buf: bytes, start: int, end: int, path: Path, where: str) -> Iterator[tuple[int, int, int]]:
+    """``(opcode, body start, body end)`` of each record of ``buf[start:end]``, each checked to fit in it."""
+    pos = start
+    while pos < end:
+        body = pos + _RECORD_PREFIX
+        if body > end:
+            raise BagDamaged(f"{path}: {where}: the record at byte {pos} is cut short")
+        stop = body + _U64.unpack_from(buf, pos + 1)[0]
+        if stop > end:
+            raise BagDamaged(f"{path}: {where}: the record at byte {pos} claims {stop - body} bytes, "
+                             f"{end - body} are left")
+        yield buf[pos], body, stop
+        pos = stop
+
+
+def _read_summary(f: BinaryIO, size: int, path: Path, rebuild: str) -> Summary:
+    """The summary section of an MCAP file (schemas, channels, chunk indexes, statistics), checked: magic at both
+    ends, the footer, the summary CRC, every record fitting, and the indexes against the data section."""
+    if size < 2 * len(_MAGIC) + _FOOTER.size:
+        raise BagDamaged(f"{path} holds {size} bytes, too few for an MCAP file: it is truncated{rebuild}")
+    if _read_at(f, size, 0, len(_MAGIC), path, "the magic") != _MAGIC:
+        raise BagDamaged(f"{path} is not an MCAP file (no MCAP magic at its start)")
+    footer_at = size - len(_MAGIC) - _FOOTER.size
+    tail = _read_at(f, size, footer_at, _FOOTER.size + len(_MAGIC), path, "the footer")
+    opcode, length, start, _offsets, crc = _FOOTER.unpack_from(tail)
+    footer_ok = tail[_FOOTER.size:] == _MAGIC and opcode == _OP_FOOTER and length == _FOOTER.size - _RECORD_PREFIX
+    if not footer_ok or not start:
+        raise BagDamaged(f"{path} has no summary section: the file is truncated{rebuild}")
+    if not len(_MAGIC) <= start <= footer_at:
+        raise BagDamaged(f"{path}: the footer puts the summary at byte {start}, outside the file{rebuild}")
+    data = _read_at(f, size, start, footer_at - start, path, "the summary section")
+    if crc and zlib.crc32(tail[:_FOOTER.size - 4], zlib.crc32(data)) != crc:
+        raise BagDamaged(f"{path}: the summary section's CRC does not match: it is corrupt{rebuild}")
+    summary = Summary()
+    for opcode, body, stop in _records(data, 0, len(data), path, "the summary section"):
+        record_class = _SUMMARY_RECORDS.get(opcode)
+        if record_class is None:
+            continue
+        record = _parse(record_class, memoryview(data)[body:stop], path,
+                        f"the summary's {record_class.__name__} record at byte {start + body - _RECORD_PREFIX}")
+        if record_class is Schema:
+            summary.schemas[record.id] = record
+        elif record_class is Channel:
+            summary.channels[record.id] = record
+        elif record_class is ChunkIndex:
+            summary.chunk_indexes.append(record)
+        elif record_class is Statistics:
+            summary.statistics = record
+        elif record_class is MetadataIndex:
+            summary.metadata_indexes.append(record)
+        else:
+            summary.attachment_indexes.append(record)
+    _check_summary(summary, start, path, rebuild)
+    return summary
+
+
+def _check_summary(summary: Summary, data_end: int, path: Path, rebuild: str) -> None:
+    """The summary's references resolve, and its chunk indexes point into the data section with sizes the reader
+    accepts."""
+    for channel in summary.channels.values():
+        if channel.schema_id and channel.schema_id not in summary.schemas:
+            raise BagDamaged(f"{path}: channel {channel.topic!r} names schema {channel.schema_id}, which the summary "
+                             f"does not hold{rebuild}")
+    for index in summary.chunk_indexes:
+        where = f"the summary's index of a chunk at byte {index.chunk_start_offset}"
+        if index.chunk_start_offset < len(_MAGIC) or index.chunk_start_offset + index.chunk_length > data_end:
+            raise BagDamaged(f"{path}: {where} ({index.chunk_length} bytes) points outside the data section"
+                             f"{rebuild}")
+        if index.compression not in _COMPRESSIONS:
+            raise BagDamaged(f"{path}: {where}: compression {index.compression!r} is not one MCAP defines")
+        if index.uncompressed_size > MAX_CHUNK_BYTES:
+            raise BagDamaged(f"{path}: {where} claims {index.uncompressed_size} bytes uncompressed, more than the "
+                             f"reader's limit of {MAX_CHUNK_BYTES} (bench_engine.bag.MAX_CHUNK_BYTES)")
+        unknown = set(index.message_index_offsets) - set(summary.channels)
+        if unknown:
+            raise BagDamaged(f"{path}: {where} lists channel(s) {sorted(unknown)}, which the summary does not hold"
+                             f"{rebuild}")
+
+
+def _decompress(data: memoryview, compression: str, size: int, path: Path, where: str) -> bytes:
+    """A chunk's ``data`` decompressed, which must give exactly the ``size`` bytes the chunk claims. The claim is
+    checked against :data:`MAX_CHUNK_BYTES` first, and the output read in pieces of at most :data:`_PIECE`
+    bytes, so what is allocated follows the data really there, whatever the claim or the frame header says."""
+    if size > MAX_CHUNK_BYTES:
+        raise BagDamaged(f"{path}: {where} claims {size} bytes uncompressed, more than the reader's limit of "
+                         f"{MAX_CHUNK_BYTES} (bench_engine.bag.MAX_CHUNK_BYTES)")
+    if compression == "":
+        if len(data) != size:
+            raise BagDamaged(f"{path}: {where} holds {len(data)} bytes but claims {size}")
+        return bytes(data)
+    pieces: list[bytes] = []
+    total = 0
+    try:
+        if compression == "zstd":
+            read = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True).read
+        elif compression == "lz4":
+            read = _lz4_reader(data)
+        else:
+            raise BagDamaged(f"{path}: {where}: compression {compression!r} is not one MCAP defines")
+        while True:
+            piece = read(min(size - total, _PIECE) + 1)
+            if not piece:
+                break
+            total += len(piece)
+            pieces.append(piece)
+            if total > size:
+                raise BagDamaged(f"{path}: {where} decompresses to more than the {size} bytes it claims")
+    except (zstandard.ZstdError, RuntimeError, EOFError, OSError) as err:  # lz4 raises RuntimeError
+        raise BagDamaged(f"{path}: {where} does not decompress ({compression}: {err})") from None
+    if total != size:
+        raise BagDamaged(f"{path}: {where} decompresses to {total} bytes but claims {size}: it is cut short or "
+                         f"corrupt")
+    return pieces[0] if len(pieces) == 1 else b"".join(pieces)
+
+
+def _lz4_reader(data: memoryview) -> Any:
+    """``read(n)`` over an LZ4 frame's output, as zstandard's stream reader gives (b"" at the end)."""
+    decompressor = lz4.frame.LZ4FrameDecompressor()
+    pending = [data]
+
+    def read(n: int) -> bytes:
+        if decompressor.eof:
+            return b""
+        return decompressor.decompress(pending.pop() if pending else b"", max_length=n)
+    return read
+
+
+def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex | None = None) -> bytes:
+    """A chunk record's records (``body``: the record after its opcode and length), decompressed and checked:
+    the compressed bytes against the record, its header against its index in the summary (when given), the
+    output against the claimed size and CRC."""
+    if len(body) < _CHUNK_HEADER.size:
+        raise BagDamaged(f"{path}: {where} is cut short")
+    _start, _end, size, crc, name_length = _CHUNK_HEADER.unpack_from(body)
+    pos = _CHUNK_HEADER.size + name_length
+    if pos + 8 > len(body):
+        raise BagDamaged(f"{path}: {where}: its compression name claims {name_length} bytes, the record holds "
+                         f"{len(body) - _CHUNK_HEADER.size - 8}")
+    compression = bytes(body[_CHUNK_HEADER.size:pos]).decode("latin-1")
+    length = _U64.unpack_from(body, pos)[0]
+    pos += 8
+    if length > len(body) - pos:
+        raise BagDamaged(f"{path}: {where} claims {length} compressed bytes, its record holds {len(body) - pos}")
+    if index is not None and (compression, size) != (index.compression, index.uncompressed_size):
+        raise BagDamaged(f"{path}: {where} says {compression!r}, {size} bytes; its index in the summary says "
+                         f"{index.compression!r}, {index.uncompressed_size} bytes")
+    records = _decompress(body[pos:pos + length], compression, size, path, where)
+    if crc and zlib.crc32(records) != crc:
+        raise BagDamaged(f"{path}: {where}: its CRC does not match: the data is corrupt")
+    return records
+
+
+def _chunk_at(f: BinaryIO, size: int, index: ChunkIndex, path: Path) -> bytes:
+    """The records of the chunk a chunk index points at, decompressed and checked."""
+    where = f"the chunk at byte {index.chunk_start_offset}"
+    record = _read_at(f, size, index.chunk_start_offset, index.chunk_length, path, where)
+    if (len(record) < _RECORD_PREFIX or record[0] != _OP_CHUNK
+            or _U64.unpack_from(record, 1)[0] != len(record) - _RECORD_PREFIX):
+        raise BagDamaged(f"{path}: the summary's index of {where} does not point at a whole chunk record")
+    return _chunk_records(memoryview(record)[_RECORD_PREFIX:], path, where, index)
+
+
+def _data_section(f: BinaryIO, size: int, end: int, path: Path) -> Iterator[tuple[bytes, str]]:
+    """Records of the data section (up to byte ``end``) in file order, for a file whose summary indexes no chunks:
+    each chunk's records decompressed, each message record outside a chunk as its own one-record buffer."""
+    pos = len(_MAGIC)
+    while pos < end:
+        head = _read_at(f, size, pos, _RECORD_PREFIX, path, "a record")
+        opcode, length = head[0], _U64.unpack_from(head, 1)[0]
+        body = pos + _RECORD_PREFIX
+        if length > end - body:
+            raise BagDamaged(f"{path}: the record at byte {pos} claims {length} bytes, {end - body} are left")
+        if opcode == _OP_CHUNK:
+            where = f"the chunk at byte {pos}"
+            yield _chunk_records(memoryview(_read_at(f, size, body, length, path, where)), path, where), where
+        elif opcode == _OP_MESSAGE:
+            yield head + _read_at(f, size, body, length, path, "a message"), f"the message at byte {pos}"
+        pos = body + length
+
+
+def _message_data(records: bytes, wanted: Mapping[int, list[bytes]], channels: Mapping[int, Channel],
+                  path: Path, where: str) -> None:
+    """Append the data of each message record of ``records`` whose channel id is in ``wanted`` (every record
+    checked to fit, every message to have its header and a channel of the summary)."""
     pos, end = 0, len(records)
     while pos < end:
         body = pos + _RECORD_PREFIX
-        pos = body + _U64.unpack_from(records, pos + 1)[0]
-        if records[body - _RECORD_PREFIX] == _OPCODE_MESSAGE:
-            into = wanted.get(_U16.unpack_from(records, body)[0])
+        if body > end:
+            raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data is cut short")
+        stop = body + _U64.unpack_from(records, pos + 1)[0]
+        if stop > end:
+            raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data claims {stop - body} bytes, "
+                             f"{end - body} are left")
+        if records[pos] == _OP_MESSAGE:
+            if stop - body < _MESSAGE_HEADER.size:
+                raise BagDamaged(f"{path}: {where}: the message at byte {pos} of its data is shorter than a "
+                                 f"message header")
+            channel_id = _U16.unpack_from(records, body)[0]
+            into = wanted.get(channel_id)
             if into is not None:
-                into.append(records[body + _MESSAGE_HEADER:pos])
+                into.append(records[body + _MESSAGE_HEADER.size:stop])
+            elif channel_id not in channels:
+                raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does not "
+                                 f"hold")
+        pos = stop
 
 
-class BagDamaged(ValueError):
-    """A bag's MCAP file cannot be read as a whole (truncated or corrupt)."""
+def _messages_in(records: bytes, channels: Mapping[int, Channel], path: Path, where: str
+                 ) -> Iterator[tuple[int, int, int, bytes]]:
+    """``(record index, channel id, log time, data)`` of each message record of ``records`` (checked as in
+    :func:`_message_data`); the index counts every record, as mcap's reader orders messages of equal log time."""
+    for i, (opcode, body, stop) in enumerate(_records(records, 0, len(records), path, where)):
+        if opcode != _OP_MESSAGE:
+            continue
+        if stop - body < _MESSAGE_HEADER.size:
+            raise BagDamaged(f"{path}: {where}: a message record is shorter than a message header")
+        channel_id, _sequence, log_time, _publish = _MESSAGE_HEADER.unpack_from(records, body)
+        if channel_id not in channels:
+            raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does not hold")
+        yield i, channel_id, log_time, records[body + _MESSAGE_HEADER.size:stop]
+
+
+class RecordScan:
+    """The schemas, channels and messages of an MCAP file in file order, read from its start one record at a
+    time and checked as the reader checks them (bench_engine.recovery rebuilds a bag from them: it needs no
+    summary section).
+
+    Iterating gives one list per top-level record: a chunk's schemas, channels and messages once the whole
+    chunk has been read and checked, a schema, channel or message outside chunks alone (other records give
+    nothing). It ends at the end of the data section (a DataEnd or Footer record: :attr:`complete` is then
+    True) or of the file, and raises :class:`BagDamaged` at the first damage: a record cut short, a length past
+    the end of the file, a chunk that does not decompress or whose CRC does not match, a zeroed block.
+    :attr:`good` is the offset just after the last whole record read (0 until the magic has been read). It
+    holds one record at a time."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self.good = 0
+        self.complete = False
+
+    def __iter__(self) -> Iterator[list[Schema | Channel | Message]]:
+        path = self.path
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            if size < len(_MAGIC) or _read_at(f, size, 0, len(_MAGIC), path, "the magic") != _MAGIC:
+                raise BagDamaged(f"{path} is not an MCAP file (no MCAP magic at its start)")
+            pos = self.good = len(_MAGIC)
+            while pos < size:
+                if pos + _RECORD_PREFIX > size:
+                    raise BagDamaged(f"{path}: the record at byte {pos} is cut short (the file ends "
+                                     f"{size - pos} bytes into its header)")
+                head = _read_at(f, size, pos, _RECORD_PREFIX, path, "a record header")
+                opcode, length = head[0], _U64.unpack_from(head, 1)[0]
+                body = pos + _RECORD_PREFIX
+                if length > size - body:
+                    raise BagDamaged(f"{path}: the record at byte {pos} claims {length} bytes, the file holds "
+                                     f"{size - body} more")
+                if opcode == 0:
+                    raise BagDamaged(f"{path}: the record at byte {pos} has opcode 0, which MCAP does not define "
+                                     f"(a zeroed block?)")
+                if opcode in (_OP_DATA_END, _OP_FOOTER):
+                    self.good, self.complete = body + length, True
+                    return
+                items = self._items(f, size, opcode, pos, length)
+                pos = self.good = body + length
+                if items:
+                    yield items
+
+    def _items(self, f: BinaryIO, size: int, opcode: int, pos: int, length: int) -> list[Any]:
+        """What one top-level record holds (only the records recovery needs are read at all)."""
+        if opcode not in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK):
+            return []
+        where = f"the {Opcode(opcode).name.lower()} record at byte {pos}"
+        body = memoryview(_read_at(f, size, pos + _RECORD_PREFIX, length, self.path, where))
+        if opcode != _OP_CHUNK:
+            return [self._record(opcode, body, where)]
+        records = _chunk_records(body, self.path, f"the chunk at byte {pos}")
+        return [self._record(op, memoryview(records)[start:stop], f"{where}, its record at byte {start}")
+                for op, start, stop in _records(records, 0, len(records), self.path, where)
+                if op in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE)]
+
+    def _record(self, opcode: int, body: memoryview, where: str) -> Schema | Channel | Message:
+        if opcode == _OP_SCHEMA:
+            return _parse(Schema, body, self.path, where)
+        if opcode == _OP_CHANNEL:
+            return _parse(Channel, body, self.path, where)
+        if len(body) < _MESSAGE_HEADER.size:
+            raise BagDamaged(f"{self.path}: {where} is shorter than a message header")
+        channel_id, sequence, log_time, publish_time = _MESSAGE_HEADER.unpack_from(body)
+        return Message(channel_id=channel_id, sequence=sequence, log_time=log_time, publish_time=publish_time,
+                       data=bytes(body[_MESSAGE_HEADER.size:]))
 
 
 class BagReader:
@@ -553,18 +887,38 @@ class BagReader:
         return files
 
     def _summary(self, path: Path) -> Summary:
-        """The summary section of one of the bag's files (read once)."""
+        """The summary section of one of the bag's files (read once, checked: :func:`_read_summary`)."""
         if path not in self._summaries:
             with open(path, "rb") as f:
-                try:
-                    summary = make_reader(f).get_summary()
-                except Exception:  # noqa: BLE001 - a damaged summary section reads as none at all
-                    summary = None
-            if summary is None:
-                raise BagDamaged(f"{path} has no summary section: the file is truncated; rebuild it with "
-                                 f"scripts/recover_bag.py --force {self.path}")
-            self._summaries[path] = summary
+                size = os.fstat(f.fileno()).st_size
+                self._summaries[path] = _read_summary(f, size, path, self._rebuild)
         return self._summaries[path]
+
+    @property
+    def _rebuild(self) -> str:
+        return f"; rebuild it with scripts/recover_bag.py --force {self.path}"
+
+    def _chunks(self, f: BinaryIO, path: Path, summary: Summary, channels: Iterable[int] | None = None
+                ) -> Iterator[tuple[bytes, str, ChunkIndex | None]]:
+        """``(records, where, index)`` of each chunk of one file in file order that may hold a message of
+        ``channels`` (all when None; a chunk without message indexes may hold any), decompressed and checked.
+        A file whose summary indexes no chunks is read through its data section (index None)."""
+        size = os.fstat(f.fileno()).st_size
+        if not summary.chunk_indexes:
+            for records, where in _data_section(f, size, self._summary_start(f, size), path):
+                yield records, where, None
+            return
+        wanted = None if channels is None else set(channels)
+        for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            if wanted is not None and index.message_index_offsets and wanted.isdisjoint(index.message_index_offsets):
+                continue
+            yield _chunk_at(f, size, index, path), f"the chunk at byte {index.chunk_start_offset}", index
+
+    @staticmethod
+    def _summary_start(f: BinaryIO, size: int) -> int:
+        """Where the data section ends (the footer was checked by :func:`_read_summary`)."""
+        f.seek(size - len(_MAGIC) - _FOOTER.size)
+        return _FOOTER.unpack(f.read(_FOOTER.size))[2]
 
     def topics(self) -> dict[str, str]:
         """Topic name -> type name (``pkg/msg/Type``)."""
@@ -572,49 +926,105 @@ class BagReader:
         for path in self.files:
             summary = self._summary(path)
             for channel in summary.channels.values():
+                if not channel.schema_id:
+                    raise BagUnsupported(f"{path}: topic {channel.topic} has no schema: not a rosbag2 bag")
                 out[channel.topic] = summary.schemas[channel.schema_id].name
         return out
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, str, int, bytes]]:
         """``(topic, type_name, log_time_ns, cdr_bytes)`` in log-time order within each file (sim-time order for
-        the bench's bags; messages of equal log time in the order they were written)."""
-        wanted = None if topics is None else list(topics)
+        the bench's bags; messages of equal log time in the order they were written), as mcap's reader orders
+        them: the chunks by their first log time, each chunk's messages merged in as it is read."""
+        wanted = None if topics is None else set(topics)
         for path in self.files:
+            summary = self._summary(path)
+            channels = {cid: (ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id else "")
+                        for cid, ch in summary.channels.items() if wanted is None or ch.topic in wanted}
+            if not channels:
+                continue
             with open(path, "rb") as f:
-                for schema, channel, message in make_reader(f).iter_messages(topics=wanted):
-                    yield channel.topic, schema.name, message.log_time, message.data
+                if not summary.chunk_indexes:  # no index: read in file order, then sort (mcap does the same)
+                    found = [(log_time, *channels[cid], data) for records, where, _ in self._chunks(f, path, summary)
+                             for _, cid, log_time, data in _messages_in(records, summary.channels, path, where)
+                             if cid in channels]
+                    for log_time, topic, type_name, data in sorted(found, key=lambda m: m[0]):
+                        yield topic, type_name, log_time, data
+                    continue
+                yield from self._merged(f, path, summary, channels)
+
+    def _merged(self, f: BinaryIO, path: Path, summary: Summary, channels: dict[int, tuple[str, str]]
+                ) -> Iterator[tuple[str, str, int, bytes]]:
+        """Messages of indexed chunks in log-time order: a heap of chunks (by first log time) and of the messages
+        of the chunks read so far; ties by chunk offset, then by record index in the chunk (mcap's order)."""
+        size = os.fstat(f.fileno()).st_size
+        heap: list[tuple[tuple[int, int, int], int, Any]] = []
+        for n, index in enumerate(summary.chunk_indexes):
+            if not index.message_index_offsets or not channels.keys().isdisjoint(index.message_index_offsets):
+                heap.append(((index.message_start_time, index.chunk_start_offset, -1), n, index))
+        heapq.heapify(heap)
+        serial = len(heap)
+        while heap:
+            _key, _, item = heapq.heappop(heap)
+            if not isinstance(item, ChunkIndex):
+                yield item
+                continue
+            where = f"the chunk at byte {item.chunk_start_offset}"
+            for i, cid, log_time, data in _messages_in(_chunk_at(f, size, item, path), summary.channels, path,
+                                                       where):
+                if cid in channels:
+                    heapq.heappush(heap, ((log_time, item.chunk_start_offset, i), serial,
+                                          (*channels[cid], log_time, data)))
+                    serial += 1
 
     def payloads(self, topics: Iterable[str]) -> dict[str, list[bytes]]:
         """Topic -> the CDR bytes of all its messages, in the order the recorder wrote them.
 
         Reads each chunk that holds one of ``topics`` whole and walks its message records directly:
         ``iter_messages`` builds a record object per message (and per message it skips), which was ~0.1 s of
-        a leo_radar bag's 0.17 s load; this takes ~0.03 s. The chunk header is read with mcap's own record
-        class, the chunk decompressed with the library mcap itself uses (zstd, lz4 or none)."""
+        a leo_radar bag's 0.17 s load; this takes ~0.03 s. Every record is checked to fit before it is read
+        (module comment above :data:`MAX_CHUNK_BYTES`)."""
         out: dict[str, list[bytes]] = {topic: [] for topic in topics}
         for path in self.files:
             summary = self._summary(path)
             wanted = {cid: out[ch.topic] for cid, ch in summary.channels.items() if ch.topic in out}
+            if not wanted:
+                continue
             with open(path, "rb") as f:
-                for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-                    if wanted.keys().isdisjoint(index.message_index_offsets):
-                        continue
-                    f.seek(index.chunk_start_offset + _RECORD_PREFIX)
-                    _collect_messages(_chunk_records(Chunk.read(ReadDataStream(f))), wanted)
+                for records, where, _ in self._chunks(f, path, summary, wanted):
+                    _message_data(records, wanted, summary.channels, path, where)
         return {topic: data for topic, data in out.items() if data}
 
     def tables(self, topics: Iterable[str]) -> dict[str, Table]:
-        """Topic -> all its messages as columns (bench_engine.columns), in the order the recorder wrote them."""
+        """Topic -> all its messages as columns (bench_engine.columns), in the order the recorder wrote them.
+        A message that is not of its topic's type raises :class:`MessageDamaged` naming the bag and topic."""
         types = self.topics()
-        return {topic: table(types[topic], data) for topic, data in self.payloads(topics).items()}
+        out: dict[str, Table] = {}
+        for topic, data in self.payloads(topics).items():
+            try:
+                out[topic] = table(types[topic], data)
+            except BagError as err:
+                raise type(err)(f"{self.path}: {topic}: {err}") from None
+        return out
 
     def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[str, int, Any]]:
-        """``(topic, log_time_ns, message)`` deserialized into the generated ROS classes (no DDS needed)."""
+        """``(topic, log_time_ns, message)`` deserialized into the generated ROS classes (no DDS needed). A message
+        whose bytes rclpy refuses raises :class:`MessageDamaged`; a type that is not installed,
+        :class:`BagUnsupported`."""
         from rclpy.serialization import deserialize_message
 
         classes: dict[str, type] = {}
         for topic, type_name, log_ns, data in self.messages(topics):
             cls = classes.get(type_name)
             if cls is None:
-                cls = classes[type_name] = message_class(type_name)
-            yield topic, log_ns, deserialize_message(data, cls)
+                try:
+                    cls = classes[type_name] = message_class(type_name)
+                except (ImportError, LookupError, AttributeError, ValueError) as err:
+                    raise BagUnsupported(f"{self.path}: {topic}: message type {type_name!r} cannot be loaded "
+                                         f"({err})") from None
+            try:
+                message = deserialize_message(data, cls)
+            except Exception as err:  # noqa: BLE001 - rclpy's RMWError, or whatever its C deserialiser raises
+                reason = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+                raise MessageDamaged(f"{self.path}: {topic}: the message at log time {log_ns} ns is not a "
+                                     f"{type_name} ({reason})") from None
+            yield topic, log_ns, message

@@ -7,8 +7,12 @@ messages have one byte layout per topic: the same frame, labels and vector sizes
 messages are grouped by layout, and each group's fields are read as strided numpy views of one byte array.
 
 The encoding is the one bench_engine.cdr reads and writes (plain CDR, little endian, field order and types
-from rosidl's ``SLOT_TYPES``); types it does not cover (arrays of messages, wide strings) raise a TypeError:
-read those with ``BagReader.decoded``.
+from rosidl's ``SLOT_TYPES``); types it does not cover (arrays of messages, wide strings) raise
+:class:`NoColumnarLayout` (a BagUnsupported and a TypeError): read those with ``BagReader.decoded``.
+
+Hostile bytes: every count and string length is checked against the bytes left before anything is sliced or
+allocated, a string must end in its NUL, and its bytes must be UTF-8; a message that fails any of these raises
+:class:`~bench_engine.bag_errors.MessageDamaged` naming the message and the field (tests/test_fuzz_readers.py).
 
 A *layout* is what the positions of the fields depend on: the sequence counts and the string bytes. Two
 messages of the same length whose length prefixes and strings are byte-equal have the same layout, so one
@@ -23,7 +27,15 @@ from typing import Any
 
 import numpy as np
 
+from bench_engine.bag_errors import BagUnsupported, MessageDamaged
 from bench_engine.cdr import ENCAPSULATION, HEADER, Field, compiled
+
+BIG_ENDIAN = b"\x00\x00"
+
+
+class NoColumnarLayout(BagUnsupported, TypeError):
+    """A type this decoder does not cover (arrays of messages, wide strings): read it with BagReader.decoded.
+    Also a TypeError, what this module raised for it before the readers had their own errors."""
 
 
 @dataclass
@@ -37,13 +49,16 @@ class _Layout:
 
 
 class _Walker:
-    """Walks one message's bytes along its compiled type, recording the layout."""
+    """Walks one message's bytes along its compiled type, recording the layout. Every length is checked against
+    the bytes left before it is used (:class:`MessageDamaged` otherwise)."""
 
     def __init__(self, data: bytes):
         if data[:2] != ENCAPSULATION[:2]:
-            raise ValueError(f"not little-endian plain CDR (encapsulation {data[:2].hex()}); read with "
-                             f"BagReader.decoded")
+            if data[:2] == BIG_ENDIAN and len(data) >= HEADER:
+                raise BagUnsupported("big-endian CDR has no columnar layout here; read it with BagReader.decoded")
+            raise MessageDamaged(f"not plain CDR (encapsulation {bytes(data[:2]).hex() or 'missing'})")
         self.data = memoryview(data)[HEADER:]
+        self.end = len(self.data)
         self.pos = 0
         self.layout = _Layout([], {}, np.empty(0))
         self._structure: list[range] = [range(-HEADER, 0)]
@@ -51,26 +66,38 @@ class _Walker:
     def _align(self, n: int) -> None:
         self.pos += -self.pos % n
 
-    def _count(self) -> int:
+    def _need(self, n: int, what: str) -> None:
+        """Refuse ``n`` more bytes at the current position when the message has fewer left."""
+        if self.pos + n > self.end:
+            raise MessageDamaged(f"message ends inside {what} at byte {self.pos + HEADER} (needs {n} bytes, "
+                                 f"{max(self.end - self.pos, 0)} left): truncated or not of this type")
+
+    def _count(self, path: str) -> int:
         self._align(4)
+        self._need(4, f"the length of {path!r}")
         count = int.from_bytes(self.data[self.pos:self.pos + 4], "little")
         self._structure.append(range(self.pos, self.pos + 4))
         self.pos += 4
         return count
 
-    def _string(self) -> str:
-        n = self._count()  # bytes, the terminating NUL included
+    def _string(self, path: str) -> str:
+        n = self._count(path)  # bytes, the terminating NUL included (0: empty, as rosbags and Fast CDR read it)
+        self._need(n, f"string {path!r}")
         start, self.pos = self.pos, self.pos + n
+        if n and self.data[self.pos - 1] != 0:
+            raise MessageDamaged(f"string {path!r} does not end in a NUL")
         self._structure.append(range(start, self.pos))
-        return bytes(self.data[start:start + max(n - 1, 0)]).decode("utf-8")
+        try:
+            return bytes(self.data[start:max(self.pos - 1, start)]).decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise MessageDamaged(f"string {path!r} is not UTF-8 ({err.reason} at byte {err.start})") from None
 
     def _numbers(self, path: str, dtype: np.dtype, count: int, scalar: bool = False) -> None:
         if count:  # an empty sequence is its count alone, with no padding after it
             self._align(dtype.itemsize)
+        self._need(dtype.itemsize * count, f"field {path!r} ({count} x {dtype})")
         self.layout.numeric.append((path, self.pos, dtype, count, scalar))
         self.pos += dtype.itemsize * count
-        if self.pos > len(self.data):
-            raise ValueError(f"message ends inside field {path!r}: truncated or not of this type")
 
     def walk(self, fields: tuple[Field, ...], prefix: str = "") -> None:
         for f in fields:
@@ -82,12 +109,12 @@ class _Walker:
             elif f.kind == "array":
                 self._numbers(path, f.dtype, f.size)
             elif f.kind == "seq":
-                self._numbers(path, f.dtype, self._count())
+                self._numbers(path, f.dtype, self._count(path))
             elif f.kind == "str":
-                self.layout.strings[path] = self._string()
-            else:
-                n = f.size if f.kind == "strarray" else self._count()
-                self.layout.strings[path] = tuple(self._string() for _ in range(n))
+                self.layout.strings[path] = self._string(path)
+            else:  # each string takes at least 5 bytes (its length and NUL): a huge count ends at the first short
+                n = f.size if f.kind == "strarray" else self._count(path)
+                self.layout.strings[path] = tuple(self._string(f"{path}[{i}]") for i in range(n))
 
     def finish(self) -> _Layout:
         self.layout.structure = np.concatenate([np.arange(r.start, r.stop) for r in self._structure]) + HEADER
@@ -141,8 +168,16 @@ def _row(tree: dict[str, Any], i: int) -> SimpleNamespace:
 
 
 def table(type_name: str, payloads: list[bytes]) -> Table:
-    """Decode ``payloads`` (CDR bytes of messages of ``type_name``, ``pkg/msg/Type``) into a :class:`Table`."""
-    fields = compiled(type_name).fields
+    """Decode ``payloads`` (CDR bytes of messages of ``type_name``, ``pkg/msg/Type``) into a :class:`Table`.
+    Raises :class:`MessageDamaged` for a message that is not of the type (naming it and the field),
+    :class:`NoColumnarLayout` for a type this decoder does not cover, :class:`BagUnsupported` for one that is not
+    installed."""
+    try:
+        fields = compiled(type_name).fields
+    except TypeError as err:
+        raise NoColumnarLayout(str(err)) from None
+    except (LookupError, OSError, ValueError) as err:  # not a type name, or not installed
+        raise BagUnsupported(f"message type {type_name!r} cannot be read: {err}") from None
     n = len(payloads)
     parts: dict[str, list[tuple[np.ndarray, Any]]] = {}  # path -> [(row indices, values of a group)]
     lengths = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
@@ -151,8 +186,12 @@ def table(type_name: str, payloads: list[bytes]) -> Table:
         rows = np.frombuffer(b"".join([payloads[i] for i in index]), dtype=np.uint8).reshape(len(index), length)
         todo = np.arange(len(index))
         while todo.size:
-            walker = _Walker(payloads[index[todo[0]]])
-            walker.walk(fields)
+            first = int(index[todo[0]])
+            try:
+                walker = _Walker(payloads[first])
+                walker.walk(fields)
+            except MessageDamaged as err:
+                raise MessageDamaged(f"{type_name} message {first} of {n}: {err}") from None
             layout = walker.finish()
             same = todo[(rows[todo][:, layout.structure] == rows[todo[0], layout.structure]).all(axis=1)]
             for path, values in _group_columns(rows[same], layout).items():

@@ -3,31 +3,41 @@
 A recorder killed without running Python code (SIGKILL, a crash of the interpreter) leaves an MCAP file without
 summary and footer, and no ``metadata.yaml``: readers refuse it. The recorder flushes a chunk at least every
 second of sim time (bench_engine.recorder_node), so the file holds every chunk up to the last flush, then
-perhaps a partial record. :func:`recover` reads the records in order up to the first incomplete one, and
-writes a new, complete bag (MCAP with summary, ``metadata.yaml``) with every message it found, keeping the
-damaged file as ``<name>.mcap.truncated``; it reports what it kept and what it could not read. Like
-``ros2 bag reindex``, but for a file whose tail is missing.
+perhaps a partial record. :func:`recover` reads the records in order up to the first incomplete or damaged one
+(bench_engine.bag.RecordScan: every length checked against the file, every chunk decompressed within its claimed
+size and checked against its CRC), and writes a new, complete bag (MCAP with summary, ``metadata.yaml``) with
+every message it found, keeping the damaged file as ``<name>.mcap.truncated``; it reports what it kept and what
+it could not read. Like ``ros2 bag reindex``, but for a file whose tail is missing.
+
+It streams: each chunk's messages go to the new bag's writer as soon as the chunk is read, and it waits for
+the writer whenever :data:`WAIT_BYTES` of messages are queued, so what it holds is about one chunk of the old
+file and a few of the new one, whatever the size of the bag (tests/test_recovery.py measures it).
 
 Messages keep their log and publish times (sim time, bench_engine.bag.SimClock) and their order in the file:
 log times are not monotonic across topics, and the rebuilt bag reads like one the recorder closed. A bag
 rebuilt with ``--force`` keeps its ``metadata.yaml``'s ``custom_data`` (the recorder's wall-clock span).
+
+Errors (bench_engine.bag_errors): :class:`BagUnrecoverable` when there is nothing to rebuild from (no MCAP
+file, not even its magic), :class:`BagUnsupported` for a topic whose type is not installed; damage past the
+magic only ends what is recovered (:attr:`Recovery.reason` says what it was).
 """
 from __future__ import annotations
 
+import functools
 import os
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import yaml
-from mcap.records import Channel, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Schema
 
-from bench_engine.bag import BagWriter
+from bench_engine.bag import CHUNK_SIZE, BagWriter, RecordScan
+from bench_engine.bag_errors import BagDamaged, BagUnrecoverable, BagUnsupported  # noqa: F401 - re-exported
 
-
-class BagUnrecoverable(ValueError):
-    """The directory holds no MCAP file, or not even its header could be read."""
+WAIT_BYTES = 4 * CHUNK_SIZE
+"""Message bytes handed to the new bag's writer before :func:`recover` waits for it to write them."""
 
 
 @dataclass
@@ -57,78 +67,140 @@ def needs_recovery(bag_dir: Path) -> bool:
     return bag_dir.is_dir() and not (bag_dir / "metadata.yaml").exists() and any(bag_dir.glob("*.mcap"))
 
 
-def _read_records(path: Path) -> tuple[dict, dict, list, int, str]:
-    """(schemas, channels, messages, bytes read, why it stopped) from the start of an MCAP file."""
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    messages: list[Message] = []
-    size = path.stat().st_size
-    with open(path, "rb") as f:
-        reader = StreamReader(f, record_size_limit=size)
-        good = 0
-        reason = "the file ends in a complete footer"
-        try:
-            for record in reader.records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Message):
-                    messages.append(record)
-                good = f.tell()
-        except Exception as err:  # noqa: BLE001 - whatever the damage, the readable part ends here
-            reason = f"{type(err).__name__} at the end of the written data"
-        if good == 0 and not schemas:
-            raise BagUnrecoverable(f"{path}: not even the MCAP header could be read ({reason})")
-    return schemas, channels, messages, max(0, size - good), reason
-
-
 def _custom_data(bag_dir: Path) -> dict[str, str]:
     """The ``custom_data`` of the bag's ``metadata.yaml``, if it has one, as strings (YAML written by yaml-cpp
-    leaves a number-like string unquoted)."""
+    leaves a number-like string unquoted); none when the file cannot be read (a forced rebuild of a bag whose
+    metadata is damaged)."""
     metadata = bag_dir / "metadata.yaml"
     if not metadata.is_file():
         return {}
-    info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
-    custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
-    return {str(key): str(value) for key, value in custom.items()}
+    try:
+        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
+        custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
+        return {str(key): str(value) for key, value in custom.items()}
+    except (yaml.YAMLError, UnicodeDecodeError, AttributeError):
+        return {}
 
 
-def _log_span(messages: list[Message]) -> tuple[int, int] | None:
-    """The least and the greatest log time of ``messages`` (None for none)."""
-    log_times = [m.log_time for m in messages]
-    return (min(log_times), max(log_times)) if log_times else None
+def _qos(channel: Channel) -> Any:
+    """The channel's offered QoS profiles as rosbag2 stored them, or None (the default) when they cannot be read."""
+    return _parsed_qos(channel.metadata.get("offered_qos_profiles", ""))
+
+
+@functools.lru_cache(maxsize=64)
+def _parsed_qos(text: str) -> Any:
+    """QoS YAML text parsed (with libyaml when PyYAML has it: the pure-Python parser took most of a recovery);
+    channels mostly share one text, so it is parsed once."""
+    try:
+        return yaml.load(text or "null", Loader=_LOADER)  # noqa: S506 - a safe loader
+    except yaml.YAMLError:
+        return None
+
+
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _Rebuild:
+    """The new bag, written as the old file's records are read."""
+
+    def __init__(self, writer: BagWriter, path: Path) -> None:
+        self.writer, self.path = writer, path
+        self.schemas: dict[int, Schema] = {}
+        self.topics: dict[int, str] = {}
+        self.kept: dict[str, int] = {}
+        self.span: tuple[int, int] | None = None
+        self.queued = 0
+
+    def add(self, record: Any) -> None:
+        if isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self._channel(record)
+        else:
+            topic = self.topics.get(record.channel_id)
+            if topic is None:
+                raise BagDamaged(f"{self.path}: a message of channel {record.channel_id}, which no channel record "
+                                 f"before it declares")
+            self.writer.write(topic, record.data, record.log_time, record.publish_time)
+            self.kept[topic] = self.kept.get(topic, 0) + 1
+            t = record.log_time
+            self.span = (t, t) if self.span is None else (min(self.span[0], t), max(self.span[1], t))
+            self.queued += len(record.data)
+
+    def _channel(self, channel: Channel) -> None:
+        if channel.id in self.topics:
+            return
+        schema = self.schemas.get(channel.schema_id)
+        if schema is None:
+            raise BagDamaged(f"{self.path}: channel {channel.topic!r} names schema {channel.schema_id}, which no "
+                             f"schema record before it declares")
+        for qos in (_qos(channel), None):  # profiles the writer refuses are damage: the default instead
+            try:
+                self.writer.add_topic(channel.topic, schema.name, qos)
+                break
+            except (LookupError, OSError, ImportError) as err:  # the type is not installed
+                raise BagUnsupported(f"{self.path}: topic {channel.topic} has type {schema.name!r}, which is not "
+                                     f"installed: {err}") from None
+            except (ValueError, TypeError, AttributeError) as err:
+                if qos is None:
+                    raise BagUnsupported(f"{self.path}: topic {channel.topic} of type {schema.name!r} cannot be "
+                                         f"rebuilt: {err}") from None
+        self.topics[channel.id] = channel.topic
+
+    def settle(self) -> None:
+        """Wait for the writer once enough is queued: memory stays at a few chunks."""
+        if self.queued >= WAIT_BYTES:
+            self.writer.flush(wait=True)
+            self.queued = 0
+
+
+def _without_path(err: Exception, path: Path) -> str:
+    text = str(err)
+    return text[len(f"{path}: "):] if text.startswith(f"{path}: ") else text
 
 
 def recover(bag_dir: Path | str) -> Recovery:
-    """Rebuild ``bag_dir`` (a bag directory with a damaged or summary-less MCAP file) in place."""
+    """Rebuild ``bag_dir`` (a bag directory with a damaged or summary-less MCAP file) in place, streaming."""
     bag_dir = Path(bag_dir)
     files = sorted(p for p in bag_dir.glob("*.mcap"))
     if not files:
         raise BagUnrecoverable(f"{bag_dir}: no .mcap file to recover")
     path = files[0]
-    schemas, channels, messages, lost, reason = _read_records(path)
+    size = path.stat().st_size
+    scan = RecordScan(path)
     work = bag_dir.with_name(bag_dir.name + ".recovering")
     shutil.rmtree(work, ignore_errors=True)
     writer = BagWriter(work, storage_name=path.name, custom_data=_custom_data(bag_dir))
-    for channel in sorted(channels.values(), key=lambda c: c.id):
-        qos = yaml.safe_load(channel.metadata.get("offered_qos_profiles", "") or "null")
-        writer.add_topic(channel.topic, schemas[channel.schema_id].name, qos)
-    kept: dict[str, int] = {}
-    for m in messages:  # in file order, as the recorder wrote them
-        topic = channels[m.channel_id].topic
-        writer.write(topic, m.data, m.log_time, m.publish_time)
-        kept[topic] = kept.get(topic, 0) + 1
-    writer.close()
+    rebuild = _Rebuild(writer, path)
+    reason = "the file ends in a complete footer"
+    try:
+        try:
+            for records in scan:  # one chunk (or one record) at a time, in file order
+                for record in records:
+                    rebuild.add(record)
+                rebuild.settle()
+        except BagDamaged as err:
+            if scan.good == 0:
+                raise BagUnrecoverable(f"{path}: not even the MCAP header could be read "
+                                       f"({_without_path(err, path)})") from None
+            reason = _without_path(err, path)
+        else:
+            if not scan.complete:
+                reason = "the file ends after its last whole record"
+        writer.close()
+    except BaseException:
+        writer.close()
+        shutil.rmtree(work, ignore_errors=True)
+        raise
     truncated = path.with_name(path.name + ".truncated")
     os.replace(path, truncated)
     os.replace(work / path.name, path)
     os.replace(work / "metadata.yaml", bag_dir / "metadata.yaml")
     shutil.rmtree(work)
-    return Recovery(bag_dir, kept, lost, truncated, reason, _log_span(messages))
+    lost = 0 if scan.complete else max(0, size - scan.good)
+    return Recovery(bag_dir, rebuild.kept, lost, truncated, reason, rebuild.span)
 
 
 def ensure_complete(bag_dir: Path | str) -> Recovery | None:
     """Recover ``bag_dir`` if a crash left it without ``metadata.yaml``; None when it is complete."""
     return recover(bag_dir) if needs_recovery(Path(bag_dir)) else None
-
