@@ -248,3 +248,30 @@ def test_item_publishers_publish_each_item_then_its_views():
     outputs["/ukf/estimate"](estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6)))
     assert shell.sent == [("/ukf/estimate", 7), ("/ukf/odometry", bytes), ("/ukf/diagnostics", bytes),
                           ("/ukf/markers", bytes)]
+
+
+def test_the_foxglove_layout_names_bench_topics_and_fields():
+    """foxglove/bench_layout.json: every topic it shows is a view, an estimate or the truth, every Plot path a
+    numeric field of that topic's message, and the layout tree holds exactly its panels."""
+    import json
+    import re
+    from pathlib import Path
+    layout = json.loads((Path(__file__).resolve().parent.parent / "foxglove" / "bench_layout.json").read_text())
+    panels = layout["configById"]
+    types = {**{s: t for s, t in views.ESTIMATE_VIEWS.items()}, "estimate": "bench_msgs/msg/StateEstimate",
+             "state": "bench_msgs/msg/TruthState"}
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+    assert sorted(leaves(layout["layout"])) == sorted(panels)
+    paths = [p["value"] for cfg in panels.values() for p in cfg.get("paths", [])]
+    assert len(paths) > 10
+    for path in paths:
+        topic, fields = re.fullmatch(r"(/\w+/\w+)\.(.+)", path).groups()
+        msg = cdr.lite_class(types[topic.rsplit("/", 1)[1]])()
+        for name, index in re.findall(r"(\w+)(?:\[(\d+)\])?", fields):
+            msg = getattr(msg, name)
+            msg = msg[int(index)] if index else msg
+        assert isinstance(msg, (int, float, np.floating)), path
+    shown = [*panels["3D!benchtrajectories"]["topics"], panels["DiagnosticSummary!benchdiagnostics"]["topicToRender"]]
+    assert all(t.rsplit("/", 1)[1] in views.SUFFIXES for t in shown)
