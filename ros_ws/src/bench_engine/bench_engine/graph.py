@@ -13,25 +13,15 @@ paced (bench_engine.lockstep): any acyclic chain of them, e.g. camera -> identif
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
-
-TRUTH_TOPIC = "/truth/state"
-CLOCK_TOPIC = "/clock"
-ACK_TOPIC = "/sim/ack"
-READY_TOPIC = "/sim/ready"
-DONE_TOPIC = "/sim/done"
-TOTALS_TOPIC = "/sim/totals"
-"""The source's last word (StepAck, transient-local, before /sim/done): every data topic's final message count,
-so the recorder closes the bag as soon as it holds them all."""
-
-TRUTH_TYPE = "bench_msgs/msg/TruthState"
-CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
-ESTIMATE_TYPE = "bench_msgs/msg/StateEstimate"
-ACK_TYPE = "bench_msgs/msg/StepAck"
+from bench_engine.topics import (  # noqa: F401 - re-exported: the graph is where callers find a run's topics
+    ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DONE_TOPIC, ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, READY_TOPIC,
+    TOTALS_TOPIC, TRUTH_TOPIC, TRUTH_TYPE, NodeSpec, estimate_topic, measurement_topic, topic_owner)
+from bench_engine.views import add_standard_views
 
 RUN_ONLY_KEYS = ("description", "variants", "sweeps")
 """Scenario keys only the launcher reads (variants and sweeps are resolved before a run): no node's setting."""
@@ -41,41 +31,6 @@ PACED_ROLES = ("sensor", "estimator", "recorder")
 """Roles whose nodes acknowledge what they consumed, so the source never runs more than the pacing window
 ahead of them. The recorder is one: DDS does not hold every message for a subscriber that falls far behind
 (a busy recorder was measured losing messages under load), so the source waits for it too."""
-
-
-MEASUREMENT = "measurement"
-ESTIMATE = "estimate"
-"""Topic contract, checked by :func:`build_graph` and relied on by the scorer (:func:`topic_owner`): the only
-topics named ``/NAME/measurement`` are sensor NAME's measurements (published by that sensor-role node, or by the
-player on replay), and the only topics named ``/NAME/estimate`` are estimator NAME's ``StateEstimate``s."""
-
-
-def measurement_topic(sensor: str) -> str:
-    return f"/{sensor}/{MEASUREMENT}"
-
-
-def estimate_topic(node: str) -> str:
-    return f"/{node}/{ESTIMATE}"
-
-
-def topic_owner(topic: str, suffix: str) -> str | None:
-    """NAME if ``topic`` is ``/NAME/<suffix>`` (suffix MEASUREMENT or ESTIMATE), else None."""
-    parts = topic.split("/")
-    return parts[1] if len(parts) == 3 and not parts[0] and parts[1] and parts[2] == suffix else None
-
-
-@dataclass
-class NodeSpec:
-    """One node of the run: its name, kind, role, ROS node class and data topics ({topic: type})."""
-
-    name: str
-    kind: str
-    role: str = ""
-    node: str = ""
-    """``module:Class`` of the node, in the package that registers the kind."""
-    publishes: dict[str, str] = field(default_factory=dict)
-    subscribes: dict[str, str] = field(default_factory=dict)
-    """Topic -> type; a kind may leave the type empty, the graph fills it from the topic's publisher."""
 
 
 @dataclass(frozen=True)
@@ -245,7 +200,6 @@ def build_graph(cfg: dict, estimators: list[str] | None, record: bool = True, so
             player.publishes.update(spec.publishes)
         nodes = [player]
     nodes += estimator_nodes
-    from bench_engine.views import add_standard_views  # (views imports this module)
     add_standard_views(nodes, cfg)
     _check_topic_contract(nodes)
     _resolve_topics(nodes)

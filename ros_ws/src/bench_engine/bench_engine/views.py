@@ -52,7 +52,7 @@ import numpy as np
 
 from bench_engine import cdr
 from bench_engine.config import ScenarioError
-from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
+from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, Item
 
@@ -316,8 +316,9 @@ def attitude(item: Item, state: State | None = None) -> Any | None:
     x, P, lay = st.x, st.P, st.layout
     if lay.quaternion is None:
         return None
+    stars = float(item.diagnostics.get("stars", 0.0))
     msg = _ATTITUDE(step=int(item.step), estimator_name=item.source,
-                    stars_used=max(0, int(item.diagnostics.get("stars", 0.0))))
+                    stars_used=int(stars) if 0.0 <= stars < 2.0**32 else 0)
     _header(msg, item)
     o = msg.orientation
     o.w, o.x, o.y, o.z = (float(x[i]) for i in lay.quaternion)
@@ -421,17 +422,27 @@ def item_publishers(node: Any, publishes: dict[str, str]) -> dict[str, Callable[
         if mine:
             for view in mine.values():
                 node.data_publisher(message_class(publishes[view]), view)
-            publish = _with_views(publish, StandardViews(node.get_name(), mine), node.publish_data)
+            publish = _with_views(publish, StandardViews(node.get_name(), mine), node.publish_data,
+                                  lambda text: node.get_logger().warning(text))
         out[topic] = publish
     return out
 
 
-def _with_views(publish: Callable[[Item], None], views: StandardViews,
-                publish_data: Callable[[str, bytes], None]) -> Callable[[Item], None]:
+def _with_views(publish: Callable[[Item], None], views: StandardViews, publish_data: Callable[[str, bytes], None],
+                warn: Callable[[str], None]) -> Callable[[Item], None]:
+    """``publish``, then the item's views; a view that fails is logged (once) and skipped: it never stops the
+    node or holds back its estimates."""
     serialize = cdr.serialize
+    warned = []
 
     def publish_with_views(item: Item) -> None:
         publish(item)
-        for topic, type_name, msg in views.messages(item):
-            publish_data(topic, serialize(type_name, msg))
+        try:
+            for topic, type_name, msg in views.messages(item):
+                publish_data(topic, serialize(type_name, msg))
+        except Exception as err:  # noqa: BLE001 - a view is a by-product: report it, keep the node running
+            if not warned:
+                warned.append(err)
+                warn(f"standard views of step {item.step} not published ({type(err).__name__}: {err}); "
+                     "later failures are not logged")
     return publish_with_views
