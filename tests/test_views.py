@@ -147,6 +147,8 @@ def test_an_attitude_is_the_pose_of_the_body_with_its_error_covariance_in_the_re
     assert [o.w, o.x, o.y, o.z] == q.tolist()  # the estimate's own convention
     np.testing.assert_array_equal(np.reshape(att.covariance, (3, 3)), P[:3, :3])
     assert (att.estimator_name, att.stars_used, att.step, att.header.frame_id) == ("sna_triad", 12, 7, "icrs")
+    item.diagnostics["stars"] = float("nan")
+    assert views.attitude(item).stars_used == 0
 
 
 def test_a_pose_with_position_and_attitude_carries_the_cross_covariance():
@@ -225,10 +227,13 @@ def test_standard_views_of_an_estimate_topic():
 def test_item_publishers_publish_each_item_then_its_views():
     class Shell:  # the part of BenchNode item_publishers uses
         def __init__(self):
-            self.sent, self.publishers = [], []
+            self.sent, self.publishers, self.warnings = [], [], []
 
         def get_name(self):
             return "ukf"
+
+        def get_logger(self):
+            return type("Logger", (), {"warning": lambda _, text: self.warnings.append(text)})()
 
         def item_publisher(self, topic, type_name):
             self.publishers.append(topic)
@@ -248,6 +253,11 @@ def test_item_publishers_publish_each_item_then_its_views():
     outputs["/ukf/estimate"](estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6)))
     assert shell.sent == [("/ukf/estimate", 7), ("/ukf/odometry", bytes), ("/ukf/diagnostics", bytes),
                           ("/ukf/markers", bytes)]
+    shell.sent.clear()
+    bad = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), diagnostics={"n_eff": "many"})
+    outputs["/ukf/estimate"](bad)  # a view that fails is logged, the estimate is published
+    outputs["/ukf/estimate"](bad)
+    assert shell.sent[0] == ("/ukf/estimate", 7) and len(shell.warnings) == 1 and "not published" in shell.warnings[0]
 
 
 def test_the_foxglove_layout_names_bench_topics_and_fields():

@@ -16,7 +16,9 @@ from bench_engine.cdr import deserialize
 from bench_engine.graph import node_kinds
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Item, codec
-from bench_engine.views import item_publishers
+from bench_engine.views import item_publishers, warm
+
+warm()  # compiled once where nodes are forked from (bench_engine.views.warm)
 
 
 class StageNode(BenchNode):

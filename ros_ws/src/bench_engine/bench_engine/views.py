@@ -226,15 +226,21 @@ def attitude_matrix(q: np.ndarray) -> np.ndarray:
 
 # --- the views --------------------------------------------------------------------------------------------
 
-_ODOMETRY = cdr.lite_class(ODOMETRY_TYPE)
-_POSE = cdr.lite_class(POSE_TYPE)
-_ATTITUDE = cdr.lite_class(ATTITUDE_TYPE)
-_DIAGNOSTICS = cdr.lite_class(DIAGNOSTICS_TYPE)
-_STATUS = cdr.lite_class("diagnostic_msgs/msg/DiagnosticStatus")
-_KEY_VALUE = cdr.lite_class("diagnostic_msgs/msg/KeyValue")
-_MARKER = cdr.lite_class(MARKERS_TYPE)
-_POINT = cdr.lite_class("geometry_msgs/msg/Point")
-cdr.warm([*cdr.bench_types(), *ESTIMATE_VIEWS.values()])  # before the launcher and the fork server fork
+_lite = cdr.lite_class
+"""Light classes by type (cached): the typestore is built when one is first needed, or by :func:`warm`."""
+STATUS_TYPE = "diagnostic_msgs/msg/DiagnosticStatus"
+KEY_VALUE_TYPE = "diagnostic_msgs/msg/KeyValue"
+POINT_TYPE = "geometry_msgs/msg/Point"
+
+
+def warm() -> None:
+    """Compile now the CDR code of the bench's messages and of their views (bench_engine.cdr.warm; rosbags
+    generates ~0.3 s of code for them). The node shells call it when they are imported: the launcher and the
+    Monte Carlo fork server import them before they fork nodes and runs, which inherit the compiled code.
+    Importing this module builds nothing (the graph and the scorer import it)."""
+    cdr.warm([*cdr.bench_types(), *ESTIMATE_VIEWS.values()])
+
+
 _UNKNOWN_BLOCK = np.diag([0.0, 0.0, 0.0, UNKNOWN_VARIANCE, UNKNOWN_VARIANCE, UNKNOWN_VARIANCE])
 """A 6 × 6 covariance whose first three components are exact and last three unknown."""
 
@@ -251,7 +257,7 @@ def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any
     x, P, lay = st.x, st.P, st.layout
     if lay.position is None or lay.velocity is None:
         return None
-    msg = _ODOMETRY(child_frame_id=child_frame_id)
+    msg = _lite(ODOMETRY_TYPE)(child_frame_id=child_frame_id)
     _header(msg, item)
     p, v = msg.pose.pose.position, msg.twist.twist.linear
     p.x, p.y, p.z = (float(x[i]) for i in lay.position)
@@ -280,7 +286,7 @@ def pose(item: Item, state: State | None = None) -> Any | None:
     q = x[list(lay.quaternion)]
     q = q / np.linalg.norm(q)
     A = attitude_matrix(q)
-    msg = _POSE()
+    msg = _lite(POSE_TYPE)()
     _header(msg, item)
     o = msg.pose.pose.orientation
     o.w, o.x, o.y, o.z = float(q[0]), -float(q[1]), -float(q[2]), -float(q[3])  # the conjugate: R(q)ᵀ
@@ -317,8 +323,8 @@ def attitude(item: Item, state: State | None = None) -> Any | None:
     if lay.quaternion is None:
         return None
     stars = float(item.diagnostics.get("stars", 0.0))
-    msg = _ATTITUDE(step=int(item.step), estimator_name=item.source,
-                    stars_used=int(stars) if 0.0 <= stars < 2.0**32 else 0)
+    msg = _lite(ATTITUDE_TYPE)(step=int(item.step), estimator_name=item.source,
+                               stars_used=int(stars) if 0.0 <= stars < 2.0**32 else 0)
     _header(msg, item)
     o = msg.orientation
     o.w, o.x, o.y, o.z = (float(x[i]) for i in lay.quaternion)
@@ -333,11 +339,12 @@ def diagnostics(item: Item, state: State | None = None) -> Any | None:
         return None
     nis = float(item.nis)
     updated = nis == nis
-    values = [_KEY_VALUE(key="step", value=str(int(item.step))), _KEY_VALUE(key="nis", value=repr(nis))]
-    values += [_KEY_VALUE(key=str(k), value=repr(float(v))) for k, v in item.diagnostics.items()]
-    status = _STATUS(level=_STATUS.OK if updated else _STATUS.WARN, name=item.source,
-                     message="" if updated else "no measurement update (NIS NaN)", values=values)
-    msg = _DIAGNOSTICS(status=[status])
+    key_value, status_class = _lite(KEY_VALUE_TYPE), _lite(STATUS_TYPE)
+    values = [key_value(key="step", value=str(int(item.step))), key_value(key="nis", value=repr(nis))]
+    values += [key_value(key=str(k), value=repr(float(v))) for k, v in item.diagnostics.items()]
+    status = status_class(level=status_class.OK if updated else status_class.WARN, name=item.source,
+                          message="" if updated else "no measurement update (NIS NaN)", values=values)
+    msg = _lite(DIAGNOSTICS_TYPE)(status=[status])
     _header(msg, item)
     return msg
 
@@ -370,8 +377,9 @@ class TrajectoryMarkers:
         here = tuple(float(x[i]) for i in lay.position)
         if self.last is None:
             self.width = max(1.0, MARKER_WIDTH * float(np.linalg.norm(here)))
-        marker = _MARKER(ns=self.name, id=self.count, type=_MARKER.LINE_STRIP, action=_MARKER.ADD,
-                         points=[_POINT(x=a, y=b, z=c) for a, b, c in (self.last or here, here)])
+        marker_class, point = _lite(MARKERS_TYPE), _lite(POINT_TYPE)
+        marker = marker_class(ns=self.name, id=self.count, type=marker_class.LINE_STRIP, action=marker_class.ADD,
+                              points=[point(x=a, y=b, z=c) for a, b, c in (self.last or here, here)])
         _header(marker, item)
         marker.scale.x = self.width
         c = marker.color
