@@ -8,10 +8,14 @@ run needs; a run that received messages from a foreign graph on its domain is se
 Executors: local threads, ``jobs`` runs at a time on this host (the default), or a Dask distributed cluster
 (``scheduler``: an address, or ``"local"`` for a LocalCluster of ``jobs`` worker processes; see
 bench_engine.executors). Either way a run is the same subprocess, and its bag lands in its output directory.
+Either way a run one of whose nodes was killed (by a signal: the OOM killer, an operator) is set aside and run
+again (batch_run.NODE_RETRIES times at most, a line naming the run and the node as each retry starts;
+RunResult.killed and RunResult.reruns tell them afterwards).
 """
 from __future__ import annotations
 
 import shutil
+import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
@@ -55,8 +59,9 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     """Run every spec, ``jobs`` at a time with a progress bar; ``domains`` (one per job) pins the ROS domains,
     else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread).
     ``scheduler``: run on a Dask cluster instead (an address or ``"local"``; bench_engine.executors), each
-    run retried up to ``retries`` times if it raises or its worker is lost. Runs are made without the standard
-    views unless their spec asks for them (RunSpec.standard_views)."""
+    run retried up to ``retries`` times if it raises or its worker is lost. Either executor runs again a run
+    whose node was killed (batch_run.run_one). Runs are made without the standard views unless their spec asks
+    for them (RunSpec.standard_views)."""
     if scheduler is not None:
         return run_dask(specs, scheduler, jobs, desc, on_done, retries)
     from tqdm import tqdm
@@ -64,10 +69,13 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     if len(free) < jobs:
         raise ValueError(f"{jobs} jobs need {jobs} domains, got {len(free)}")
 
+    def retrying(note: str) -> None:
+        tqdm.write(f"[batch] {note}", file=sys.stderr)
+
     def one(spec: RunSpec) -> RunResult:
         domain = free.pop()
         try:
-            return run_one(spec, domain)
+            return run_one(spec, domain, retrying)
         finally:
             free.append(domain)
 

@@ -8,16 +8,23 @@ run needs once (bench_engine.preload; multiprocessing's forkserver), so a run do
 start and the imports again: the same code runs in a fresh process, and the bag is the same as that of a run
 made alone (TRACKING_BENCH_NO_FORK=1 starts fresh interpreters instead). A run whose bag holds another number
 of truth messages than its steps received messages from a foreign graph on its domain (a process that is not
-a bench run): it is set aside (``RUN.crosstalkK``) and run again.
+a bench run): it is set aside (``RUN.crosstalkK``) and run again. A run one of whose nodes was killed by a
+signal (the launcher names it), or whose own process was, met an outside event (the OOM killer, an operator, a
+chaos test; not SIGINT, SIGTERM or SIGHUP, which stop a run on purpose): it is set aside (``RUN.killedK``, its
+log ``RUN.killedK.log``, its partial bag ``RUN.killedK/bag.partial``) and run again, up to NODE_RETRIES times;
+with the same seed it records the bag it would have recorded (tests/test_chaos.py).
 """
 from __future__ import annotations
 
 import os
+import re
+import signal
 import subprocess
 import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import yaml
 
@@ -27,6 +34,14 @@ from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 CROSSTALK_RETRIES = 2
 CROSSTALK_EXIT = 3
+NODE_RETRIES = 2
+"""Attempts more for a run killed from outside: one of its nodes (or its own process) died of a signal other
+than STOP_SIGNALS. A node that fails on its own (an exception, exit code 1) is not retried: with the same seed
+it would fail again."""
+STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+"""Signals that stop a run on purpose (Ctrl-C, an operator, a closing terminal): never retried."""
+_KILLED_NODE = re.compile(r"\[launcher\] node '([^']+)' died first \(killed by (SIG\w+|signal \d+)\)")
+"""The launcher's line naming a node that died of a signal (bench_engine.launcher._supervise)."""
 
 
 @dataclass
@@ -75,6 +90,8 @@ class RunResult:
     spec: RunSpec
     code: int
     reruns: list[str] = field(default_factory=list)
+    killed: list[str] = field(default_factory=list)
+    """What was killed in each attempt set aside and run again (e.g. "node 'ukf' (killed by SIGKILL)")."""
     error: str = ""
     """Why the run could not be made at all (the Dask executor: its task failed on every attempt)."""
 
@@ -154,23 +171,75 @@ def launch_run(cmd: list[str], log: Path, **popen) -> int:
     return process.exitcode
 
 
-def run_one(spec: RunSpec, domain: int | None, **popen) -> RunResult:
-    """Run ``spec`` (again after cross-talk, up to CROSSTALK_RETRIES times); its log is OUT.log. ``popen``:
-    extra subprocess arguments (the Dask executor's environment)."""
+def killed_from_outside(code: int, log: Path) -> str | None:
+    """What killed a failed run from outside, from its exit code and its log (the launcher names a node that
+    died of a signal): "node 'ukf' (killed by SIGKILL)", "its own process (killed by SIGKILL)", or None for a
+    run that completed, failed on its own, or was stopped on purpose (STOP_SIGNALS)."""
+    if code < 0:
+        try:
+            killers = [("its own process", signal.Signals(-code).name)]
+        except ValueError:
+            killers = [("its own process", f"signal {-code}")]
+    elif code == 1 and log.is_file():
+        killers = [(f"node '{name}'", how) for name, how in _KILLED_NODE.findall(log.read_text(errors="replace"))]
+    else:
+        return None
+    if not killers or any(how in STOP_SIGNALS for _, how in killers):
+        return None
+    return ", ".join(f"{who} (killed by {how})" for who, how in killers)
+
+
+def _set_aside(spec: RunSpec, tag: str, with_log: bool = False) -> str:
+    """Rename OUT to the first free OUT.TAGk (and OUT.log to OUT.TAGk.log with ``with_log``, the partial bag to
+    OUT.TAGk/bag.partial, so that ``OUT/run_*/bag`` never matches it); returns the new name."""
+    k = 0
+    while (aside := spec.out.with_name(f"{spec.out.name}.{tag}{k}")).exists() \
+            or aside.with_name(aside.name + ".log").exists():
+        k += 1
+    if spec.out.exists():
+        spec.out.rename(aside)
+    if with_log:
+        if (aside / "bag").exists():
+            (aside / "bag").rename(aside / "bag.partial")
+        if spec.log.exists():
+            spec.log.rename(aside.with_name(aside.name + ".log"))
+    return aside.name
+
+
+def run_one(spec: RunSpec, domain: int | None, report: Callable[[str], None] | None = None,
+            **popen) -> RunResult:
+    """Run ``spec``, again after cross-talk (up to CROSSTALK_RETRIES times) or after a node was killed (up to
+    NODE_RETRIES times; ``report`` is called with a line naming the run and what died, as each retry starts);
+    its log is OUT.log. ``popen``: extra subprocess arguments (the Dask executor's environment)."""
     spec.out.parent.mkdir(parents=True, exist_ok=True)
     result = RunResult(spec, CROSSTALK_EXIT)
-    for attempt in range(1 + CROSSTALK_RETRIES):
+    attempts = crosstalks = 0
+    while True:
+        attempts += 1
         phases.mark("run_spawn", "batch", spec.out.resolve())
         code = launch_run(spec.command(domain), spec.log, **popen)
         phases.mark("run_exited", "batch", spec.out.resolve())
-        if code != 0 or not (spec.bag / "metadata.yaml").is_file() \
-                or not crosstalk(spec.bag, recorded_steps(spec.bag)):
+        if code == 0 and (spec.bag / "metadata.yaml").is_file() and crosstalk(spec.bag, recorded_steps(spec.bag)):
+            aside = _set_aside(spec, "crosstalk")
+            result.reruns.append(f"{spec.out}: foreign messages on its ROS domain, set aside as {aside}")
+            crosstalks += 1
+            if crosstalks > CROSSTALK_RETRIES:
+                result.code = CROSSTALK_EXIT
+                return result
+            continue
+        what = killed_from_outside(code, spec.log)
+        if what is None or len(result.killed) >= NODE_RETRIES:
             result.code = code
+            if what is not None:
+                result.error = f"{what}, again after {NODE_RETRIES} retries"
             return result
-        spec.out.rename(spec.out.with_name(f"{spec.out.name}.crosstalk{attempt}"))
-        result.reruns.append(f"{spec.out}: foreign messages on its ROS domain, set aside as "
-                             f"{spec.out.name}.crosstalk{attempt}")
-    return result
+        aside = _set_aside(spec, "killed", with_log=True)
+        result.killed.append(what)
+        note = (f"{spec.out}: {what} in attempt {attempts}; set aside as {aside}, running it again "
+                f"(retry {len(result.killed)} of {NODE_RETRIES})")
+        result.reruns.append(note)
+        if report is not None:
+            report(note)
 
 
 def complete(out: Path) -> bool:

@@ -8,7 +8,8 @@ output directory, an absolute path that must be the same on every host (a shared
 A worker lost in the middle of a run: its run process dies with it (PR_SET_PDEATHSIG), the scheduler gives the
 task to another worker (up to ``distributed.scheduler.allowed-failures`` lost workers), and the new attempt
 removes the incomplete output of the lost one before it starts. A task that raises is retried ``retries``
-times. dask is imported only here, when a scheduler is given.
+times. A run whose node was killed is run again by the task itself (bench_engine.batch_run.run_one), a line
+on the worker's stderr as each retry starts. dask is imported only here, when a scheduler is given.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import ctypes
 import os
 import shutil
 import signal
+import sys
 from dataclasses import replace
 from typing import Callable
 
@@ -39,7 +41,8 @@ def run_task(spec: RunSpec) -> RunResult:
             return RunResult(spec, 0, [f"{spec.out}: kept the complete run of an earlier attempt"])
         shutil.rmtree(spec.out)
         notes.append(f"{spec.out}: an earlier attempt was lost with its worker; ran it again")
-    result = run_one(spec, None, env={**os.environ, **RUN_ENV}, preexec_fn=_die_with_worker)
+    result = run_one(spec, None, lambda note: print(f"[batch] {note}", file=sys.stderr, flush=True),
+                     env={**os.environ, **RUN_ENV}, preexec_fn=_die_with_worker)
     result.reruns = notes + result.reruns
     return result
 

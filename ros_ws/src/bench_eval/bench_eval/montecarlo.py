@@ -82,8 +82,10 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
         for note in r.reruns:
             print(f"[montecarlo] {note}", file=sys.stderr)
     if results:
-        print(f"[montecarlo] {len(results)} runs in {wall:.0f} s ({60 * len(results) / wall:.1f} runs/min)",
-              file=sys.stderr)
+        retried = [r for r in results if r.killed]
+        print(f"[montecarlo] {len(results)} runs in {wall:.0f} s ({60 * len(results) / wall:.1f} runs/min)"
+              + (f"; {len(retried)} run(s) retried after a killed node ({sum(len(r.killed) for r in retried)} "
+                 f"retries)" if retried else ""), file=sys.stderr)
     bags = mc.bags()
     if not bags:
         raise RuntimeError("no run produced a bag")

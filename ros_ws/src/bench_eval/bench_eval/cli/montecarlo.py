@@ -7,8 +7,10 @@ paper 000 eq. 35 (RMSE per time step over the N runs) and written to OUT/score.j
 
 With --scheduler the runs go to a Dask distributed cluster instead: each worker runs whole runs on its own
 host (DDS on that host, a free ROS domain there) and writes the bags to OUT, which must be on a file system
-every worker shares at the same path; a run whose worker is lost is run again elsewhere. --resume keeps the
-complete runs already in OUT (same configuration and seed) and makes only the others.
+every worker shares at the same path; a run whose worker is lost is run again elsewhere. With either, a run
+one of whose nodes is killed (by the OOM killer, an operator) is set aside as OUT/run_NNN.killedK and run
+again, twice at most, with a line naming the run and the node. --resume keeps the complete runs already in OUT
+(same configuration and seed) and makes only the others.
 
 Examples:
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 100 --jobs 2 --out runs/mc
