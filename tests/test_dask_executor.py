@@ -49,13 +49,15 @@ def test_montecarlo_on_a_dask_cluster_equals_the_local_executor_and_runs_alone(c
     assert dask_scores["runs"] == 2 and dask_scores["filters"] == local_scores["filters"]
     for run in ("run_000", "run_001"):
         assert digests(out / run / "bag") == digests(local_mc / run / "bag")
-    # run 1 (seed 2) alone, one process per node, records the same messages as in either batch
+    # run 1 (seed 2) alone, one process per node, records the same messages as in either batch, and the
+    # standard views besides (a batch runs without them: bench_engine.batch_run.RunSpec.standard_views)
     alone = tmp_path / "alone"
     res = script("launch.py", "leo_radar", "--seed", "2", *SHORT_PASS, "--out", str(alone), "--no-score")
     assert res.returncode == 0, res.stderr[-2000:]
-    found = digests(alone / "bag")
-    assert found == digests(out / "run_001" / "bag") and found["/truth/state"][1] == 201
-    assert found != digests(out / "run_000" / "bag")  # a different seed: other messages
+    found, batch = digests(alone / "bag"), digests(out / "run_001" / "bag")
+    assert {t: found[t] for t in batch} == batch and found["/truth/state"][1] == 201
+    assert {t.rsplit("/", 1)[1] for t in set(found) - set(batch)} == {"odometry", "diagnostics", "markers"}
+    assert batch != digests(out / "run_000" / "bag")  # a different seed: other messages
 
 
 def test_a_sweep_on_a_dask_cluster_is_resumed_by_the_local_executor(cluster, tmp_path):
