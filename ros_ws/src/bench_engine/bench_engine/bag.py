@@ -33,6 +33,11 @@ installs C-level SIGINT/SIGTERM handlers that turn the signal into a context shu
 closes the bag once spinning returns). :meth:`BagWriter.flush` ends the current chunk and hands it to the
 operating system, so such a crash loses only what came after the last flush; bench_engine.recovery then
 rebuilds a complete bag from the chunks on disk.
+
+Reading: :class:`BagReader` reads MCAP records itself and trusts no length, offset or size in the file (the
+comment above :data:`MAX_CHUNK_BYTES`); whatever is wrong with a bag ends in one of the readers' own errors
+(bench_engine.bag_errors: :class:`BagDamaged`, :class:`MessageDamaged`, :class:`BagUnsupported`, all
+:class:`BagError`), one line naming the file and what is wrong. tests/test_fuzz_readers.py fuzzes it.
 """
 from __future__ import annotations
 
@@ -496,6 +501,12 @@ MAX_CHUNK_BYTES = 1 << 30
 """The largest uncompressed chunk the reader accepts. rosbag2 and :class:`BagWriter` write chunks of 768 KiB; a
 chunk holding one large message is about as large as that message. A chunk claiming more is refused before
 anything is allocated."""
+MAX_RECORD_BYTES = 2 * MAX_CHUNK_BYTES
+"""The largest record the reader reads whole (a chunk with its compressed data; a schema, channel or message
+outside chunks): a record claiming more is refused before it is read."""
+MAX_SUMMARY_BYTES = 1 << 28
+"""The largest summary section the reader reads (that of a 100 GB bag of 768 KiB chunks is a few tens of MB): a
+footer placing the summary further back is refused before it is read."""
 _PIECE = 8 << 20  # decompressed bytes per read: the most a chunk's claimed size makes the reader allocate ahead
 _MAGIC = b"\x89MCAP0\r\n"
 _RECORD_PREFIX = 1 + 8  # an MCAP record's opcode (uint8) and length (uint64)
@@ -582,6 +593,10 @@ def _read_summary(f: BinaryIO, size: int, path: Path, rebuild: str) -> Summary:
         raise BagDamaged(f"{path} has no summary section: the file is truncated{rebuild}")
     if not len(_MAGIC) <= start <= footer_at:
         raise BagDamaged(f"{path}: the footer puts the summary at byte {start}, outside the file{rebuild}")
+    if footer_at - start > MAX_SUMMARY_BYTES:
+        raise BagDamaged(f"{path}: the footer puts the summary at byte {start}, {footer_at - start} bytes before "
+                         f"it: more than the reader's limit of {MAX_SUMMARY_BYTES} (bench_engine.bag."
+                         f"MAX_SUMMARY_BYTES){rebuild}")
     data = _read_at(f, size, start, footer_at - start, path, "the summary section")
     if crc and zlib.crc32(tail[:_FOOTER.size - 4], zlib.crc32(data)) != crc:
         raise BagDamaged(f"{path}: the summary section's CRC does not match: it is corrupt{rebuild}")
@@ -620,6 +635,9 @@ def _check_summary(summary: Summary, data_end: int, path: Path, rebuild: str) ->
         if index.chunk_start_offset < len(_MAGIC) or index.chunk_start_offset + index.chunk_length > data_end:
             raise BagDamaged(f"{path}: {where} ({index.chunk_length} bytes) points outside the data section"
                              f"{rebuild}")
+        if index.chunk_length > MAX_RECORD_BYTES:
+            raise BagDamaged(f"{path}: {where} claims {index.chunk_length} bytes, more than the reader's limit of "
+                             f"{MAX_RECORD_BYTES} (bench_engine.bag.MAX_RECORD_BYTES)")
         if index.compression not in _COMPRESSIONS:
             raise BagDamaged(f"{path}: {where}: compression {index.compression!r} is not one MCAP defines")
         if index.uncompressed_size > MAX_CHUNK_BYTES:
@@ -634,7 +652,8 @@ def _check_summary(summary: Summary, data_end: int, path: Path, rebuild: str) ->
 def _decompress(data: memoryview, compression: str, size: int, path: Path, where: str) -> bytes:
     """A chunk's ``data`` decompressed, which must give exactly the ``size`` bytes the chunk claims. The claim is
     checked against :data:`MAX_CHUNK_BYTES` first, and the output read in pieces of at most :data:`_PIECE`
-    bytes, so what is allocated follows the data really there, whatever the claim or the frame header says."""
+    bytes (at once when one zstd frame claims the same size, no more than that), so what is allocated follows
+    the data really there, whatever the claim or the frame header says."""
     if size > MAX_CHUNK_BYTES:
         raise BagDamaged(f"{path}: {where} claims {size} bytes uncompressed, more than the reader's limit of "
                          f"{MAX_CHUNK_BYTES} (bench_engine.bag.MAX_CHUNK_BYTES)")
@@ -645,13 +664,18 @@ def _decompress(data: memoryview, compression: str, size: int, path: Path, where
     pieces: list[bytes] = []
     total = 0
     try:
-        if compression == "zstd":
+        if compression == "zstd" and size <= _PIECE and zstandard.frame_content_size(data) == size:
+            # one frame that says what the chunk says: decompressed at once (what it allocates is that size)
+            pieces.append(zstandard.ZstdDecompressor().decompress(data, max_output_size=size))
+            total = len(pieces[0])
+            read = None
+        elif compression == "zstd":
             read = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True).read
         elif compression == "lz4":
             read = _lz4_reader(data)
         else:
             raise BagDamaged(f"{path}: {where}: compression {compression!r} is not one MCAP defines")
-        while True:
+        while read is not None:
             piece = read(min(size - total, _PIECE) + 1)
             if not piece:
                 break
@@ -707,56 +731,41 @@ def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex |
 def _chunk_at(f: BinaryIO, size: int, index: ChunkIndex, path: Path) -> bytes:
     """The records of the chunk a chunk index points at, decompressed and checked."""
     where = f"the chunk at byte {index.chunk_start_offset}"
-    record = _read_at(f, size, index.chunk_start_offset, index.chunk_length, path, where)
-    if (len(record) < _RECORD_PREFIX or record[0] != _OP_CHUNK
-            or _U64.unpack_from(record, 1)[0] != len(record) - _RECORD_PREFIX):
+    head = _read_at(f, size, index.chunk_start_offset, _RECORD_PREFIX, path, where)
+    if head[0] != _OP_CHUNK or _U64.unpack_from(head, 1)[0] != index.chunk_length - _RECORD_PREFIX:
         raise BagDamaged(f"{path}: the summary's index of {where} does not point at a whole chunk record")
-    return _chunk_records(memoryview(record)[_RECORD_PREFIX:], path, where, index)
-
-
-def _data_section(f: BinaryIO, size: int, end: int, path: Path) -> Iterator[tuple[bytes, str]]:
-    """Records of the data section (up to byte ``end``) in file order, for a file whose summary indexes no chunks:
-    each chunk's records decompressed, each message record outside a chunk as its own one-record buffer."""
-    pos = len(_MAGIC)
-    while pos < end:
-        head = _read_at(f, size, pos, _RECORD_PREFIX, path, "a record")
-        opcode, length = head[0], _U64.unpack_from(head, 1)[0]
-        body = pos + _RECORD_PREFIX
-        if length > end - body:
-            raise BagDamaged(f"{path}: the record at byte {pos} claims {length} bytes, {end - body} are left")
-        if opcode == _OP_CHUNK:
-            where = f"the chunk at byte {pos}"
-            yield _chunk_records(memoryview(_read_at(f, size, body, length, path, where)), path, where), where
-        elif opcode == _OP_MESSAGE:
-            yield head + _read_at(f, size, body, length, path, "a message"), f"the message at byte {pos}"
-        pos = body + length
+    body = _read_at(f, size, index.chunk_start_offset + _RECORD_PREFIX, index.chunk_length - _RECORD_PREFIX, path,
+                    where)
+    return _chunk_records(memoryview(body), path, where, index)
 
 
 def _message_data(records: bytes, wanted: Mapping[int, list[bytes]], channels: Mapping[int, Channel],
                   path: Path, where: str) -> None:
     """Append the data of each message record of ``records`` whose channel id is in ``wanted`` (every record
-    checked to fit, every message to have its header and a channel of the summary)."""
+    checked to fit, every message to have its header and a channel of the summary). The scorer's hot loop."""
+    unpack_u64, unpack_u16, wanted_get, header = _U64.unpack_from, _U16.unpack_from, wanted.get, _MESSAGE_HEADER.size
     pos, end = 0, len(records)
-    while pos < end:
-        body = pos + _RECORD_PREFIX
-        if body > end:
-            raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data is cut short")
-        stop = body + _U64.unpack_from(records, pos + 1)[0]
-        if stop > end:
-            raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data claims {stop - body} bytes, "
-                             f"{end - body} are left")
-        if records[pos] == _OP_MESSAGE:
-            if stop - body < _MESSAGE_HEADER.size:
-                raise BagDamaged(f"{path}: {where}: the message at byte {pos} of its data is shorter than a "
-                                 f"message header")
-            channel_id = _U16.unpack_from(records, body)[0]
-            into = wanted.get(channel_id)
-            if into is not None:
-                into.append(records[body + _MESSAGE_HEADER.size:stop])
-            elif channel_id not in channels:
-                raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does not "
-                                 f"hold")
-        pos = stop
+    try:
+        while pos < end:
+            body = pos + _RECORD_PREFIX
+            stop = body + unpack_u64(records, pos + 1)[0]  # struct.error when the header is cut short
+            if stop > end:
+                raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data claims {stop - body} "
+                                 f"bytes, {end - body} are left")
+            if records[pos] == _OP_MESSAGE:
+                if stop - body < header:
+                    raise BagDamaged(f"{path}: {where}: the message at byte {pos} of its data is shorter than a "
+                                     f"message header")
+                channel_id = unpack_u16(records, body)[0]
+                into = wanted_get(channel_id)
+                if into is not None:
+                    into.append(records[body + header:stop])
+                elif channel_id not in channels:
+                    raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does "
+                                     f"not hold")
+            pos = stop
+    except struct.error:
+        raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data is cut short") from None
 
 
 def _messages_in(records: bytes, channels: Mapping[int, Channel], path: Path, where: str
@@ -825,6 +834,9 @@ class RecordScan:
         if opcode not in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK):
             return []
         where = f"the {Opcode(opcode).name.lower()} record at byte {pos}"
+        if length > MAX_RECORD_BYTES:
+            raise BagDamaged(f"{self.path}: {where} claims {length} bytes, more than the reader's limit of "
+                             f"{MAX_RECORD_BYTES} (bench_engine.bag.MAX_RECORD_BYTES)")
         body = memoryview(_read_at(f, size, pos + _RECORD_PREFIX, length, self.path, where))
         if opcode != _OP_CHUNK:
             return [self._record(opcode, body, where)]
@@ -846,7 +858,9 @@ class RecordScan:
 
 
 class BagReader:
-    """Read a bag written by :class:`BagWriter` or rosbag2 (MCAP storage): a bag directory or a bare ``.mcap``."""
+    """Read a bag written by :class:`BagWriter` or rosbag2 (MCAP storage): a bag directory or a bare ``.mcap``.
+    A damaged or hostile bag raises :class:`BagError` (bench_engine.bag_errors) from any method; what an intact
+    part of a file holds reads as written (CRCs are checked where the file has them)."""
 
     def __init__(self, path: str | os.PathLike, recover: bool = True) -> None:
         """``recover``: rebuild a bag directory a crashed recorder left without metadata.yaml first
@@ -898,27 +912,28 @@ class BagReader:
     def _rebuild(self) -> str:
         return f"; rebuild it with scripts/recover_bag.py --force {self.path}"
 
-    def _chunks(self, f: BinaryIO, path: Path, summary: Summary, channels: Iterable[int] | None = None
-                ) -> Iterator[tuple[bytes, str, ChunkIndex | None]]:
-        """``(records, where, index)`` of each chunk of one file in file order that may hold a message of
-        ``channels`` (all when None; a chunk without message indexes may hold any), decompressed and checked.
-        A file whose summary indexes no chunks is read through its data section (index None)."""
+    @staticmethod
+    def _chunks(f: BinaryIO, path: Path, summary: Summary, channels: Iterable[int]) -> Iterator[tuple[bytes, str]]:
+        """``(records, where)`` of each indexed chunk of one file in file order that may hold a message of
+        ``channels`` (a chunk without message indexes may hold any), decompressed and checked."""
         size = os.fstat(f.fileno()).st_size
-        if not summary.chunk_indexes:
-            for records, where in _data_section(f, size, self._summary_start(f, size), path):
-                yield records, where, None
-            return
-        wanted = None if channels is None else set(channels)
+        wanted = set(channels)
         for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-            if wanted is not None and index.message_index_offsets and wanted.isdisjoint(index.message_index_offsets):
+            if index.message_index_offsets and wanted.isdisjoint(index.message_index_offsets):
                 continue
-            yield _chunk_at(f, size, index, path), f"the chunk at byte {index.chunk_start_offset}", index
+            yield _chunk_at(f, size, index, path), f"the chunk at byte {index.chunk_start_offset}"
 
     @staticmethod
-    def _summary_start(f: BinaryIO, size: int) -> int:
-        """Where the data section ends (the footer was checked by :func:`_read_summary`)."""
-        f.seek(size - len(_MAGIC) - _FOOTER.size)
-        return _FOOTER.unpack(f.read(_FOOTER.size))[2]
+    def _unindexed(path: Path, summary: Summary) -> Iterator[Message]:
+        """The messages of a file whose summary indexes no chunks, in file order (its data section read from the
+        start, as recovery reads it: :class:`RecordScan`), each of a channel the summary holds."""
+        for records in RecordScan(path):
+            for record in records:
+                if isinstance(record, Message):
+                    if record.channel_id not in summary.channels:
+                        raise BagDamaged(f"{path}: a message of channel {record.channel_id}, which the summary "
+                                         f"does not hold")
+                    yield record
 
     def topics(self) -> dict[str, str]:
         """Topic name -> type name (``pkg/msg/Type``)."""
@@ -942,14 +957,13 @@ class BagReader:
                         for cid, ch in summary.channels.items() if wanted is None or ch.topic in wanted}
             if not channels:
                 continue
+            if not summary.chunk_indexes:  # no index: read in file order, then sort (mcap does the same)
+                found = [(m.log_time, *channels[m.channel_id], m.data) for m in self._unindexed(path, summary)
+                         if m.channel_id in channels]
+                for log_time, topic, type_name, data in sorted(found, key=lambda m: m[0]):
+                    yield topic, type_name, log_time, data
+                continue
             with open(path, "rb") as f:
-                if not summary.chunk_indexes:  # no index: read in file order, then sort (mcap does the same)
-                    found = [(log_time, *channels[cid], data) for records, where, _ in self._chunks(f, path, summary)
-                             for _, cid, log_time, data in _messages_in(records, summary.channels, path, where)
-                             if cid in channels]
-                    for log_time, topic, type_name, data in sorted(found, key=lambda m: m[0]):
-                        yield topic, type_name, log_time, data
-                    continue
                 yield from self._merged(f, path, summary, channels)
 
     def _merged(self, f: BinaryIO, path: Path, summary: Summary, channels: dict[int, tuple[str, str]]
@@ -989,8 +1003,13 @@ class BagReader:
             wanted = {cid: out[ch.topic] for cid, ch in summary.channels.items() if ch.topic in out}
             if not wanted:
                 continue
+            if not summary.chunk_indexes:
+                for message in self._unindexed(path, summary):
+                    if message.channel_id in wanted:
+                        wanted[message.channel_id].append(message.data)
+                continue
             with open(path, "rb") as f:
-                for records, where, _ in self._chunks(f, path, summary, wanted):
+                for records, where in self._chunks(f, path, summary, wanted):
                     _message_data(records, wanted, summary.channels, path, where)
         return {topic: data for topic, data in out.items() if data}
 
