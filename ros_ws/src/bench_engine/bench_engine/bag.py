@@ -42,6 +42,7 @@ comment above :data:`MAX_CHUNK_BYTES`); whatever is wrong with a bag ends in one
 from __future__ import annotations
 
 import collections
+import contextlib
 import enum
 import heapq
 import io
@@ -729,11 +730,13 @@ def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex |
 
 
 def _chunk_at(f: BinaryIO, size: int, index: ChunkIndex, path: Path) -> bytes:
-    """The records of the chunk a chunk index points at, decompressed and checked."""
+    """The records of the chunk a chunk index points at, decompressed and checked. The index's length is the one
+    used (the summary's CRC covers it; the record's own length field nothing): a chunk whose length field alone
+    is damaged still reads, its content being checked against the index, its sizes and its CRC."""
     where = f"the chunk at byte {index.chunk_start_offset}"
     head = _read_at(f, size, index.chunk_start_offset, _RECORD_PREFIX, path, where)
-    if head[0] != _OP_CHUNK or _U64.unpack_from(head, 1)[0] != index.chunk_length - _RECORD_PREFIX:
-        raise BagDamaged(f"{path}: the summary's index of {where} does not point at a whole chunk record")
+    if head[0] != _OP_CHUNK or index.chunk_length < _RECORD_PREFIX:
+        raise BagDamaged(f"{path}: the summary's index of {where} does not point at a chunk record")
     body = _read_at(f, size, index.chunk_start_offset + _RECORD_PREFIX, index.chunk_length - _RECORD_PREFIX, path,
                     where)
     return _chunk_records(memoryview(body), path, where, index)
@@ -912,6 +915,17 @@ class BagReader:
     def _rebuild(self) -> str:
         return f"; rebuild it with scripts/recover_bag.py --force {self.path}"
 
+    @contextlib.contextmanager
+    def _salvage(self) -> Iterator[None]:
+        """A damaged chunk's error says what to do: recovery keeps what comes before it."""
+        try:
+            yield
+        except BagDamaged as err:
+            if type(err) is not BagDamaged:
+                raise
+            raise BagDamaged(f"{err}; scripts/recover_bag.py --force {self.path} rebuilds the bag from what comes "
+                             f"before it") from None
+
     @staticmethod
     def _chunks(f: BinaryIO, path: Path, summary: Summary, channels: Iterable[int]) -> Iterator[tuple[bytes, str]]:
         """``(records, where)`` of each indexed chunk of one file in file order that may hold a message of
@@ -963,7 +977,7 @@ class BagReader:
                 for log_time, topic, type_name, data in sorted(found, key=lambda m: m[0]):
                     yield topic, type_name, log_time, data
                 continue
-            with open(path, "rb") as f:
+            with open(path, "rb") as f, self._salvage():
                 yield from self._merged(f, path, summary, channels)
 
     def _merged(self, f: BinaryIO, path: Path, summary: Summary, channels: dict[int, tuple[str, str]]
@@ -1008,7 +1022,7 @@ class BagReader:
                     if message.channel_id in wanted:
                         wanted[message.channel_id].append(message.data)
                 continue
-            with open(path, "rb") as f:
+            with open(path, "rb") as f, self._salvage():
                 for records, where in self._chunks(f, path, summary, wanted):
                     _message_data(records, wanted, summary.channels, path, where)
         return {topic: data for topic, data in out.items() if data}
