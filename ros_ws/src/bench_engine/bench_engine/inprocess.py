@@ -18,6 +18,7 @@ from bench_engine.config import scenario_seed
 from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_settings
 from bench_engine.stage import Item, Log
+from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 
 @dataclass
@@ -40,7 +41,8 @@ def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None
     truth and the sensors only (the measurements, without estimators)."""
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
-    graph = build_graph(cfg, resolve_estimators(cfg, filters), record=False)
+    # no ROS, so no standard views (bench_engine.views: the shells' by-products of the cores' items)
+    graph = build_graph({**cfg, VIEWS_SWITCH: False}, resolve_estimators(cfg, filters), record=False)
     run = InProcessRun(graph, {t: [] for t in graph.data_topics() if t != CLOCK_TOPIC})
     context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()

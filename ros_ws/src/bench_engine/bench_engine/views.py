@@ -123,8 +123,8 @@ def view_topics(topic: str, type_name: str) -> dict[str, str]:
 
 SWITCH = "standard_views"
 """The scenario key that turns the views on (default) or off: ``--set standard_views=false``. Monte Carlo batches
-(bench_engine.batch) turn them off: they double a leo_radar step's messages (sim/wall ratio of the graph ~40 %
-lower, README Speed) and the scorer does not read them."""
+(bench_engine.batch) turn them off: they double a leo_radar step's messages (the graph runs about half as fast,
+README Speed) and the scorer does not read them."""
 
 
 def standard_views(cfg: dict) -> bool:
