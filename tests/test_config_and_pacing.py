@@ -5,7 +5,7 @@ import pytest
 
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
 from bench_engine.graph import build_graph
-from tracker_filters.filter_stage import filter_config
+from tracker_filters.filter_settings import filter_config
 from bench_engine.launcher import validate
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
