@@ -226,6 +226,12 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
         interrupted.append(signum)
 
     fork = fork and can_fork()
+    if fork:
+        # Import every node module first (the shells compile the messages' CDR code on import), so the nodes
+        # are forked back to back: a participant that starts ~0.5 s before the others has sent its initial DDS
+        # announcements by the time they start, and discovering it then waits for its next periodic one
+        # (measured: 2-3 s of start-up for a leo_radar graph against ~0.1 s).
+        _importable([spec.node.split(":")[0] for spec in plan.graph.nodes])
     previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         for spec in plan.graph.start_order():
@@ -245,6 +251,15 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+
+
+def _importable(modules: list[str]) -> None:
+    """Import ``modules`` now; one that fails is left for its node's own process to report."""
+    for module in dict.fromkeys(modules):
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            pass
 
 
 def _exit_text(code: int) -> str:
