@@ -3,10 +3,11 @@
 Readers: ``BagReader`` (topics, messages, payloads, tables, decoded), the columnar decoder
 (``bench_engine.columns.table``), the CDR decoder (``bench_engine.cdr.deserialize``) and recovery
 (``bench_engine.recovery.recover``). Inputs: a short leo_radar bag and a star_tracker one, recorded once per session
-through the real graph, their LZ4 and uncompressed rewrites, and mutations of them: bit flips, truncation (at every
-record boundary, and anywhere), inflated length fields, duplicated chunks, zeroed blocks, chunks claiming huge
-uncompressed sizes, damage inside chunks whose CRC is then made to match again; CDR payloads with huge sequence
-counts and strings without their NUL; hand-made files for the shapes a random mutation rarely hits.
+through the real graph, their LZ4, uncompressed and unchunked rewrites, and mutations of them: bit flips,
+truncation (at every record boundary, and anywhere), inflated length fields, records given another opcode,
+duplicated chunks, zeroed blocks, chunks claiming huge uncompressed sizes, damage inside chunks whose CRC is then
+made to match again; CDR payloads with huge sequence counts and strings without their NUL; hand-made files for the
+shapes a random mutation rarely hits.
 
 Property of every example: the reader gives exactly what the undamaged bag gives (CRCs make damage visible), or
 raises its own error (``bench_engine.bag_errors.BagError``, one line naming the bag; ``cdr.deserialize``:
@@ -340,8 +341,8 @@ HUGE = [2**32 - 1, 2**40, 2**63, 2**64 - 1, MAX_CHUNK_BYTES, MAX_CHUNK_BYTES + 1
 def mutation(draw, layout: Layout, inner: bool = False) -> tuple:
     """One mutation of a file with ``layout`` (a tuple, so hypothesis shows and shrinks it)."""
     n = len(layout.data)
-    kinds = ["flip", "cut", "inflate", "zero"] + (["chunk_field", "dup", "claim"] if layout.chunks else []) + (
-        ["inner"] * 4 if inner else [])
+    kinds = ["flip", "cut", "inflate", "zero", "opcode"] + (["chunk_field", "dup", "claim"] if layout.chunks
+                                                             else []) + (["inner"] * 4 if inner else [])
     kind = draw(st.sampled_from(kinds))
     if kind == "flip":
         return kind, draw(st.integers(0, n - 1)), draw(st.integers(0, 7))
@@ -350,6 +351,8 @@ def mutation(draw, layout: Layout, inner: bool = False) -> tuple:
         return kind, max(0, boundary + draw(st.sampled_from([0, 0, 0, 1, 8, 9, 30, -1])))
     if kind == "inflate":
         return kind, draw(st.integers(0, len(layout.records) - 1)), draw(st.sampled_from([1, 7, 9, 4096, *HUGE]))
+    if kind == "opcode":  # a record made another (a chunk a message index, a footer, a private record, ...)
+        return kind, draw(st.integers(0, len(layout.records) - 1)), draw(st.integers(0, 255))
     if kind == "chunk_field":  # the chunk's own compressed length (u64) or compression name length (u32)
         return (kind, draw(st.integers(0, len(layout.chunks) - 1)), draw(st.sampled_from(["data", "name"])),
                 draw(st.sampled_from([1, 9, 2**20, 2**31, 2**32 - 1, 2**40, 2**64 - 1])))
@@ -383,6 +386,9 @@ def apply(layout: Layout, muts: list[tuple]) -> bytes:
                 data[m[1]] ^= 1 << m[2]
         elif kind == "cut":
             del data[m[1]:]
+        elif kind == "opcode":
+            if layout.records[m[1]][0] < len(data):
+                data[layout.records[m[1]][0]] = m[2]
         elif kind == "inflate":
             offset = layout.records[m[1]][0] + 1
             if offset + 8 <= len(data):

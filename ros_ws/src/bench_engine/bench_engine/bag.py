@@ -514,10 +514,14 @@ _RECORD_PREFIX = 1 + 8  # an MCAP record's opcode (uint8) and length (uint64)
 _MESSAGE_HEADER = struct.Struct("<HIQQ")  # a message record's channel id, sequence, log time and publish time
 _CHUNK_HEADER = struct.Struct("<QQQII")  # message start and end time, uncompressed size and CRC, compression length
 _FOOTER = struct.Struct("<BQQQI")  # opcode, length (20), summary start, summary offset start, summary CRC
-_U64, _U16 = struct.Struct("<Q"), struct.Struct("<H")
+_U64, _U32, _U16 = struct.Struct("<Q"), struct.Struct("<I"), struct.Struct("<H")
 _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = (int(Opcode.SCHEMA), int(Opcode.CHANNEL), int(Opcode.MESSAGE),
                                                    int(Opcode.CHUNK))
 _OP_FOOTER, _OP_DATA_END = int(Opcode.FOOTER), int(Opcode.DATA_END)
+_OP_HEADER, _OP_MESSAGE_INDEX = int(Opcode.HEADER), int(Opcode.MESSAGE_INDEX)
+_OP_METADATA, _OP_ATTACHMENT = int(Opcode.METADATA), int(Opcode.ATTACHMENT)
+_DATA_SECTION = {_OP_HEADER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_ATTACHMENT,
+                 _OP_METADATA, _OP_DATA_END, _OP_FOOTER}  # what a scan from the start may meet
 _SUMMARY_RECORDS = {int(Opcode.SCHEMA): Schema, int(Opcode.CHANNEL): Channel, int(Opcode.CHUNK_INDEX): ChunkIndex,
                     int(Opcode.STATISTICS): Statistics, int(Opcode.METADATA_INDEX): MetadataIndex,
                     int(Opcode.ATTACHMENT_INDEX): AttachmentIndex}
@@ -706,8 +710,9 @@ def _lz4_reader(data: memoryview) -> Any:
 
 def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex | None = None) -> bytes:
     """A chunk record's records (``body``: the record after its opcode and length), decompressed and checked:
-    the compressed bytes against the record, its header against its index in the summary (when given), the
-    output against the claimed size and CRC."""
+    the compressed bytes against the record (they end it: writers put nothing after them, and a header zeroed
+    by damage would otherwise read as an empty chunk), its header against its index in the summary (when
+    given), the output against the claimed size and CRC."""
     if len(body) < _CHUNK_HEADER.size:
         raise BagDamaged(f"{path}: {where} is cut short")
     _start, _end, size, crc, name_length = _CHUNK_HEADER.unpack_from(body)
@@ -718,7 +723,7 @@ def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex |
     compression = bytes(body[_CHUNK_HEADER.size:pos]).decode("latin-1")
     length = _U64.unpack_from(body, pos)[0]
     pos += 8
-    if length > len(body) - pos:
+    if length != len(body) - pos:  # the data is the chunk's last field: a zeroed header would read as empty
         raise BagDamaged(f"{path}: {where} claims {length} compressed bytes, its record holds {len(body) - pos}")
     if index is not None and (compression, size) != (index.compression, index.uncompressed_size):
         raise BagDamaged(f"{path}: {where} says {compression!r}, {size} bytes; its index in the summary says "
@@ -793,11 +798,13 @@ class RecordScan:
 
     Iterating gives one list per top-level record: a chunk's schemas, channels and messages once the whole
     chunk has been read and checked, a schema, channel or message outside chunks alone (other records give
-    nothing). It ends at the end of the data section (a DataEnd or Footer record: :attr:`complete` is then
+    nothing). It ends at the end of the data section (a DataEnd record, or the footer: :attr:`complete` is then
     True) or of the file, and raises :class:`BagDamaged` at the first damage: a record cut short, a length past
-    the end of the file, a chunk that does not decompress or whose CRC does not match, a zeroed block.
-    :attr:`good` is the offset just after the last whole record read (0 until the magic has been read). It
-    holds one record at a time."""
+    the end of the file, a chunk that does not decompress or whose CRC does not match, a zeroed block, a record
+    the data section does not hold (an opcode MCAP does not define there, private ones included: rosbag2 writes
+    none) or whose inner lengths do not add up to its own (a chunk whose opcode a flipped bit made into a
+    message index is damage, not a record to skip). :attr:`good` is the offset just after the last whole record
+    read (0 until the magic has been read). It holds one record at a time."""
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
@@ -821,9 +828,11 @@ class RecordScan:
                 if length > size - body:
                     raise BagDamaged(f"{path}: the record at byte {pos} claims {length} bytes, the file holds "
                                      f"{size - body} more")
-                if opcode == 0:
-                    raise BagDamaged(f"{path}: the record at byte {pos} has opcode 0, which MCAP does not define "
-                                     f"(a zeroed block?)")
+                if opcode not in _DATA_SECTION:
+                    zeroed = " (a zeroed block?)" if not opcode else ""
+                    raise BagDamaged(f"{path}: the record at byte {pos} has opcode {opcode:#04x}, which the data "
+                                     f"section of an MCAP file does not hold{zeroed}")
+                self._check_layout(f, size, opcode, pos, length)
                 if opcode in (_OP_DATA_END, _OP_FOOTER):
                     self.good, self.complete = body + length, True
                     return
@@ -831,6 +840,41 @@ class RecordScan:
                 pos = self.good = body + length
                 if items:
                     yield items
+
+    def _check_layout(self, f: BinaryIO, size: int, opcode: int, pos: int, length: int) -> None:
+        """The fixed sizes and length prefixes inside a record the scan does not parse add up to its length (the
+        footer: 20 bytes, then the file's closing magic)."""
+        def field(at: int, unpack: struct.Struct) -> int:
+            if at + unpack.size > length:
+                raise _Cut
+            return unpack.unpack(_read_at(f, size, pos + _RECORD_PREFIX + at, unpack.size, self.path, "a field"))[0]
+
+        try:
+            if opcode == _OP_HEADER:  # profile, library
+                name = field(0, _U32)
+                ok = 8 + name + field(4 + name, _U32) == length
+            elif opcode == _OP_MESSAGE_INDEX:  # channel id, then (log time, offset) pairs
+                entries = field(2, _U32)
+                ok = 6 + entries == length and entries % 16 == 0
+            elif opcode == _OP_METADATA:  # name, map of strings
+                name = field(0, _U32)
+                ok = 8 + name + field(4 + name, _U32) == length
+            elif opcode == _OP_ATTACHMENT:  # log and create time, name, media type, data, CRC
+                name = field(16, _U32)
+                media = field(20 + name, _U32)
+                ok = 16 + 8 + name + media + 8 + field(24 + name + media, _U64) + 4 == length
+            elif opcode == _OP_DATA_END:
+                ok = length == 4
+            elif opcode == _OP_FOOTER:
+                ok = length == 20 and pos + _RECORD_PREFIX + length + len(_MAGIC) == size
+            else:
+                return
+        except _Cut:
+            ok = False
+        if not ok:
+            name = Opcode(opcode).name.lower().replace("_", " ")
+            raise BagDamaged(f"{self.path}: the {name} record at byte {pos} is garbled (its fields do not fill its "
+                             f"{length} bytes)")
 
     def _items(self, f: BinaryIO, size: int, opcode: int, pos: int, length: int) -> list[Any]:
         """What one top-level record holds (only the records recovery needs are read at all)."""
