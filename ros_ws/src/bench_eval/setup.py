@@ -35,6 +35,8 @@ setup(
         "tracking_bench.offline": [
             "rts = bench_eval.offline:RTS",
             "newton = bench_eval.offline:NEWTON",
-            "savgol = bench_eval.offline:SAVGOL"]
+            "savgol = bench_eval.offline:SAVGOL"],
+        "tracking_bench.bounds": [
+            "pcrb = bench_eval.bounds:PCRB"]
     },
 )

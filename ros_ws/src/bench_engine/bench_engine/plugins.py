@@ -29,6 +29,7 @@ GROUPS = {
     "initialisers": "tracking_bench.initialisers",  # builder(Section, cfg, dynamics) -> Initialiser
     "metrics": "tracking_bench.metrics",            # Metric (bench_eval.scoring)
     "offline": "tracking_bench.offline",            # OfflineEstimator (bench_eval.offline)
+    "bounds": "tracking_bench.bounds",              # Bound (bench_eval.bounds)
     "studies": "tracking_bench.studies",            # Study (bench_eval.study)
     "scenarios": "tracking_bench.scenarios",        # path of a scenario YAML file
     "sections": "tracking_bench.sections",          # top-level scenario section -> reader(cfg) (strict)

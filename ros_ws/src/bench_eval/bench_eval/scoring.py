@@ -41,11 +41,15 @@ class ScoringOptions:
     """A registered metric family (entry-point group tracking_bench.metrics)."""
     options: dict
     offline: dict[str, OfflineRun]
+    bounds: dict = field(default_factory=dict)
+    """Lower bounds to score the estimators against: name -> bench_eval.bounds.BoundRun."""
 
 
 def scoring_options(cfg: dict) -> ScoringOptions:
-    """The scenario's ``scoring`` section, read strictly: ``metric`` (a registered family) and its options, and
-    ``offline: {NAME: {estimator, source, params}}``."""
+    """The scenario's ``scoring`` section, read strictly: ``metric`` (a registered family) and its options,
+    ``offline: {NAME: {estimator, source, params}}`` and ``bounds: {NAME: {bound, params, from_s}}``
+    (bench_eval.bounds)."""
+    from bench_eval.bounds import read_bounds
     sec = Section(cfg.get("scoring"), "scoring")
     metric = sec.choice("metric", plugins.names("metrics"))
     options = plugins.load("metrics", metric).options(sec)
@@ -58,8 +62,9 @@ def scoring_options(cfg: dict) -> ScoringOptions:
         entry.finish()
         plugins.load("offline", offline[name].estimator).check(cfg, offline[name].source, offline[name].params)
     off.finish()
+    bounds = read_bounds(sec.section("bounds"), cfg)
     sec.finish()
-    return ScoringOptions(metric, options, offline)
+    return ScoringOptions(metric, options, offline, bounds)
 
 
 @dataclass
@@ -222,6 +227,7 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     Returns {"scenario", "runs", "metric", "filters": {name: scores}} (and the plot series when
     ``with_series``).
     """
+    from bench_eval.bounds import score_bounds
     scenario, tracks, runs = collect(bag_dirs)
     if not tracks:
         names = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
@@ -231,9 +237,16 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     family = plugins.load("metrics", opts.metric)
     result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
               "filters": family.score(tracks, runs, opts.options)}
+    bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)
+    for name, block in bound_scores.items():
+        result["filters"].setdefault(name, {})["bounds"] = block
     if not with_series:
         return result
-    return result, family.series(tracks, runs, opts.options)
+    series = family.series(tracks, runs, opts.options)
+    for name, block in bound_series.items():
+        if name in series:
+            series[name]["bounds"] = block
+    return result, series
 
 
 def score_run(out_dir: Path, as_json: bool = False) -> str:
