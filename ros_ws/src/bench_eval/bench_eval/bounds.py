@@ -120,8 +120,9 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
             continue
         i = [labels.index(c) for c in members]
         rmse = metrics.rmse_over_runs(tracks, members)[1]
-        with np.errstate(invalid="ignore"):
-            root = np.sqrt(np.nanmean(np.trace(P_grid[:, :, i][:, :, :, i], axis1=2, axis2=3), axis=0))
+        trace = np.trace(P_grid[:, :, i][:, :, :, i], axis1=2, axis2=3)  # (runs, steps), NaN: no bound
+        count = np.sum(np.isfinite(trace), axis=0)
+        root = np.sqrt(np.where(count > 0, np.nansum(trace, axis=0) / np.maximum(count, 1), np.nan))
         target_scores, target_series = (scores, series) if group in GROUPS else (
             scores.setdefault("axes", {}), series.setdefault("axes", {}))
         target_scores[group] = _summary(rmse, root, keep)
