@@ -147,3 +147,32 @@ def test_leo_radar_ukf_error_is_above_the_pcrb_within_monte_carlo_tolerance_and_
             total += float(e @ np.linalg.solve(bound.P[j], e))
         dof = 6 * len(runs)
         assert chi2.ppf(0.001, dof) <= total <= chi2.ppf(0.999, dof), (after, total / dof)
+
+
+def test_formation_truth_transition_matrices_match_finite_differences_of_the_truth():
+    """bench_models.truth_dynamics.RelativeOrbitDynamics (formation_j2: chief and deputy on two-body + J2): the
+    product of its step matrices F_k equals central differences of the truth's relative state (both orbits
+    integrated by orbit_sim.cowell, mapped to LVLH by orbit_sim.relative) with respect to the initial one."""
+    from orbit_sim import cowell, gravity, relative
+    from bench_models.truth_dynamics import RelativeOrbitDynamics, truth_dynamics
+    cfg = load_scenario("formation_cqkf", ["truth.chief.e=0.005"])
+    dyn = truth_dynamics(cfg)
+    assert isinstance(dyn, RelativeOrbitDynamics)
+    mu, j2, re = dyn.mu, dyn.j2, dyn.re
+    times = np.array([300.0, 310.0, 330.0, 900.0, 2000.0])
+    chief = cowell.propagate(dyn.chief0, np.concatenate(([0.0], times)), mu, j2, re)[1:]
+    accel = gravity.acceleration(chief[:, :3], mu, j2, re)
+
+    def relative_states(rel0: np.ndarray) -> np.ndarray:
+        deputy0 = relative.lvlh_to_eci(chief[0], rel0, accel[0])
+        return relative.eci_to_lvlh(chief, cowell.propagate(deputy0, times, mu, j2, re), accel)
+
+    states = relative_states(np.array([120.0, 480.0, -250.0, 0.05, -0.2, 0.3]))
+    F = dyn.transition_matrices(times, states)
+    steps = np.array([20.0] * 3 + [0.02] * 3)  # big: the integrator's ~7e-6 m error / (2 step) small
+    fd = np.stack([(relative_states(states[0] + d) - relative_states(states[0] - d)) / (2 * d[i])
+                   for i, d in enumerate(np.diag(steps))], axis=-1)  # (K, 6, 6): d x_k / d x_0
+    Phi = np.eye(6)
+    for k, Fk in enumerate(F, start=1):
+        Phi = Fk @ Phi
+        np.testing.assert_allclose(Phi * steps, fd[k] * steps, atol=1e-7 * np.max(np.abs(fd[k] * steps)))

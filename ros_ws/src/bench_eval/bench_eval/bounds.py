@@ -9,7 +9,7 @@ section:
       bounds:
         pcrb:                       # the name it is reported under
           bound: pcrb               # a registered Bound
-          params: {dynamics: {model: orbit_j2, sigma_accel: 0.0}, prior: ukf}
+          params: {dynamics: truth, prior: ukf}  # or dynamics: {model: orbit_j2, sigma_accel: 0.0}
           from_s: 100.0             # optional: summaries over the steps from this time (s since the first
                                     # estimate of the run), default 0
 
@@ -158,14 +158,20 @@ def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[BagData],
 # --- pcrb: the posterior Cramér-Rao bound along the truth (tracker_filters.pcrb) -----------------------------
 
 
-def _pcrb_settings(cfg: dict, params: dict) -> tuple[Section, str, list[str]]:
-    """(dynamics section, prior filter, sensors) of the pcrb params: ``dynamics`` (a dynamics section, as a
-    filter's: model and process noise; required), ``prior`` (the filter whose initialiser gives J_0; default the
-    first default filter), ``sensors`` (default: that filter's)."""
+def _pcrb_settings(cfg: dict, params: dict):
+    """(dynamics, prior filter, sensors) of the pcrb params: ``dynamics`` (required): ``truth``, the truth
+    model's own deterministic dynamics (bench_models.truth_dynamics), or a dynamics section as a filter's
+    (a registered model and its process noise); ``prior`` (the filter whose initialiser gives J_0; default the
+    first default filter); ``sensors`` (default: that filter's)."""
     from bench_engine.graph import resolve_estimators
-    from tracker_filters.builders import build_filter_stack
+    from bench_models.truth_dynamics import truth_dynamics
+    from tracker_filters.builders import build_dynamics, build_filter_stack
     sec = Section(params, "scoring.bounds.params")
-    dynamics = sec.section("dynamics", default_empty=False)
+    if sec.data.get("dynamics") == "truth":
+        sec.mark("dynamics")
+        dynamics = truth_dynamics(cfg)
+    else:
+        dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
     defaults = list(cfg.get("default_filters") or [])
     prior = sec.get("prior", str, defaults[0] if defaults else ...)
     if prior not in (cfg.get("filters") or {}) and prior not in resolve_estimators(cfg, None):
@@ -176,9 +182,8 @@ def _pcrb_settings(cfg: dict, params: dict) -> tuple[Section, str, list[str]]:
 
 
 def _pcrb_check(cfg: dict, params: dict) -> None:
-    from tracker_filters.builders import build_dynamics, measurement_source
-    dyn_sec, _, sensors = _pcrb_settings(cfg, params)
-    dynamics = build_dynamics(dyn_sec, cfg)
+    from tracker_filters.builders import measurement_source
+    dynamics, _, sensors = _pcrb_settings(cfg, params)
     for name in sensors:
         measurement_source(cfg, name, dynamics.labels)
 
@@ -190,11 +195,10 @@ def _pcrb_run(data: BagData, params: dict) -> BoundSeries:
     noise-free first scan (h of the truth): what the filters know at their first estimate (for ``first_scan``
     that scan's information is in it; a ``given`` prior does not use it), so the first scan adds nothing
     more. State components are the dynamics model's labels, taken from the truth by label."""
-    from tracker_filters.builders import build_dynamics, build_filter_stack, measurement_source
+    from tracker_filters.builders import build_filter_stack, measurement_source
     from tracker_filters.pcrb import pcrb_along_truth
     cfg = data.scenario
-    dyn_sec, prior, names = _pcrb_settings(cfg, params)
-    dynamics = build_dynamics(dyn_sec, cfg)
+    dynamics, prior, names = _pcrb_settings(cfg, params)
     labels = list(dynamics.labels)
     missing = [lab for lab in labels if lab not in data.truth_labels]
     if missing:

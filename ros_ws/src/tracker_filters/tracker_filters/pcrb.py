@@ -76,13 +76,17 @@ def pcrb_along_truth(dynamics: DynamicsModel, times: np.ndarray, states: np.ndar
                      scans: Sequence[Sequence[tuple[MeasurementModel, np.ndarray]]],
                      J0: np.ndarray) -> np.ndarray:
     """Bound covariances J_k^{-1} (K, n, n) at ``times`` (K,) along the true ``states`` (K, n, in the
-    dynamics' layout), with ``dynamics``' transition matrix and process noise between consecutive times, and
+    dynamics' layout), with ``dynamics``' transition matrix (or, for a time-varying model, its
+    ``transition_matrices(times, states)``) and process noise between consecutive times, and
     at each step k > 0 the information of every (model, R) of ``scans[k]`` (possibly none). ``J0`` is the
     information at times[0], its scans included (``scans[0]`` is not used). A bound that is not finite yet
     (a state part still unobserved) is NaN."""
     times, states = np.asarray(times, dtype=float), np.asarray(states, dtype=float)
     n = states.shape[1]
-    F = [dynamics.transition_matrix(x, dt) for x, dt in zip(states[:-1], np.diff(times))]
+    if hasattr(dynamics, "transition_matrices"):  # a time-varying model (bench_models.truth_dynamics)
+        F = dynamics.transition_matrices(times, states)
+    else:
+        F = [dynamics.transition_matrix(x, dt) for x, dt in zip(states[:-1], np.diff(times))]
     Q = [dynamics.process_noise(x, dt) for x, dt in zip(states[:-1], np.diff(times))]
     info = [sum((measurement_information(m, R, x, t) for m, R in step), np.zeros((n, n)))
             for x, t, step in zip(states[1:], times[1:], scans[1:])]
