@@ -31,13 +31,15 @@ Registered bounds: ``pcrb`` (posterior CRB along the truth: tracker_filters.pcrb
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section
 from bench_eval import metrics
-from bench_eval.scoring import BagData
+
+Run = Any
+"""A recorded run, bench_eval.scoring.BagData (which imports this module: not imported here, no circle)."""
 
 GROUPS = {"position": metrics.POSITION, "velocity": metrics.VELOCITY}
 
@@ -58,7 +60,7 @@ class Bound:
     """``run(bag data, params) -> BoundSeries``; ``check(cfg, params)`` raises ScenarioError naming a bad
     value before any run starts."""
 
-    run: Callable[[BagData, dict], BoundSeries]
+    run: Callable[[Run, dict], BoundSeries]
     check: Callable[[dict, dict], None]
 
 
@@ -130,7 +132,7 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
     return scores, series
 
 
-def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[BagData],
+def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[Run],
                  bounds: Mapping[str, BoundRun]) -> tuple[dict, dict]:
     """({estimator: {bound: scores}}, {estimator: {bound: series}}) for every scored estimator whose tracks
     share components with the bound (module docstring). Each run's bound is computed once."""
@@ -188,7 +190,7 @@ def _pcrb_check(cfg: dict, params: dict) -> None:
         measurement_source(cfg, name, dynamics.labels)
 
 
-def _pcrb_run(data: BagData, params: dict) -> BoundSeries:
+def _pcrb_run(data: Run, params: dict) -> BoundSeries:
     """The PCRB (tracker_filters.pcrb) of the run: the truth at the steps where the bound's sensors delivered a
     scan, F and Q of ``dynamics`` between them, each scan's information H^T R^{-1} H with the sensor's own model
     and R. J_0 is the inverse of the prior filter's initial covariance, from its initialiser applied to the

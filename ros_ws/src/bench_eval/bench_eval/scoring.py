@@ -21,6 +21,7 @@ from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.stage import codec
 from bench_eval import metrics
+from bench_eval.bounds import read_bounds, score_bounds
 from bench_models.states import error_labels
 
 
@@ -49,7 +50,6 @@ def scoring_options(cfg: dict) -> ScoringOptions:
     """The scenario's ``scoring`` section, read strictly: ``metric`` (a registered family) and its options,
     ``offline: {NAME: {estimator, source, params}}`` and ``bounds: {NAME: {bound, params, from_s}}``
     (bench_eval.bounds)."""
-    from bench_eval.bounds import read_bounds
     sec = Section(cfg.get("scoring"), "scoring")
     metric = sec.choice("metric", plugins.names("metrics"))
     options = plugins.load("metrics", metric).options(sec)
@@ -227,7 +227,6 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     Returns {"scenario", "runs", "metric", "filters": {name: scores}} (and the plot series when
     ``with_series``).
     """
-    from bench_eval.bounds import score_bounds
     scenario, tracks, runs = collect(bag_dirs)
     if not tracks:
         names = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
