@@ -132,15 +132,25 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
     return scores, series
 
 
+def compute_bounds(runs: list[Run], bounds: Mapping[str, BoundRun]) -> None:
+    """Compute each configured bound over each run once, into the run's ``bounds`` (name -> BoundSeries), where
+    metric families may use it too (e.g. a bound in a sensor's coordinates)."""
+    from bench_engine import plugins
+    for data in runs:
+        for name, b in bounds.items():
+            if name not in data.bounds:
+                data.bounds[name] = plugins.load("bounds", b.bound).run(data, b.params)
+
+
 def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[Run],
                  bounds: Mapping[str, BoundRun]) -> tuple[dict, dict]:
     """({estimator: {bound: scores}}, {estimator: {bound: series}}) for every scored estimator whose tracks
-    share components with the bound (module docstring). Each run's bound is computed once."""
-    from bench_engine import plugins
+    share components with the bound (module docstring), from the runs' bounds (:func:`compute_bounds`)."""
     if not bounds or not tracks:
         return {}, {}
+    compute_bounds(runs, bounds)
     t0 = min(float(tr.t[0]) for group in tracks.values() for tr in group)
-    per_run = {name: [plugins.load("bounds", b.bound).run(d, b.params) for d in runs] for name, b in bounds.items()}
+    per_run = {name: [d.bounds[name] for d in runs] for name in bounds}
     scores: dict = {}
     series: dict = {}
     for est, group in tracks.items():

@@ -80,11 +80,57 @@ def thin(t: np.ndarray, max_points: int = 2000) -> slice:
     return slice(None, None, max(1, len(t) // max_points))
 
 
+BOUND_STYLE = {"color": "k", "ls": (0, (6, 2)), "lw": 1.3}
+"""How every figure draws a bound's square root (bench_eval.bounds): a black dashed curve."""
+
+
+def bound_curves(series: Mapping, key: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(bound name, t, √bound) of component or group ``key`` from the scorer's ``bounds`` series of the
+    estimators (bench_eval.bounds), one curve per bound: the first estimator's that has it (the bound does not
+    depend on the estimator; the time axis is the series')."""
+    curves = {}
+    for s in series.values():
+        for name, b in (s.get("bounds") or {}).items():
+            values = b.get(key, (b.get("axes") or {}).get(key))
+            if values is not None and name not in curves:
+                curves[name] = (name, np.asarray(b["t"]), np.asarray(values))
+    return list(curves.values())
+
+
+def draw_bounds(ax, series: Mapping, key: str, factor: float = 1.0) -> None:
+    """Add each bound's √bound of ``key`` to a log-scale axis (BOUND_STYLE), labelled "√NAME"."""
+    for name, t, values in bound_curves(series, key):
+        k = thin(t)
+        ax.semilogy(t[k], factor * values[k], label=f"√{name.upper()}", **BOUND_STYLE)
+
+
+def bounds_table(scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("position", "m", 1.0),
+                                                                            ("velocity", "m/s", 1.0))) -> Table | None:
+    """Every estimator's RMSE next to each bound's square root and its efficiency √bound / RMSE (1 = reaches the
+    bound), per group (key, display unit, factor from SI): RMS over the summarised steps and at the last step
+    (bench_eval.bounds); None when no estimator was scored against a bound."""
+    rows = []
+    for est, block in scored.items():
+        for bound, b in (block.get("bounds") or {}).items():
+            for key, unit, factor in groups:
+                g = b.get(key, (b.get("axes") or {}).get(key))
+                if not g or g.get("rmse") is None:
+                    continue
+                rows.append([est, bound, f"{key} [{unit}]", fmt(factor * g["rmse"]), fmt(factor * g["sqrt_bound"]),
+                             fmt(g["efficiency"]), fmt(factor * g["final_rmse"]), fmt(factor * g["final_sqrt_bound"])])
+    if not rows:
+        return None
+    return Table("Distance to the bound: RMSE over runs next to √bound (RMS over the summarised steps), efficiency "
+                 "√bound / RMSE (1 = the best the data allow), and both at the last step",
+                 ["estimator", "bound", "quantity", "RMSE", "√bound", "efficiency", "last RMSE", "last √bound"], rows)
+
+
 def draw_errors_vs_sigma(series: Mapping, title: str,
                          components: Sequence[tuple[str, str, str, float]]) -> Callable[[Figure], None]:
     """A figure of the ``errors`` family's series (bench_eval.metric_families.error_series): per component
     (score key, symbol, display unit, factor from SI to it), the error RMSE over runs (solid) and the filter's
-    mean 3 sigma (dashed), one colour per filter, on log axes, in a grid of 3 columns."""
+    mean 3 sigma (dashed), one colour per filter, and each bound's √bound (black dashed: :func:`draw_bounds`), on
+    log axes, in a grid of 3 columns."""
     def draw(fig: Figure) -> None:
         rows = max(1, -(-len(components) // 3))
         axs = np.atleast_2d(fig.subplots(rows, 3, sharex=True, squeeze=False))
@@ -96,6 +142,7 @@ def draw_errors_vs_sigma(series: Mapping, title: str,
                 line, = ax.semilogy(s["t"][k], factor * np.asarray(s["rmse"][key])[k], lw=0.8, label=f"{name} RMSE")
                 ax.semilogy(s["t"][k], 3.0 * factor * np.asarray(s["sigma"][key])[k], lw=0.8, ls="--",
                             color=line.get_color(), label=f"{name} 3σ")
+            draw_bounds(ax, series, key, factor)
             ax.set_title(f"{symbol} [{unit}]", fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
         for ax in axs[-1]:

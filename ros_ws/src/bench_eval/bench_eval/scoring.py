@@ -21,7 +21,7 @@ from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.stage import codec
 from bench_eval import metrics
-from bench_eval.bounds import read_bounds, score_bounds
+from bench_eval.bounds import compute_bounds, read_bounds, score_bounds
 from bench_models.states import error_labels
 
 
@@ -108,6 +108,8 @@ class BagData:
     truth_labels: list[str] = field(default_factory=list)
     measurements: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)  # sensor -> step -> z
     estimates: dict[str, Estimates] = field(default_factory=dict)
+    bounds: dict = field(default_factory=dict)
+    """Bound name -> its bench_eval.bounds.BoundSeries over this run (filled by the scorer: compute_bounds)."""
 
     @property
     def scenario(self) -> dict:
@@ -234,6 +236,7 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
                              "(did the sensors ever see the target?)")
     opts = scoring_options(runs[0].scenario)
     family = plugins.load("metrics", opts.metric)
+    compute_bounds(runs, opts.bounds)
     result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
               "filters": family.score(tracks, runs, opts.options)}
     bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)

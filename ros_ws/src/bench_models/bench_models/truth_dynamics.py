@@ -27,10 +27,6 @@ from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWDynamics
 
 
-def _skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
 class RelativeOrbitDynamics:
     """The relative LVLH state of a deputy about a chief whose ECI orbit (initial state ``chief0`` at t = 0)
     both fly on two-body + J2 (``j2`` = 0: two-body), without process noise. Time-varying: only
@@ -43,13 +39,17 @@ class RelativeOrbitDynamics:
         self.chief0 = np.asarray(chief0, dtype=float)
         self.mu, self.j2, self.re = mu, j2, re
 
-    def lvlh_jacobian(self, chief: np.ndarray) -> np.ndarray:
-        """d (deputy ECI state) / d (relative LVLH state) at one chief state (6,): L above."""
-        accel = gravity.acceleration(chief[:3], self.mu, self.j2, self.re)
-        Ct = relative.lvlh_basis(chief).T
-        L = np.zeros((6, 6))
-        L[:3, :3] = L[3:, 3:] = Ct
-        L[3:, :3] = _skew(relative.frame_rate(chief, accel)) @ Ct
+    def lvlh_jacobians(self, chief: np.ndarray) -> np.ndarray:
+        """d (deputy ECI state) / d (relative LVLH state) at chief states (K, 6): L above, (K, 6, 6)."""
+        accel = gravity.acceleration(chief[:, :3], self.mu, self.j2, self.re)
+        Ct = np.swapaxes(relative.lvlh_basis(chief), 1, 2)
+        w = relative.frame_rate(chief, accel)
+        Omega = np.zeros((len(chief), 3, 3))
+        Omega[:, 0, 1], Omega[:, 0, 2], Omega[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+        Omega -= np.swapaxes(Omega, 1, 2)
+        L = np.zeros((len(chief), 6, 6))
+        L[:, :3, :3] = L[:, 3:, 3:] = Ct
+        L[:, 3:, :3] = Omega @ Ct
         return L
 
     def transition_matrices(self, times: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -60,7 +60,7 @@ class RelativeOrbitDynamics:
         accel = gravity.acceleration(chief[0, :3], self.mu, self.j2, self.re)
         deputy0 = relative.lvlh_to_eci(chief[0], states[0], accel)
         _, Phi = OrbitJ2Dynamics(0.0, self.mu, self.j2, self.re).trajectory(deputy0, times[0], times)
-        L = np.array([self.lvlh_jacobian(c) for c in chief])
+        L = self.lvlh_jacobians(chief)
         # F_k = L_{k+1}^{-1} Phi(t_{k+1}, t0) Phi(t_k, t0)^{-1} L_k
         step = np.linalg.solve(np.swapaxes(Phi[:-1], 1, 2), np.swapaxes(Phi[1:], 1, 2)).swapaxes(1, 2)
         return np.linalg.solve(L[1:], step @ L[:-1])

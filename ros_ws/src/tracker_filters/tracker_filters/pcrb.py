@@ -33,41 +33,41 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy.linalg import LinAlgError, lu_factor, lu_solve
 
 from bench_models.models import DynamicsModel, MeasurementModel
 
 
-def measurement_information(model: MeasurementModel, R: np.ndarray, x: np.ndarray, t: float) -> np.ndarray:
-    """Fisher information of one scan at the true state: H^T R^{-1} H (TMN's E[H^T R^{-1} H] on the truth),
-    shape (n, n)."""
-    H = np.asarray(model.jacobian(np.asarray(x, dtype=float), t), dtype=float)
-    return H.T @ np.linalg.solve(np.asarray(R, dtype=float), H)
+def measurement_information(model: MeasurementModel, R: np.ndarray, x: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Fisher information of scans at the true states x (K, n) and ``times`` (K,): H^T R^{-1} H per scan (TMN's
+    E[H^T R^{-1} H] on the truth), shape (K, n, n); the model's vectorised ``jacobian_series`` when it has one."""
+    x, times = np.asarray(x, dtype=float), np.asarray(times, dtype=float)
+    if hasattr(model, "jacobian_series"):
+        H = np.asarray(model.jacobian_series(x, times), dtype=float)
+    else:
+        H = np.array([model.jacobian(xk, tk) for xk, tk in zip(x, times)], dtype=float).reshape(len(x), -1, x.shape[1])
+    return np.swapaxes(H, 1, 2) @ (np.linalg.inv(np.asarray(R, dtype=float)) @ H)
 
 
-def predict_information(J: np.ndarray, F: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """The information of x_{k+1} before its scan: eq. (2) when Q is zero, else eq. (1)'s first term."""
-    if not np.any(Q):
-        lu = lu_factor(F)
-        Finv = lu_solve(lu, np.eye(len(F)))
-        return Finv.T @ J @ Finv
-    try:
-        P = np.linalg.inv(J)
-    except LinAlgError as err:
-        raise ValueError("the PCRB with process noise needs an invertible prior information "
-                         "(a state part the prior leaves unknown)") from err
-    return np.linalg.inv(Q + F @ P @ F.T)
-
-
-def pcrb_recursion(J0: np.ndarray, transitions: Sequence[np.ndarray], noises: Sequence[np.ndarray],
-                   informations: Sequence[np.ndarray]) -> np.ndarray:
+def pcrb_recursion(J0: np.ndarray, transitions: np.ndarray, noises: np.ndarray, informations: np.ndarray) -> np.ndarray:
     """Information matrices J_0..J_{K-1} (K, n, n) from J_0 (its scan included) by eqs. (1)-(2):
-    ``transitions[k]`` and ``noises[k]`` take step k to k+1 (K-1 of each), ``informations[k]`` is the scan
-    information added at step k+1 (K-1 of them; a zero matrix for a step without scan)."""
-    J = np.empty((len(transitions) + 1,) + np.shape(J0))
+    ``transitions[k]`` and ``noises[k]`` take step k to k+1 ((K-1, n, n) each), ``informations[k]`` is the scan
+    information added at step k+1 ((K-1, n, n); zero for a step without scan). Eq. (2) (Q = 0) holds for a
+    singular J; eq. (1) needs J_k invertible (ValueError otherwise)."""
+    F, Q = np.asarray(transitions, dtype=float), np.asarray(noises, dtype=float)
+    noiseless = ~np.any(Q.reshape(len(Q), -1), axis=1)
+    Finv = np.linalg.inv(F)
+    J = np.empty((len(F) + 1,) + np.shape(J0))
     J[0] = J0
-    for k, (F, Q, info) in enumerate(zip(transitions, noises, informations)):
-        Jk = predict_information(J[k], np.asarray(F, float), np.asarray(Q, float)) + info
+    for k in range(len(F)):
+        if noiseless[k]:
+            Jk = Finv[k].T @ J[k] @ Finv[k]
+        else:
+            try:
+                Jk = np.linalg.inv(Q[k] + F[k] @ np.linalg.inv(J[k]) @ F[k].T)
+            except np.linalg.LinAlgError as err:
+                raise ValueError("the PCRB with process noise needs an invertible prior information "
+                                 "(a state part the prior leaves unknown)") from err
+        Jk = Jk + informations[k]
         J[k + 1] = 0.5 * (Jk + Jk.T)
     return J
 
@@ -82,22 +82,28 @@ def pcrb_along_truth(dynamics: DynamicsModel, times: np.ndarray, states: np.ndar
     information at times[0], its scans included (``scans[0]`` is not used). A bound that is not finite yet
     (a state part still unobserved) is NaN."""
     times, states = np.asarray(times, dtype=float), np.asarray(states, dtype=float)
-    n = states.shape[1]
+    K, n = states.shape
+    dts = np.diff(times)
     if hasattr(dynamics, "transition_matrices"):  # a time-varying model (bench_models.truth_dynamics)
-        F = dynamics.transition_matrices(times, states)
+        F = np.asarray(dynamics.transition_matrices(times, states), dtype=float)
     else:
-        F = [dynamics.transition_matrix(x, dt) for x, dt in zip(states[:-1], np.diff(times))]
-    Q = [dynamics.process_noise(x, dt) for x, dt in zip(states[:-1], np.diff(times))]
-    info = [sum((measurement_information(m, R, x, t) for m, R in step), np.zeros((n, n)))
-            for x, t, step in zip(states[1:], times[1:], scans[1:])]
+        F = np.array([dynamics.transition_matrix(x, dt) for x, dt in zip(states[:-1], dts)]).reshape(K - 1, n, n)
+    Q = np.array([dynamics.process_noise(x, dt) for x, dt in zip(states[:-1], dts)]).reshape(K - 1, n, n)
+    info = np.zeros((K - 1, n, n))
+    groups: dict[int, tuple[MeasurementModel, np.ndarray, list[int]]] = {}
+    for k in range(1, K):
+        for model, R in scans[k]:
+            groups.setdefault(id(model), (model, R, []))[2].append(k)
+    for model, R, rows in groups.values():  # each sensor's scans at once
+        np.add.at(info, np.array(rows) - 1, measurement_information(model, R, states[rows], times[rows]))
     return information_to_covariance(pcrb_recursion(np.asarray(J0, dtype=float), F, Q, info))
 
 
 def information_to_covariance(J: np.ndarray) -> np.ndarray:
     """J^{-1} per step (K, n, n), symmetrised; NaN where J is singular (no finite bound yet)."""
     P = np.full_like(J, np.nan)
-    for k, Jk in enumerate(J):
-        if np.linalg.cond(Jk) < 1e15:
-            Pk = np.linalg.inv(Jk)
-            P[k] = 0.5 * (Pk + Pk.T)
+    finite = np.linalg.cond(J) < 1e15
+    if finite.any():
+        Pk = np.linalg.inv(J[finite])
+        P[finite] = 0.5 * (Pk + np.swapaxes(Pk, 1, 2))
     return P

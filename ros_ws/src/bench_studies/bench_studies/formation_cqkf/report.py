@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from bench_eval.report import Plot, Section, Table, draw_errors_vs_sigma, fmt, render
+from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, render
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -120,6 +120,7 @@ def formation_cqkf_sections(scenario: str, scored: Mapping, series: Mapping | No
     tables = [formation_mae_table("Mean absolute error (bench vs paper Table 1, 1 km)", scored, case,
                                   _filter_models(scored)),
               formation_consistency_table("Consistency", [("scenario as run", n, b, "—") for n, b in scored.items()])]
+    tables += [t for t in [bounds_table(scored, BOUND_GROUPS)] if t]
     plots = [Plot(f"{scenario}_errors.png", "Error RMSE over runs against the filters' 3σ (paper 004 Figs. 1-6)",
                   draw_errors_vs_sigma(series, scenario, FORMATION_COMPONENTS), (11.0, 6.0))] if series else []
     return [Section(scenario, text, tables, plots)]
@@ -198,6 +199,32 @@ def sweep_ordering_table(sweep: Mapping) -> Table:
     return Table("Model ordering by mean absolute error: '<' significant (paired t-test over the same seeds, 5 %), "
                  "'≈' not; the paper's ordering in parentheses",
                  ["cell"] + [s for _, s, _, _ in FORMATION_COMPONENTS], rows)
+
+
+BOUND_GROUPS = (("position", "m", 1.0), ("velocity", "mm/s", 1e3))
+"""The groups of the bound tables (bench_eval.report.bounds_table): key, display unit, factor from SI."""
+
+
+def sweep_bounds_table(sweep: Mapping) -> Table | None:
+    """Every cell and filter: position and velocity RMSE over the orbit next to the posterior CRB with the
+    truth's dynamics and the cell's measurements (scenario scoring.bounds), and the efficiency √bound / RMSE."""
+    rows = []
+    for c in _scored_cells(sweep):
+        for f, block in c["score"]["filters"].items():
+            for bound, b in (block.get("bounds") or {}).items():
+                cells = []
+                for key, _, factor in BOUND_GROUPS:
+                    g = b.get(key) or {}
+                    cells += [fmt(None if g.get("rmse") is None else factor * g["rmse"]),
+                              fmt(None if g.get("sqrt_bound") is None else factor * g["sqrt_bound"]),
+                              fmt(g.get("efficiency"))]
+                rows.append([_cell_label(c), _display_names(c).get(f, f), bound] + cells)
+    if not rows:
+        return None
+    return Table("Distance to the bound per cell: RMSE over runs and the orbit (RMS over time) next to √bound, "
+                 "efficiency √bound / RMSE",
+                 ["cell", "filter", "bound", "position RMSE [m]", "√bound [m]", "efficiency",
+                  "velocity RMSE [mm/s]", "√bound [mm/s]", "efficiency"], rows)
 
 
 def sweep_consistency_table(sweep: Mapping) -> Table:
@@ -320,6 +347,7 @@ def write_sweep_report(out_dir: Path | str, sweep: Mapping, series: Mapping[str,
         text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
     tables = sweep_paper_tables(sweep) + [sweep_ordering_table(sweep), sweep_cells_table(sweep),
                                           sweep_consistency_table(sweep)] + sweep_consistent_values_table(sweep)
+    tables += [t for t in [sweep_bounds_table(sweep)] if t]
     sections = [Section(f"{sweep['scenario']} — sweep '{sweep['grid']}'", text, tables, sweep_plots(sweep, series))]
     if model_error_markdown:
         sections.append(Section(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from bench_eval.claims import diverged
-from bench_eval.report import Plot, Section, Table, draw_errors_vs_sigma, fmt
+from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt
 
 AXES = (("x", "m"), ("y", "m"), ("z", "m"), ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"))
 COMPONENTS = tuple((axis, axis, unit, 1.0) for axis, unit in AXES)
@@ -39,4 +39,5 @@ def formation_pf_sections(scenario: str, scored: Mapping, series: Mapping | None
     healthy = {n: s for n, s in (series or {}).items() if n in scored and not diverged(scored[n])}
     plots = [Plot(f"{scenario}_errors.png", "Error RMSE over runs against the filters' 3σ (filters that did not "
                   "diverge)", draw_errors_vs_sigma(healthy, scenario, COMPONENTS), (11.0, 6.0))] if healthy else []
-    return [Section(scenario, text, [table], plots)]
+    bounds = bounds_table({n: b for n, b in scored.items() if not diverged(b)})
+    return [Section(scenario, text, [table] + ([bounds] if bounds else []), plots)]

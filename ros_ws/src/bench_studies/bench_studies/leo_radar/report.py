@@ -6,7 +6,7 @@ from typing import Callable, Mapping
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatter
 
-from bench_eval.report import Plot, Section, Table, difference, fmt
+from bench_eval.report import Plot, Section, Table, bounds_table, difference, draw_bounds, fmt
 
 
 def _paper_filter(paper: Mapping | None, name: str) -> Mapping:
@@ -51,6 +51,22 @@ def leo_table3(scored: Mapping, paper: Mapping | None) -> Table:
                  ["component", "source", "bench", "paper", "difference"], rows)
 
 
+def radar_bounds_table(scored: Mapping) -> Table | None:
+    """RMSE in radar coordinates next to each bound mapped there (leo_radar/radar_bound.py) and the efficiency
+    √bound / RMSE; None without bounds."""
+    rows = []
+    for name, block in scored.items():
+        radar = block.get("radar") or {}
+        for bound, values in (radar.get("bounds") or {}).items():
+            for key, b in values.items():
+                rows.append([key, name, bound, fmt(radar["filter"].get(key)), fmt(b),
+                             fmt(radar["efficiency"][bound].get(key))])
+    if not rows:
+        return None
+    return Table("Distance to the bound in radar coordinates (every scan of the pass, pooled over runs)",
+                 ["component", "filter", "bound", "RMSE", "√bound", "efficiency"], rows)
+
+
 def nees_table(scored: Mapping) -> Table:
     """Filter consistency: time-averaged NEES against its chi-square bounds (not reported by the papers)."""
     rows = [[name, str(b.get("runs")), fmt(b.get("nees_mean")), str(b.get("nees_dof")), fmt(b.get("nees_bounds")),
@@ -72,6 +88,7 @@ def _draw_rmse(series: Mapping, scored: Mapping, paper: Mapping | None) -> Calla
             if level is not None:
                 ax.axhline(level, color=line.get_color(), ls="--", lw=0.8,
                            label=f"paper {name} converged ({level:g} m)")
+        draw_bounds(ax, series, "position")
         ax.set(xlabel="time since first estimate [s]", ylabel="position RMSE [m]",
                title="Position RMSE over Monte Carlo runs (paper 000 eq. 35)")
         ax.grid(True, which="both", alpha=0.3)
@@ -86,6 +103,7 @@ def _draw_axes(series: Mapping) -> Callable[[Figure], None]:
         for ax, lab in zip(axs, labels):
             for name, s in series.items():
                 ax.semilogy(s["t"], s["axes"][lab], lw=1.0, label=name)
+            draw_bounds(ax, series, lab)
             ax.set_ylabel(f"{lab} RMSE [m]")
             ax.grid(True, which="both", alpha=0.3)
         axs[0].set_title("Per-axis position error (RMSE over runs)")
@@ -120,6 +138,7 @@ def leo_sections(scenario: str, scored: Mapping, series: Mapping | None, paper: 
     tables = [leo_table2(scored, paper), nees_table(scored)]
     if any("radar" in b for b in scored.values()):
         tables.insert(1, leo_table3(scored, paper))
+    tables += [t for t in (bounds_table(scored), radar_bounds_table(scored)) if t]
     plots = []
     if series:
         plots = [Plot(f"{scenario}_rmse.png", "Position RMSE vs time (log scale)", _draw_rmse(series, scored, paper)),
