@@ -176,3 +176,18 @@ def test_formation_truth_transition_matrices_match_finite_differences_of_the_tru
     for k, Fk in enumerate(F, start=1):
         Phi = Fk @ Phi
         np.testing.assert_allclose(Phi * steps, fd[k] * steps, atol=1e-7 * np.max(np.abs(fd[k] * steps)))
+
+
+@pytest.mark.parametrize("convention", ["radial_along_normal", "along_radial"])
+def test_isl_jacobian_series_is_the_jacobian_of_each_state_and_matches_finite_differences(convention):
+    """RangeAzElModel.jacobian_series (the PCRB's vectorised scan information) row by row against ``jacobian``
+    and against central differences of ``h`` (azimuth away from its 0 / 2 pi cut)."""
+    from bench_models.isl import RangeAzElModel
+    model = RangeAzElModel(convention)
+    x = np.random.default_rng(7).normal(0.0, 500.0, (20, 9))
+    x = x[np.abs(np.sin(model.h(x)[:, 1])) > 0.1]
+    H = model.jacobian_series(x, np.zeros(len(x)))
+    np.testing.assert_allclose(H, [model.jacobian(xk) for xk in x], rtol=1e-12, atol=1e-15)
+    step = 1e-3
+    fd = np.stack([(model.h(x + step * e) - model.h(x - step * e)) / (2 * step) for e in np.eye(9)], axis=-1)
+    np.testing.assert_allclose(H, fd, rtol=1e-6, atol=1e-9)

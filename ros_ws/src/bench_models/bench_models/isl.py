@@ -72,6 +72,22 @@ class RangeAzElModel:
         H[:, 0:3] = dq @ self._M
         return H
 
+    def jacobian_series(self, x: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """``jacobian`` of every state of a series x (K, n) at once, shape (K, 3, n) (the model is time-free)."""
+        x = np.asarray(x, dtype=float)
+        q = np.moveaxis(self._axes(x), 0, -1)  # (K, 3)
+        rho2 = np.sum(q * q, axis=1)
+        rho, h2 = np.sqrt(rho2), q[:, 0] ** 2 + q[:, 1] ** 2
+        h = np.sqrt(h2)
+        zero = np.zeros_like(h)
+        dq = np.stack([q / rho[:, None],
+                       np.stack([-q[:, 1] / h2, q[:, 0] / h2, zero], axis=1),
+                       np.stack([-q[:, 0] * q[:, 2] / (rho2 * h), -q[:, 1] * q[:, 2] / (rho2 * h), h / rho2], axis=1)],
+                      axis=1)
+        H = np.zeros((len(x), 3, x.shape[-1]))
+        H[:, :, 0:3] = dq @ self._M
+        return H
+
     def residual(self, z: np.ndarray, z_pred: np.ndarray) -> np.ndarray:
         """z - z_pred with the angles wrapped to (-pi, pi]."""
         return wrapped_residual(z, z_pred, self.angle_indices)
