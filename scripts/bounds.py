@@ -5,13 +5,16 @@ Per case (the scenario, or every cell of one of its sweep grids), N seeded runs 
 process (bench_engine.inprocess: the graph's cores and seeds, without ROS), scored by bench_eval.scoring with
 the scenario's bounds (bench_eval/bounds.py: e.g. the posterior CRB with the truth's dynamics). Prints one
 Markdown table: per case and estimator, the position and velocity RMSE over runs (RMS over the summarised
-steps) next to the square root of the bound and the efficiency √bound / RMSE (1 = the best possible; a bound
-is a lower bound, so efficiency > 1 only by Monte Carlo error or where the bound's linearisation fails).
+steps) next to the square root of the bound (likewise), and the efficiency (mean over the steps of
+RMSE^2 / bound)^-1/2 (1 = the best possible; a bound is a lower bound, so efficiency > 1 only by Monte Carlo
+error or where the bound's assumptions fail).
 With --out, each case's report (the study's tables and figures, √bound dashed) goes to OUT/CASE/.
 
 Examples:
   .venv/bin/python scripts/bounds.py leo_radar --runs 10
   .venv/bin/python scripts/bounds.py formation_pf --runs 10 --variant j2_truth
+  .venv/bin/python scripts/bounds.py formation_pf --runs 10 --filters pf,ukf \
+      --set 'filters.ukf={type: ukf, dynamics: {model: cw, sigma_accel: 0.0}}'
   .venv/bin/python scripts/bounds.py formation_cqkf --grid tables --runs 2 --out runs/bounds-cqkf
 """
 from __future__ import annotations
@@ -37,6 +40,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--runs", type=int, default=10, help="seeds seed0..seed0+runs-1 per case (default 10)")
     p.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
     p.add_argument("--variant", default="", help="comma-separated variants (not with --grid)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="scenario override (repeatable), e.g. --set 'filters.ukf.dynamics.sigma_accel=0.0'")
     p.add_argument("--grid", help="every cell of this sweep grid of the scenario (scripts/sweep.py's grids)")
     p.add_argument("--filters", help="comma-separated estimators (default: the scenario's default_filters)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
@@ -63,9 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
         if args.grid:
-            cases = [(c.id, c.cfg) for c in load_grid(args.scenario, args.grid).cells]
+            cases = [(c.id, c.cfg) for c in load_grid(args.scenario, args.grid, args.set).cells]
         else:
-            cases = [(args.variant or "default", select_variant(load_scenario(args.scenario), args.variant))]
+            cases = [(args.variant or "default", select_variant(load_scenario(args.scenario, args.set), args.variant))]
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -22,9 +22,11 @@ The scorer (bench_eval.scoring.score_bags) adds to every scored estimator's scor
 axes: {label: {...}}}}`` and to its plot series ``bounds: {NAME: {t, position, velocity, axes}}`` (√bound per
 step on the series' time axis, for a dashed curve). Definitions (:func:`score_bound`): per step,
 RMSE_k = sqrt(mean over runs of |e_k|^2) over a group's components and √bound_k = sqrt(mean over runs of
-trace(P_bound,k)) (the bound of the run-averaged MSE); the summaries are the RMS over the steps from
-``from_s`` of each, efficiency = √bound / RMSE (1 = efficient; the bound is a lower bound, so <= 1 up to
-Monte Carlo error), and the values at the last step.
+trace(P_bound,k)) (the bound of the run-averaged MSE). Over the steps from ``from_s``: ``rmse`` and
+``sqrt_bound`` are the RMS over time of each (in the group's unit), ``efficiency`` is
+(mean over steps of RMSE_k^2 / bound_k)^(-1/2), every step weighted alike whatever its error level (an RMS
+over time would be the first steps', where a prior of metres meets errors of centimetres later), 1 = efficient
+(a lower bound: <= 1 up to Monte Carlo error); ``final_*`` are the values at the last step.
 
 Registered bounds: ``pcrb`` (posterior CRB along the truth: tracker_filters.pcrb).
 """
@@ -101,8 +103,9 @@ def _summary(rmse: np.ndarray, root_bound: np.ndarray, keep: np.ndarray) -> dict
     if not ok.any():
         return {"rmse": None, "sqrt_bound": None, "efficiency": None, "final_rmse": None, "final_sqrt_bound": None}
     r, b = float(np.sqrt(np.mean(rmse[ok] ** 2))), float(np.sqrt(np.mean(root_bound[ok] ** 2)))
+    ratio = float(np.mean((rmse[ok] / root_bound[ok]) ** 2))
     last = np.flatnonzero(ok)[-1]
-    return {"rmse": r, "sqrt_bound": b, "efficiency": b / r if r > 0 else None,
+    return {"rmse": r, "sqrt_bound": b, "efficiency": 1.0 / np.sqrt(ratio) if ratio > 0 else None,
             "final_rmse": float(rmse[last]), "final_sqrt_bound": float(root_bound[last])}
 
 

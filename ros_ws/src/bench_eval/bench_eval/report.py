@@ -106,8 +106,8 @@ def draw_bounds(ax, series: Mapping, key: str, factor: float = 1.0) -> None:
 
 def bounds_table(scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("position", "m", 1.0),
                                                                             ("velocity", "m/s", 1.0))) -> Table | None:
-    """Every estimator's RMSE next to each bound's square root and its efficiency √bound / RMSE (1 = reaches the
-    bound), per group (key, display unit, factor from SI): RMS over the summarised steps and at the last step
+    """Every estimator's RMSE next to each bound's square root and its efficiency (bench_eval.bounds: 1 = reaches
+    the bound), per group (key, display unit, factor from SI): RMS over the summarised steps and at the last step
     (bench_eval.bounds); None when no estimator was scored against a bound."""
     rows = []
     for est, block in scored.items():
@@ -121,7 +121,7 @@ def bounds_table(scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("
     if not rows:
         return None
     return Table("Distance to the bound: RMSE over runs next to √bound (RMS over the summarised steps), efficiency "
-                 "√bound / RMSE (1 = the best the data allow), and both at the last step",
+                 "(mean over those steps of RMSE² / bound)^-½ (1 = the best the data allow), both at the last step",
                  ["estimator", "bound", "quantity", "RMSE", "√bound", "efficiency", "last RMSE", "last √bound"], rows)
 
 

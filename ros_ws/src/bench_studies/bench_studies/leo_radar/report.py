@@ -52,8 +52,8 @@ def leo_table3(scored: Mapping, paper: Mapping | None) -> Table:
 
 
 def radar_bounds_table(scored: Mapping) -> Table | None:
-    """RMSE in radar coordinates next to each bound mapped there (leo_radar/radar_bound.py) and the efficiency
-    √bound / RMSE; None without bounds."""
+    """RMSE in radar coordinates next to each bound mapped there (leo_radar/radar_bound.py) and the ratio
+    √bound / RMSE of the pooled values; None without bounds."""
     rows = []
     for name, block in scored.items():
         radar = block.get("radar") or {}
