@@ -4,10 +4,10 @@
 Per case (the scenario, or every cell of one of its sweep grids), N seeded runs of the case's filters in
 process (bench_engine.inprocess: the graph's cores and seeds, without ROS), scored by bench_eval.scoring with
 the scenario's bounds (bench_eval/bounds.py: e.g. the posterior CRB with the truth's dynamics). Prints one
-Markdown table: per case and estimator, the position and velocity RMSE over runs (RMS over the summarised
-steps) next to the square root of the bound (likewise), and the efficiency (mean over the steps of
-RMSE^2 / bound)^-1/2 (1 = the best possible; a bound is a lower bound, so efficiency > 1 only by Monte Carlo
-error or where the bound's assumptions fail).
+Markdown table: per case and estimator, for position and velocity, the efficiency (mean over the summarised
+steps of RMSE^2 / bound)^-1/2 (1 = the best possible; a bound is a lower bound, so efficiency > 1 only by Monte
+Carlo error or where the bound's assumptions fail) and, at the last step, the RMSE over runs next to the square
+root of the bound.
 With --out, each case's report (the study's tables and figures, √bound dashed) goes to OUT/CASE/.
 
 Examples:
@@ -58,7 +58,7 @@ def table_rows(case: str, scored: dict) -> list[str]:
     rows = []
     for est, block in scored.items():
         for bound, b in (block.get("bounds") or {}).items():
-            cells = [f"{fmt(b[g]['rmse'])} / {fmt(b[g]['sqrt_bound'])} / {fmt(b[g]['efficiency'])}"
+            cells = [f"{fmt(b[g]['efficiency'])} ({fmt(b[g]['final_rmse'])} / {fmt(b[g]['final_sqrt_bound'])})"
                      for g in ("position", "velocity") if g in b]
             rows.append(f"| {case} | {est} | {bound} | " + " | ".join(cells) + " |")
     return rows
@@ -77,8 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     filters = args.filters.split(",") if args.filters else None
     seeds = range(args.seed0, args.seed0 + args.runs)
     print(f"{args.scenario}: {len(cases)} case(s) x {args.runs} runs (seeds {seeds[0]}..{seeds[-1]}), in process\n")
-    print("| case | estimator | bound | position RMSE / √bound [m] / efficiency | velocity RMSE / √bound [m/s] / "
-          "efficiency |\n|---|---|---|---|---|")
+    print("| case | estimator | bound | position: efficiency (last RMSE / √bound [m]) | velocity: efficiency (last "
+          "RMSE / √bound [m/s]) |\n|---|---|---|---|---|")
     with ProcessPoolExecutor(args.jobs) as pool:
         for case, cfg in cases:
             runs = list(pool.map(_run, [(cfg, filters, s) for s in seeds]))
