@@ -35,7 +35,8 @@ setup(
         "tracking_bench.offline": [
             "rts = bench_eval.offline:RTS",
             "newton = bench_eval.offline:NEWTON",
-            "savgol = bench_eval.offline:SAVGOL"],
+            "savgol = bench_eval.offline:SAVGOL",
+            "pair_orbit_fit = bench_eval.offline:PAIR_ORBIT_FIT"],
         "tracking_bench.bounds": [
             "pcrb = bench_eval.bounds:PCRB"]
     },

@@ -125,3 +125,71 @@ def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
 
 NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check({"order": int}))
 SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window_s": (int, float), "polyorder": int}))
+
+
+PAIR_FIT_KEYS = {"second", "zonal_degree", "drag", "ballistic_guess", "empirical_interval_s", "empirical_sigma"}
+
+
+def _pair_fit_check(cfg: dict, source: str, params: dict) -> None:
+    from orbit_sim.geopotential import ZONALS
+    sensors = cfg.get("sensors") or {}
+    for name in (source, params.get("second")):
+        if not isinstance(sensors.get(name), dict) or "sigma_position" not in sensors[name]:
+            raise ScenarioError(f"'scoring.offline' pair_orbit_fit: '{name}' is not a position sensor of the scenario "
+                                "(source and params.second: the leader's and the follower's GNSS)")
+    unknown = set(params) - PAIR_FIT_KEYS
+    if unknown or "second" not in params:
+        raise ScenarioError(f"'scoring.offline' pair_orbit_fit takes params {sorted(PAIR_FIT_KEYS)} (second "
+                            f"required), got {sorted(params)}")
+    degree = params.get("zonal_degree", 2)
+    if not isinstance(degree, int) or isinstance(degree, bool) or not 0 <= degree <= max(ZONALS) or degree == 1:
+        raise ScenarioError(f"'scoring.offline' params.zonal_degree must be 0 (two-body) or 2..{max(ZONALS)}, "
+                            f"got {degree!r}")
+    if not isinstance(params.get("drag", False), bool):
+        raise ScenarioError(f"'scoring.offline' params.drag must be true or false, got {params['drag']!r}")
+    for key in ("ballistic_guess", "empirical_interval_s", "empirical_sigma"):
+        value = params.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
+            raise ScenarioError(f"'scoring.offline' params.{key} must be a positive number, got {value!r}")
+    if ("empirical_interval_s" in params) != ("empirical_sigma" in params):
+        raise ScenarioError("'scoring.offline' params.empirical_interval_s and empirical_sigma go together")
+
+
+def pair_force_model(cfg: dict, params: dict):
+    """The fit's orbit_sim.orbit_fit.ForceModel from the scenario's earth and the params (zonal_degree, drag,
+    empirical_interval_s)."""
+    from orbit_sim.geopotential import ZONALS
+    from orbit_sim.orbit_fit import ForceModel
+    from orbit_sim.truth import build_earth
+    earth = build_earth(cfg)
+    degree = params.get("zonal_degree", 2)
+    zonals = {n: (earth.j2 if n == 2 else ZONALS[n]) for n in range(2, degree + 1)}
+    return ForceModel(earth.mu, earth.re, zonals, bool(params.get("drag", False)), earth.rotation_rate,
+                      params.get("empirical_interval_s"))
+
+
+def _pair_fit_run(data: BagData, source: str, params: dict) -> Estimates:
+    """Both satellites' orbits fitted to their own GNSS fixes by batch least squares (orbit_sim.orbit_fit), each
+    fit's states and covariance at every truth step of the fixes' span; the state is the truth's 18 components
+    (leader, follower, baseline = follower - leader, their covariance mapped linearly)."""
+    from orbit_sim.orbit_fit import fit_orbit
+    from orbit_sim.pair import LABELS
+    model = pair_force_model(data.scenario, params)
+    all_steps = np.array(sorted(data.truth))
+    all_t = np.array([data.truth[int(k)][0] for k in all_steps])
+    fits = []
+    for name in (source, params["second"]):
+        _, t, z = _measurement_series(data, name)
+        fits.append(fit_orbit(t, z, float(data.scenario["sensors"][name]["sigma_position"]), model,
+                              params.get("ballistic_guess", 0.0), params.get("empirical_sigma")))
+    keep = (all_t >= max(f.t_edges[0] for f in fits)) & (all_t <= min(f.t_edges[-1] for f in fits))
+    (x1, P1), (x2, P2) = (f.states(all_t[keep]) for f in fits)
+    L = np.zeros((18, 12))  # [leader, follower, follower - leader] from [leader, follower]
+    L[:12] = np.eye(12)
+    L[12:, :6], L[12:, 6:] = -np.eye(6), np.eye(6)
+    P = np.zeros((len(x1), 12, 12))
+    P[:, :6, :6], P[:, 6:, 6:] = P1, P2
+    return Estimates(all_steps[keep], all_t[keep], np.hstack([x1, x2]) @ L.T, L @ P @ L.T, list(LABELS), {})
+
+
+PAIR_ORBIT_FIT = OfflineEstimator(run=_pair_fit_run, check=_pair_fit_check)

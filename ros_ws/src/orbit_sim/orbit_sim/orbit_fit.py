@@ -1,0 +1,294 @@
+"""Dynamic orbit determination: one satellite's orbit fitted to its GNSS position fixes by batch least squares.
+
+The parameters p are the state x0 = [r0 v0] at the first fix, the ballistic coefficient B = C_d A / m when the
+force model has drag, and, in the reduced-dynamic approach of GRACE orbit processing (Jaeggi et al. 2006,
+J. Geodesy 80), piecewise-constant empirical accelerations e_j in the radial / along-track / cross-track
+frame over intervals of ``empirical_interval_s``, each with the a-priori constraint e_j ~ N(0, sigma_e^2 I)
+(the "weight" of the dynamics against the fixes). The force model is
+
+    a(r, v) = a_zonal(r; J2..Jn) + B a_drag(r, v) + R_rtn(r, v) e_j        (orbit_sim.geopotential)
+
+Gauss-Newton on the fixes z_k = r(t_k) + n_k, n_k ~ N(0, sigma^2 I), with the a-priori constraint:
+
+    N = sum_k H_k' H_k / sigma^2 + Lambda_prior,   dp = N^-1 [sum_k H_k' (z_k - r(t_k)) / sigma^2 - Lambda_prior p]
+
+H_k = d r(t_k) / d p from the variational equations (Montenbruck & Gill, "Satellite Orbits", section 7.2):
+with A = [[0, I], [G, 0]], G = da/dr of the point mass and J2 (:func:`gravity_gradient`), the state transition matrix
+Phi(t) = d x(t) / d x0 obeys Phi' = A Phi, the drag sensitivity s' = A s + [0; a_drag]. The sensitivity to e_j
+is Phi(t) [W(min(t, t_j+1)) - W(t_j)] for t > t_j, with W' = Phi^-1 [0; R_rtn]; Psi = Phi^-1 obeys
+Psi' = -Psi A, so no inversion is needed. The covariance of p is N^-1 at convergence (the Fisher information
+of the fixes plus the prior: with the truth's force model at the true p, the Cramer-Rao bound of the fit).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from orbit_sim.constants import OMEGA_EARTH, R_EARTH
+from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
+
+RTOL, ATOL = 1.0e-11, 1.0e-6
+"""The truth's integration tolerances (orbit_sim.pair): the fit's trajectory is as accurate as the truth's."""
+ATOL_PARTIALS = 1.0e-3
+"""Absolute tolerance of the partials (their relative tolerance is RTOL): the trajectory sets the steps."""
+
+
+@dataclass(frozen=True)
+class ForceModel:
+    """The fit's dynamics: zonal field {n: J_n} (n >= 2; empty: two-body), drag on or off, and the empirical
+    accelerations' interval [s] (None: none)."""
+
+    mu: float
+    re: float = R_EARTH
+    zonals: dict = field(default_factory=dict)
+    drag: bool = False
+    rotation_rate: float = OMEGA_EARTH
+    empirical_interval_s: float | None = None
+
+    def acceleration(self, r: np.ndarray, v: np.ndarray, ballistic: float) -> np.ndarray:
+        """Gravity plus drag [m/s^2] at r, v (m, 3)."""
+        a = zonal_acceleration(r, self.mu, self.re, self.zonals)
+        if self.drag:
+            a = a + drag_acceleration(r, v, ballistic, self.rotation_rate, self.re)
+        return a
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def rtn_frame(r: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3)."""
+    radial = r / np.sqrt(r @ r)
+    normal = _cross(r, v)
+    normal /= np.sqrt(normal @ normal)
+    return np.column_stack([radial, _cross(normal, radial), normal])
+
+
+def gravity_gradient(r: np.ndarray, mu: float, j2: float, re: float) -> np.ndarray:
+    """G = da/dr (3, 3) of the point mass and J2 (Montenbruck & Gill eq. 7.41 ff.); with
+    a_J2 = k [(r^-5 - 5 z^2 r^-7) r + 2 z r^-5 e_z], k = -3/2 J2 mu Re^2. The partials of J3.. and of drag are
+    below 1e-6 of these and are left out: they change the Jacobian, not the converged fit."""
+    rn2 = r @ r
+    rn = np.sqrt(rn2)
+    z = r[2]
+    ez = np.array([0.0, 0.0, 1.0])
+    G = mu / rn**3 * (3.0 * np.outer(r, r) / rn2 - np.eye(3))
+    k = -1.5 * j2 * mu * re**2
+    r5, r7 = rn**-5, rn**-7
+    f = r5 - 5.0 * z * z * r7
+    grad_f = r * (-5.0 * r7 + 35.0 * z * z * r7 / rn2) - 10.0 * z * r7 * ez
+    grad_zr5 = ez * r5 - 5.0 * z * r7 * r
+    return G + k * (f * np.eye(3) + np.outer(r, grad_f) + 2.0 * np.outer(ez, grad_zr5))
+
+
+@dataclass
+class Trajectory:
+    """A propagated orbit and its partials at the times ``t``: state x (K, 6); Phi (K, 6, 6) = dx/dx0;
+    s_drag (K, 6) = dx/dB; W (K, 6, 3) the empirical integral; ``segment`` (K,) the interval of each time;
+    ``W_edges`` (J + 1, 6, 3) W at the intervals' edges."""
+
+    t: np.ndarray
+    x: np.ndarray
+    phi: np.ndarray
+    s_drag: np.ndarray
+    W: np.ndarray
+    segment: np.ndarray
+    W_edges: np.ndarray
+
+    def partials(self, idx: np.ndarray | slice, n_params: int, drag: bool) -> np.ndarray:
+        """dx(t) / dp (k, 6, n_params) at the times ``idx``: [x0 | B | e_0 .. e_J-1]."""
+        phi, seg = self.phi[idx], self.segment[idx]
+        J = np.zeros((len(phi), 6, n_params))
+        J[:, :, :6] = phi
+        col = 6
+        if drag:
+            J[:, :, 6] = self.s_drag[idx]
+            col = 7
+        if n_params > col:
+            W = self.W[idx]
+            for j in range(self.W_edges.shape[0] - 1):
+                done = seg > j  # the whole interval j lies before t
+                inside = seg == j
+                delta = np.where(done[:, None, None], self.W_edges[j + 1], W) - self.W_edges[j]
+                block = np.einsum("kab,kbc->kac", phi, delta)
+                block[~(done | inside)] = 0.0
+                J[:, :, col + 3 * j:col + 3 * j + 3] = block
+        return J
+
+
+def _rate(t: float, y: np.ndarray, model: ForceModel, ballistic: float, e: np.ndarray, with_partials: bool):
+    r, v = y[:3], y[3:6]
+    rtn = rtn_frame(r, v)
+    a = zonal_acceleration(r, model.mu, model.re, model.zonals)
+    drag = drag_acceleration(r, v, 1.0, model.rotation_rate, model.re) if model.drag else np.zeros(3)
+    a = a + ballistic * drag + rtn @ e
+    if not with_partials:
+        return np.concatenate([v, a])
+    A = np.zeros((6, 6))
+    A[:3, 3:] = np.eye(3)
+    A[3:, :3] = gravity_gradient(r, model.mu, model.zonals.get(2, 0.0), model.re)
+    phi, psi = y[6:42].reshape(6, 6), y[42:78].reshape(6, 6)
+    s = y[78:84]
+    return np.concatenate([v, a, (A @ phi).ravel(), (-psi @ A).ravel(), A @ s + np.concatenate([np.zeros(3), drag]),
+                           (psi[:, 3:] @ rtn).ravel()])
+
+
+def edges(t0: float, t1: float, interval: float | None) -> np.ndarray:
+    """The empirical intervals' edges from t0 to t1 (the last interval absorbs a remainder shorter than half)."""
+    if interval is None:
+        return np.array([t0, t1])
+    n = max(1, int(round((t1 - t0) / interval)))
+    return np.linspace(t0, t1, n + 1)
+
+
+def propagate(x0: np.ndarray, ballistic: float, e: np.ndarray, model: ForceModel, t: np.ndarray,
+              t_edges: np.ndarray, with_partials: bool = True, rtol: float = RTOL) -> Trajectory:
+    """The orbit from x0 at t_edges[0] to the times ``t`` (ascending, within the edges), interval by interval
+    (the empirical accelerations ``e`` (J, 3) jump at the edges: each interval is integrated on its own)."""
+    n_seg = len(t_edges) - 1
+    y = np.concatenate([x0, np.eye(6).ravel(), np.eye(6).ravel(), np.zeros(6), np.zeros(18)]) if with_partials \
+        else np.asarray(x0, float)
+    atol = np.full(len(y), ATOL_PARTIALS)
+    atol[:3], atol[3:6] = ATOL, ATOL * 1.0e-3
+    seg = np.clip(np.searchsorted(t_edges, t, side="right") - 1, 0, n_seg - 1)
+    out = np.empty((len(t), len(y)))
+    W_edges = np.zeros((n_seg + 1, 6, 3))
+    for j in range(n_seg):
+        mask = seg == j
+        t_eval = np.append(t[mask], t_edges[j + 1]) if not (mask.any() and t[mask][-1] == t_edges[j + 1]) \
+            else t[mask]
+        sol = solve_ivp(_rate, (t_edges[j], t_edges[j + 1]), y, method="DOP853", t_eval=t_eval, rtol=rtol,
+                        atol=atol, args=(model, ballistic, e[j], with_partials))
+        if not sol.success:
+            raise RuntimeError(f"orbit propagation failed: {sol.message}")
+        out[mask] = sol.y[:, :mask.sum()].T
+        y = sol.y[:, -1]
+        if with_partials:
+            W_edges[j + 1] = y[84:].reshape(6, 3)
+    K = len(t)
+    if not with_partials:
+        return Trajectory(t, out, np.zeros((K, 6, 6)), np.zeros((K, 6)), np.zeros((K, 6, 3)), seg, W_edges)
+    return Trajectory(t, out[:, :6], out[:, 6:42].reshape(K, 6, 6), out[:, 78:84], out[:, 84:].reshape(K, 6, 3),
+                      seg, W_edges)
+
+
+@dataclass
+class OrbitFit:
+    """A converged fit: parameters p = [x0, (B), e], their covariance N^-1, the intervals' edges, the
+    iterations it took and the fixes' RMS residual per axis [m]. ``e`` (J, 3) is zero without empirical
+    accelerations."""
+
+    model: ForceModel
+    t0: float
+    x0: np.ndarray
+    ballistic: float
+    e: np.ndarray
+    covariance: np.ndarray
+    t_edges: np.ndarray
+    iterations: int
+    residual_rms: float
+
+    @property
+    def n_params(self) -> int:
+        return 6 + int(self.model.drag) + (self.e.size if self.model.empirical_interval_s else 0)
+
+    def states(self, t: np.ndarray, with_covariance: bool = True, chunk: int = 2000
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Fitted states (K, 6) at the times t (within the fitted span) and their covariance (K, 6, 6):
+        J C J' with J = dx(t)/dp."""
+        traj = propagate(self.x0, self.ballistic, self.e, self.model, t, self.t_edges, with_partials=with_covariance)
+        if not with_covariance:
+            return traj.x, None
+        P = np.empty((len(t), 6, 6))
+        for start in range(0, len(t), chunk):
+            idx = slice(start, start + chunk)
+            J = traj.partials(idx, self.n_params, self.model.drag)
+            P[idx] = J @ self.covariance @ J.transpose(0, 2, 1)
+        return traj.x, P
+
+
+def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool,
+                     chunk: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+    """(N, b) = (sum H'H / sigma^2, sum H'(z - r) / sigma^2) over the fixes z (K, 3) at the trajectory's times."""
+    N, b = np.zeros((n_params, n_params)), np.zeros(n_params)
+    for start in range(0, len(z), chunk):
+        idx = slice(start, start + chunk)
+        H = traj.partials(idx, n_params, drag)[:, :3].reshape(-1, n_params)
+        res = (z[idx] - traj.x[idx, :3]).ravel()
+        N += H.T @ H / sigma**2
+        b += H.T @ res / sigma**2
+    return N, b
+
+
+def information(model: ForceModel, x0: np.ndarray, ballistic: float, t: np.ndarray, sigma: float,
+                empirical_sigma: float | None = None) -> OrbitFit:
+    """The Fisher information of fixes at the times t (first = epoch) about p at the given true orbit, as an
+    OrbitFit whose covariance is its inverse (the Cramer-Rao bound of any unbiased fit of p)."""
+    t_edges = edges(t[0], t[-1], model.empirical_interval_s)
+    n_e = 3 * (len(t_edges) - 1) if model.empirical_interval_s else 0
+    e = np.zeros((len(t_edges) - 1, 3))
+    traj = propagate(x0, ballistic, e, model, t, t_edges)
+    n_params = 6 + int(model.drag) + n_e
+    N, _ = normal_equations(traj, traj.x[:, :3], sigma, n_params, model.drag)
+    N += _prior(n_params, n_e, empirical_sigma)
+    return OrbitFit(model, float(t[0]), np.asarray(x0, float), ballistic, e, np.linalg.inv(N), t_edges, 0, 0.0)
+
+
+def _prior(n_params: int, n_e: int, empirical_sigma: float | None) -> np.ndarray:
+    prior = np.zeros((n_params, n_params))
+    if n_e:
+        if not empirical_sigma or empirical_sigma <= 0:
+            raise ValueError("empirical accelerations need a positive a-priori sigma [m/s^2]")
+        idx = np.arange(n_params - n_e, n_params)
+        prior[idx, idx] = 1.0 / empirical_sigma**2
+    return prior
+
+
+def initial_guess(t: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """State at t[0] from the first fixes: position of the first, velocity of a quadratic over the first five."""
+    n = min(5, len(t))
+    coef = np.polyfit(t[:n] - t[0], z[:n], 2)
+    return np.concatenate([coef[2], coef[1]])
+
+
+def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, ballistic_guess: float = 0.0,
+              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-5,
+              warm_start_s: float = 5400.0) -> OrbitFit:
+    """Batch least-squares orbit of one satellite from its position fixes z (K, 3) at times t (K,), noise
+    sigma [m] per axis (module docstring). The state is first fitted over the first ``warm_start_s`` seconds
+    (two-body start), then over the whole span; converged when the largest change of the fitted positions
+    is below ``tol_m``."""
+    t, z = np.asarray(t, float), np.asarray(z, float)
+    x0, ballistic = initial_guess(t, z), float(ballistic_guess)
+    if t[-1] - t[0] > 1.5 * warm_start_s:
+        short = t <= t[0] + warm_start_s
+        warm = fit_orbit(t[short], z[short], sigma, ForceModel(model.mu, model.re, model.zonals, False,
+                                                               model.rotation_rate), max_iterations=max_iterations,
+                         tol_m=tol_m, warm_start_s=warm_start_s)
+        x0 = warm.x0
+    t_edges = edges(t[0], t[-1], model.empirical_interval_s)
+    n_e = 3 * (len(t_edges) - 1) if model.empirical_interval_s else 0
+    e = np.zeros((len(t_edges) - 1, 3))
+    n_params = 6 + int(model.drag) + n_e
+    prior = _prior(n_params, n_e, empirical_sigma)
+    for iteration in range(1, max_iterations + 1):
+        traj = propagate(x0, ballistic, e, model, t, t_edges)
+        N, b = normal_equations(traj, z, sigma, n_params, model.drag)
+        p = np.concatenate([x0, [ballistic] if model.drag else [], e.ravel()[:n_e]])
+        N += prior
+        dp = np.linalg.solve(N, b - prior @ p)
+        x0 = x0 + dp[:6]
+        if model.drag:
+            ballistic += dp[6]
+        if n_e:
+            e = e + dp[-n_e:].reshape(-1, 3)
+        change = max(np.max(np.abs(traj.partials(slice(k, k + 2000), n_params, model.drag)[:, :3] @ dp))
+                     for k in range(0, len(t), 2000))
+        if change < tol_m:
+            break
+    traj = propagate(x0, ballistic, e, model, t, t_edges, with_partials=False)
+    rms = float(np.sqrt(np.mean((z - traj.x[:, :3]) ** 2)))
+    return OrbitFit(model, float(t[0]), x0, ballistic, e, np.linalg.inv(N), t_edges, iteration, rms)
