@@ -177,6 +177,17 @@ def test_score_leo_structure_and_consistency():
     assert series["ekf"]["t"][0] == 0.0 and series["ukf"]["nees"]["dof"] == 6
 
 
+def test_each_runs_own_convergence_time():
+    """Per-run convergence times (the spread behind the convergence-time claim's standard error): a position
+    error 1000 exp(-t/tau) + 10 m per axis settles below 1.5 x its 10 m floor at tau ln(200); the later run's
+    time counts from the earliest first stamp, as the pooled curve's does."""
+    t = np.arange(0.0, 120.0, 0.1)
+    runs = [track_from_errors(t + start, np.column_stack([1000.0 * np.exp(-t / tau) + 10.0] * 3 + [0.0 * t] * 3))
+            for tau, start in ((5.0, 0.0), (10.0, 2.0))]
+    got = score_convergence({"f": runs})["f"]["convergence_time_s_runs"]
+    assert got == pytest.approx([5.0 * np.log(200.0), 2.0 + 10.0 * np.log(200.0)], abs=0.6)
+
+
 def test_score_formation_is_json_ready():
     scored = score_errors({"pf": gaussian_runs(3, 50, 1.0, seed=7)})
     json.dumps(scored, allow_nan=False)

@@ -334,9 +334,10 @@ def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
     """JSON-ready convergence scores per filter (paper 000 Tables 2 and 3 are of this form).
 
     Per filter: runs, rmse_converged_m, rmse_peak_m, peak_time_s, convergence_time_s, band_m [low, high],
-    threshold_m, axes {x, y, z: same keys}, nees_mean, nees_dof, nees_bounds [lo, hi],
-    nees_fraction_inside (full-state NEES, see :func:`nees_summary`) and, when ``radar_by_filter`` has the
-    filter, radar {filter: {range_m, azimuth_mrad, elevation_mrad}, measurement: {...}}.
+    threshold_m, rmse_converged_m_runs and convergence_time_s_runs (per run), axes {x, y, z: same keys},
+    nees_mean, nees_dof, nees_bounds [lo, hi], nees_fraction_inside (full-state NEES, see :func:`nees_summary`)
+    and, when ``radar_by_filter`` has the filter, radar {filter: {range_m, azimuth_mrad, elevation_mrad},
+    measurement: {...}}.
     ``smooth_s`` and ``summary_kwargs`` go to :func:`summarise`. The default 1 s window (10 scans at 10 Hz)
     keeps the convergence test robust when few runs are averaged (an RMSE over N runs of one Gaussian error
     component has a relative spread of about 1/sqrt(2N)) and shifts the convergence time by at most half
@@ -347,6 +348,7 @@ def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
     for name, tracks in tracks_by_filter.items():
         block = {"runs": len(tracks), **_curve_block(*rmse_over_runs(tracks, position, tol), summary_kwargs)}
         block["rmse_converged_m_runs"] = converged_rms_per_run(tracks, block["convergence_time_s"], position)
+        block["convergence_time_s_runs"] = convergence_time_per_run(tracks, position, tol, summary_kwargs)
         block["axes"] = {str(c): _curve_block(*rmse_over_runs(tracks, [c], tol), summary_kwargs)
                          for c in position}
         ns = nees_summary(tracks, None, alpha, nees_skip_s, tol)
@@ -371,6 +373,16 @@ def converged_rms_per_run(tracks: Sequence[Track], convergence_time_s: float,
         if np.any(after):
             out.append(float(np.sqrt(np.mean(np.sum(tr.error(position)[after] ** 2, axis=1)))))
     return out
+
+
+def convergence_time_per_run(tracks: Sequence[Track], position: Components = POSITION,
+                             tol: float = DEFAULT_TOL_S, summary_kwargs: Mapping | None = None) -> list[float]:
+    """Each run's own convergence time (:func:`summarise` of its position error, measured from the earliest
+    stamp of all runs; NaN where it never settles): the spread over runs, for the Monte Carlo standard error
+    of the convergence time."""
+    t0 = min(float(tr.t[0]) for tr in tracks)
+    return [summarise(*rmse_over_runs([tr], position, tol), t0=t0,
+                      **(summary_kwargs or {}))["convergence_time_s"] for tr in tracks]
 
 
 def convergence_series(tracks_by_filter: Mapping[str, Sequence[Track]], position: Components = POSITION,

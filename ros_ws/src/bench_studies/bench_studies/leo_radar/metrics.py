@@ -1,6 +1,7 @@
 """The leo_radar metric family ``radar_convergence`` (registered in tracking_bench.metrics): the generic
 ``convergence`` family (bench_eval.metric_families) plus, per filter, the RMSE in the ground radar's own
-coordinates of the raw measurements and of the filter's estimates (paper 000 Table 3).
+coordinates of the raw measurements and of the filter's estimates (paper 000 Table 3), pooled over the runs
+(``radar``) and per run (``radar_runs``, the same keys with a list of each run's value).
 
 An estimate x_k and the truth at the same step are mapped through the radar's measurement function h (the
 run's own sensor model, rebuilt from the bag's run config); the raw measurement z_k is the one recorded at
@@ -37,13 +38,19 @@ def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | Non
 
 def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     radar: dict[str, metrics.RadarSamples] = {}
+    per_run: dict[str, dict] = {}
     for name in tracks:
         samples = [radar_samples(d, name) for d in runs if name in d.estimates and name in d.run["filters"]]
         samples = [s for s in samples if s is not None]
         if samples:  # the runs' samples pooled: RMSE over every run and scan
             radar[name] = metrics.RadarSamples(*(np.vstack([getattr(s, k) for s in samples])
                                                  for k in ("z_est", "z_meas", "z_true")), samples[0].angle_indices)
-    return metrics.score_convergence(tracks, radar)
+            blocks = [metrics.radar_block(s) for s in samples]  # each run's own: the Monte Carlo spread
+            per_run[name] = {src: {key: [b[src][key] for b in blocks] for key in blocks[0][src]} for src in blocks[0]}
+    scored = metrics.score_convergence(tracks, radar)
+    for name, block in per_run.items():
+        scored[name]["radar_runs"] = metrics.json_ready(block)
+    return scored
 
 
 RADAR_CONVERGENCE = Metric(options=CONVERGENCE.options, score=_score, series=CONVERGENCE.series)
