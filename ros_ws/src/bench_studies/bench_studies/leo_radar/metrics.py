@@ -6,7 +6,8 @@ coordinates of the raw measurements and of the filter's estimates (paper 000 Tab
 An estimate x_k and the truth at the same step are mapped through the radar's measurement function h (the
 run's own sensor model, rebuilt from the bag's run config); the raw measurement z_k is the one recorded at
 that step. Range errors are in metres; angle errors are wrapped to (-pi, pi] and reported in mrad
-(bench_eval.metrics.radar_coordinate_rmse).
+(bench_eval.metrics.radar_coordinate_rmse), and
+the scenario's bounds mapped into the same coordinates (leo_radar/radar_bound.py).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 from bench_eval import metrics
 from bench_eval.metric_families import CONVERGENCE, Metric, Tracks
 from bench_eval.scoring import BagData
+from bench_studies.leo_radar.radar_bound import add_radar_bounds
 
 
 def radar_samples(data: BagData, filter_name: str) -> metrics.RadarSamples | None:
@@ -50,6 +52,7 @@ def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     scored = metrics.score_convergence(tracks, radar)
     for name, block in per_run.items():
         scored[name]["radar_runs"] = metrics.json_ready(block)
+    add_radar_bounds(scored, runs)
     return scored
 
 

@@ -52,19 +52,17 @@ def leo_table3(scored: Mapping, paper: Mapping | None) -> Table:
 
 
 def radar_bounds_table(scored: Mapping) -> Table | None:
-    """RMSE in radar coordinates next to each bound mapped there (leo_radar/radar_bound.py) and the ratio
-    √bound / RMSE of the pooled values; None without bounds."""
+    """RMSE in radar coordinates next to each bound mapped there, from the bound's ``from_s`` on
+    (leo_radar/radar_bound.py), and the ratio √bound / RMSE; None without bounds."""
     rows = []
     for name, block in scored.items():
-        radar = block.get("radar") or {}
-        for bound, values in (radar.get("bounds") or {}).items():
-            for key, b in values.items():
-                rows.append([key, name, bound, fmt(radar["filter"].get(key)), fmt(b),
-                             fmt(radar["efficiency"][bound].get(key))])
+        for bound, values in ((block.get("radar") or {}).get("bounds") or {}).items():
+            rows += [[key, name, bound, fmt(v["rmse"]), fmt(v["sqrt_bound"]), fmt(v["ratio"])]
+                     for key, v in values.items()]
     if not rows:
         return None
-    return Table("Distance to the bound in radar coordinates (every scan of the pass, pooled over runs)",
-                 ["component", "filter", "bound", "RMSE", "√bound", "efficiency"], rows)
+    return Table("Distance to the bound in radar coordinates (the scans from the bound's from_s on, pooled over "
+                 "runs)", ["component", "filter", "bound", "RMSE", "√bound", "√bound / RMSE"], rows)
 
 
 def nees_table(scored: Mapping) -> Table:
