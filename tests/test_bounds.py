@@ -17,6 +17,7 @@ from bench_engine.config import ScenarioError, load_scenario
 from bench_eval.bounds import PCRB, score_bound, BoundSeries
 from bench_eval.scoring import score_bags, scoring_options
 from bench_eval import metrics
+from bench_eval.report import bound_curves, bounds_table
 from bench_models.isl import RelativePositionModel
 from bench_models.relative_dynamics import CWDynamics
 from inprocess_bags import bag_data
@@ -94,10 +95,16 @@ def test_the_registered_pcrb_of_a_recorded_run_is_the_kalman_covariance_on_a_lin
     bound = PCRB.run(data, scoring_options(cfg).bounds["pcrb"].params)
     assert list(bound.steps) == list(est.steps) and len(est.steps) < 61  # misses: scans only
     np.testing.assert_allclose(bound.P, est.P, rtol=1e-7, atol=1e-12)
-    scored = score_bags([data])["filters"]["kf"]["bounds"]["pcrb"]
+    result, series = score_bags([data], with_series=True)
+    scored = result["filters"]["kf"]["bounds"]["pcrb"]
     sigma = np.sqrt(np.mean(np.trace(est.P[:, :3, :3], axis1=1, axis2=2)[est.t - est.t[0] >= 10.0]))
     assert scored["position"]["sqrt_bound"] == pytest.approx(sigma, rel=1e-9)
     assert set(scored["axes"]) == {"x", "y", "z", "vx", "vy", "vz"}
+    # the report's generic pieces: the dashed curve is sqrt(trace) of the KF's own covariance, one table row a group
+    [(name, t, curve)] = bound_curves(series, "position")
+    np.testing.assert_allclose(curve, np.sqrt(np.trace(est.P[:, :3, :3], axis1=1, axis2=2)), rtol=1e-9)
+    assert [row[:3] for row in bounds_table(result["filters"]).rows] == [["kf", "pcrb", "position [m]"],
+                                                                         ["kf", "pcrb", "velocity [m/s]"]]
 
 
 @pytest.mark.parametrize("entry, message", [
