@@ -13,7 +13,7 @@ demo: setup
 	$(PY) scripts/demo.py --out runs/demo
 
 test: setup
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n auto --dist worksteal tests
 
 bench: setup
 	$(PY) scripts/bench_filters.py
