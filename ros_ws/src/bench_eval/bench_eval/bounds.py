@@ -49,7 +49,8 @@ GROUPS = {"position": metrics.POSITION, "velocity": metrics.VELOCITY}
 @dataclass
 class BoundSeries:
     """A bound over one run: covariance ``P`` (K, n, n) over ``labels`` at the truth steps ``steps`` (K,),
-    times ``t`` (K,) [s]."""
+    times ``t`` (K,) [s]. ``labels`` name error components as the estimators' do (bench_models.states
+    .error_labels: a state label, or rx ry rz for a quaternion block); an estimator is scored on those it has."""
 
     steps: np.ndarray
     t: np.ndarray
