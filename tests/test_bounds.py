@@ -198,3 +198,32 @@ def test_isl_jacobian_series_is_the_jacobian_of_each_state_and_matches_finite_di
     step = 1e-3
     fd = np.stack([(model.h(x + step * e) - model.h(x - step * e)) / (2 * step) for e in np.eye(9)], axis=-1)
     np.testing.assert_allclose(H, fd, rtol=1e-6, atol=1e-9)
+
+
+def test_star_frame_attitude_information_matches_finite_differences_and_quest_near_the_boresight():
+    """star_tracker.attitude_bound: H_i = d t_i / d dtheta against central differences of the tangent-plane
+    positions of stars seen by A' = exp(-[dtheta x]) A (attitude.py's error convention, checked with
+    error_vector), and J against the QUEST measurement model's sum (I - b b^T) / sigma^2 for stars near the
+    boresight."""
+    from star_tracker.attitude import error_vector, rotation_matrix
+    from star_tracker.attitude_bound import attitude_information, centroid_jacobians
+    rng = np.random.default_rng(11)
+    A = rotation_matrix(rng.normal(size=3))
+    b = np.column_stack([rng.uniform(-0.15, 0.15, (12, 2)), np.ones(12)])
+    r = (b / np.linalg.norm(b, axis=1, keepdims=True)) @ A  # ICRS directions: b = A r
+
+    def tangent(A_: np.ndarray) -> np.ndarray:
+        v = r @ A_.T
+        return v[:, :2] / v[:, 2:]
+
+    step, fd = 1e-6, []
+    for e in np.eye(3):
+        plus, minus = rotation_matrix(-step * e) @ A, rotation_matrix(step * e) @ A
+        np.testing.assert_allclose(error_vector(plus, A), step * e, atol=1e-15)
+        fd.append((tangent(plus) - tangent(minus)) / (2 * step))
+    np.testing.assert_allclose(centroid_jacobians(tangent(A)), np.stack(fd, axis=-1), rtol=1e-6, atol=1e-9)
+    near = b[:, :2] * 0.01
+    u = np.column_stack([near, np.ones(len(near))])
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    quest = sum(np.eye(3) - np.outer(v, v) for v in u) / 1e-4 ** 2
+    np.testing.assert_allclose(attitude_information(near, 1e-4), quest, atol=1e-5 * np.abs(quest).max())

@@ -36,6 +36,8 @@ setup(
         "tracking_bench.metrics": [
             "radar_convergence = bench_studies.leo_radar.metrics:RADAR_CONVERGENCE",
             "range_rate = bench_studies.grace_velocity.metrics:RANGE_RATE",
-            "star_attitude = bench_studies.star_tracker.metrics:STAR_ATTITUDE"]
+            "star_attitude = bench_studies.star_tracker.metrics:STAR_ATTITUDE"],
+        "tracking_bench.bounds": [
+            "wahba = bench_studies.star_tracker.bounds:WAHBA"]
     },
 )

@@ -28,7 +28,8 @@ trace(P_bound,k)) (the bound of the run-averaged MSE). Over the steps from ``fro
 over time would be the first steps', where a prior of metres meets errors of centimetres later), 1 = efficient
 (a lower bound: <= 1 up to Monte Carlo error); ``final_*`` are the values at the last step.
 
-Registered bounds: ``pcrb`` (posterior CRB along the truth: tracker_filters.pcrb).
+Registered bounds: ``pcrb`` (posterior CRB along the truth: tracker_filters.pcrb) here; others where their
+models are (e.g. ``wahba``, a star camera's per-frame attitude bound: bench_studies.star_tracker.bounds).
 """
 from __future__ import annotations
 

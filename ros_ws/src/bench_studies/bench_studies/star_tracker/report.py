@@ -9,7 +9,7 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import Plot, Section, Table, fmt
+from bench_eval.report import Plot, Section, Table, bounds_table, fmt
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -102,7 +102,15 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
         title = "Attitude error (this case is not one of the paper's tables)"
     plots = [Plot(f"{scenario}_attitude_error.png", "Attitude error per frame (RMS over the runs)",
                   _draw_errors(series), (10.0, 4.5))] if series else []
-    return [Section(scenario, text, [Table(title, header, rows)], plots)]
+    bounds = bounds_table(scored, BOUND_AXES)
+    return [Section(scenario, text, [Table(title, header, rows)] + ([bounds] if bounds else []), plots)]
+
+
+ARCSEC = 180.0 / np.pi * 3600.0
+BOUND_AXES = (("rx", "arcsec", ARCSEC), ("ry", "arcsec", ARCSEC), ("rz", "arcsec (roll)", ARCSEC))
+"""The attitude error's camera-frame components in the bound table (bench_eval.report.bounds_table). The
+scenario's bound is per frame (bench_studies.star_tracker.bounds): a tracker that carries stars across frames
+(JPDAF) uses more than one frame's information and may go below it."""
 
 
 def sweep_tables(sweep: Mapping) -> list[Table]:
