@@ -195,14 +195,14 @@ class OrbitFit:
     def n_params(self) -> int:
         return 6 + int(self.model.drag) + (self.e.size if self.model.empirical_interval_s else 0)
 
-    def states(self, t: np.ndarray, with_covariance: bool = True, chunk: int = 2000
-               ) -> tuple[np.ndarray, np.ndarray | None]:
+    def states(self, t: np.ndarray, with_covariance: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Fitted states (K, 6) at the times t (within the fitted span) and their covariance (K, 6, 6):
         J C J' with J = dx(t)/dp."""
         traj = propagate(self.x0, self.ballistic, self.e, self.model, t, self.t_edges, with_partials=with_covariance)
         if not with_covariance:
             return traj.x, None
         P = np.empty((len(t), 6, 6))
+        chunk = _chunk(self.n_params)
         for start in range(0, len(t), chunk):
             idx = slice(start, start + chunk)
             J = traj.partials(idx, self.n_params, self.model.drag)
@@ -210,10 +210,16 @@ class OrbitFit:
         return traj.x, P
 
 
-def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool,
-                     chunk: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+def _chunk(n_params: int) -> int:
+    """Times per block of partials (6 x n_params each): about 16 MB a block."""
+    return max(50, 2_000_000 // (6 * n_params))
+
+
+def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """(N, b) = (sum H'H / sigma^2, sum H'(z - r) / sigma^2) over the fixes z (K, 3) at the trajectory's times."""
     N, b = np.zeros((n_params, n_params)), np.zeros(n_params)
+    chunk = _chunk(n_params)
     for start in range(0, len(z), chunk):
         idx = slice(start, start + chunk)
         H = traj.partials(idx, n_params, drag)[:, :3].reshape(-1, n_params)
@@ -285,8 +291,8 @@ def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, bal
             ballistic += dp[6]
         if n_e:
             e = e + dp[-n_e:].reshape(-1, 3)
-        change = max(np.max(np.abs(traj.partials(slice(k, k + 2000), n_params, model.drag)[:, :3] @ dp))
-                     for k in range(0, len(t), 2000))
+        change = max(np.max(np.abs(traj.partials(slice(k, k + _chunk(n_params)), n_params, model.drag)[:, :3] @ dp))
+                     for k in range(0, len(t), _chunk(n_params)))
         if change < tol_m:
             break
     traj = propagate(x0, ballistic, e, model, t, t_edges, with_partials=False)

@@ -74,7 +74,11 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
             "floor of any residual against it; 'vs truth' removes it. Estimators: kf_a / kf_b the white-jerk "
             "Kalman filter on GNSS baselines without / with Newton velocities (variants a, b), *_lag its fixed-lag "
             "smoothing inside the graph, *_rts its fixed-interval smoothing over the run, newton / savgol numerical "
-            "differentiation of the same baselines, kf_pair the difference of the filters run on each satellite."
+            "differentiation of the same baselines, kf_pair the difference of the filters run on each satellite; "
+            "with variant 'dynamic' (like-for-like tuning on another seed), kf_a_q_rts the RTS smoothing of the "
+            "filter run with its own q, orbit_fit / orbit_fit_j2 dynamic orbit determination of each satellite "
+            "from its own fixes with the truth's force model / two-body + J2 and empirical accelerations "
+            "(scripts/grace_bounds.py prints them next to the bounds)."
             "\n\nWhy the filter loses here (README, grace_velocity): in ECI the baseline turns with the orbit, so its "
             "jerk (n³|b| ≈ 3e-4 m/s³) forces a large white-jerk q, which passes GNSS noise into the velocity along "
             "the baseline, the only component the range rate sees.")

@@ -1,0 +1,62 @@
+#!/usr/bin/env python3
+"""Like-for-like tuning of grace_velocity's methods (issue 19 §2): each method's free parameter is the one
+with the smallest range-rate RMS against the truth on a tuning seed (default 1001), never a scored seed
+(bench_studies.grace_velocity.tuning). The chosen values go into scenario.yaml.
+
+Example:
+  .venv/bin/python scripts/grace_tune_methods.py --methods rts,savgol,orbit_fit_j2
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_studies.grace_velocity.tuning import (TUNING_SEED, measurements, orbit_fit_score, rts_score,
+                                                 savgol_score)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--variant", default=None)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--seed", type=int, default=TUNING_SEED)
+    p.add_argument("--methods", default="rts,savgol,orbit_fit_j2")
+    p.add_argument("--qs", default="1e-10,1e-9,1e-8,1e-7,1e-6,1e-5,1e-4")
+    p.add_argument("--windows", default="200,400,800,1200,1600")
+    p.add_argument("--orders", default="3,5,7,9")
+    p.add_argument("--sigmas", default="1e-7,1e-6,1e-5,1e-4")
+    p.add_argument("--span-s", type=float, default=21600.0, help="orbit fits over the first span_s seconds")
+    p.add_argument("--skip-s", type=float, default=600.0)
+    args = p.parse_args(argv)
+    cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), args.variant), args.overrides)
+    items, truth = measurements(cfg, args.seed)
+    methods = args.methods.split(",")
+    print(f"tuning seed {args.seed}: range-rate RMS against the truth [um/s]", flush=True)
+    if "rts" in methods:
+        scores = {q: rts_score(cfg, "kf_a", float(q), items, truth, args.skip_s) for q in args.qs.split(",")}
+        for q, s in scores.items():
+            print(f"  kf_a_rts q={q}: {s * 1e6:.3f}", flush=True)
+        print(f"chosen kf_a_rts q = {min(scores, key=scores.get)}", flush=True)
+    if "savgol" in methods:
+        scores = {(w, o): savgol_score(items, truth, float(w), int(o), args.skip_s)
+                  for w in args.windows.split(",") for o in args.orders.split(",")}
+        for (w, o), s in scores.items():
+            print(f"  savgol window {w} s, degree {o}: {s * 1e6:.3f}", flush=True)
+        print(f"chosen savgol (window_s, polyorder) = {min(scores, key=scores.get)}", flush=True)
+    if "orbit_fit_j2" in methods:
+        base = cfg["variants"]["dynamic"]["scoring.offline.orbit_fit_j2"]["params"]
+        scores = {}
+        for sigma in args.sigmas.split(","):
+            scores[sigma] = orbit_fit_score(cfg, {**base, "empirical_sigma": float(sigma)}, items, truth,
+                                            args.skip_s, args.span_s)
+            print(f"  orbit_fit_j2 empirical_sigma={sigma}: {scores[sigma] * 1e6:.3f}", flush=True)
+        print(f"chosen orbit_fit_j2 empirical_sigma = {min(scores, key=scores.get)}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
