@@ -207,6 +207,7 @@ def test_every_registered_study_has_valid_claims_on_scores_its_metric_gives(tmp_
         found = study(name)
         assert found.claims, f"{name} states no claim"
         assert len({c.id for c in found.claims}) == len(found.claims)
+        assert isinstance(found.demo_runs, int) and found.demo_runs >= 1, name  # make demo's seeds of the study
     bad = tmp_path / "paper.yaml"
     bad.write_text("paper: {}\nclaims: []\nclaimz: []\n")
     with pytest.raises(ScenarioError, match="claimz"):

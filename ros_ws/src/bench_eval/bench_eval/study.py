@@ -32,6 +32,9 @@ class Study:
     """Resolved scenario of a sweep cell -> the paper's numbers for that case (or None)."""
     sweep_extra: Callable | None = None
     """(distinct truths [(label, cfg)]) -> (JSON rows, Markdown) appended to a sweep's report."""
+    demo_runs: int = 1
+    """Seeded runs of the study in ``make demo`` (bench_eval.cli.demo): as many as its claims need to be
+    decided (bench_eval.claims) where its runs are cheap, within the demo's time budget."""
 
 
 def load_paper(path: Path) -> tuple[Mapping, list]:

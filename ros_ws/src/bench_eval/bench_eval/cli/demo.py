@@ -1,9 +1,12 @@
 """The main job (`make demo`): run every registered study through the ROS 2 graph, score the bags, write a report.
 
-For each study (its scenario and default filters, side by side): the graph runs with one process per node, the
-recorder writes a rosbag2-style MCAP bag, the scorer reads it back, and OUT/report.md opens with the papers'
-claims and the bench's verdicts, then a section per study (bench next to the paper) with plots. With --runs
-N > 1 each study is a Monte Carlo of N seeded runs (2 in parallel).
+For each study (its scenario and default filters, side by side) the graph runs, the recorder writes a
+rosbag2-style MCAP bag, the scorer reads it back, and OUT/report.md opens with the papers' claims and the bench's
+verdicts, then a section per study (bench next to the paper) with plots. Each study runs as many seeds as it asks
+for (its Study's ``demo_runs``: enough for its claims to be decided where its runs are cheap); a claim the runs
+do not decide says "undecided" with the runs it would need (bench_eval.claims). --runs N runs N seeds of every
+study instead. A single run has one process per node; more are a Monte Carlo (2 in parallel, each run's nodes
+in one process).
 
 Example:
   .venv/bin/python scripts/demo.py --out runs/demo
@@ -25,6 +28,7 @@ from bench_engine.batch import RunSpec, run_batch  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
 from bench_eval.report import write_report  # noqa: E402
 from bench_eval.scoring import NothingToScore, print_summary, score_bags  # noqa: E402
+from bench_eval.study import study  # noqa: E402
 
 EPILOG = exit_codes(
     c0="every study ran and was scored; the report is written",
@@ -34,10 +38,11 @@ EPILOG = exit_codes(
 
 
 def run_study(name: str, out: Path, runs: int) -> list[Path]:
-    """Run one study (a single multi-process run, or a Monte Carlo); returns its bag directories."""
-    study = out / name
-    shutil.rmtree(study, ignore_errors=True)
-    specs = [RunSpec(name, study / f"run_{i:03d}", i + 1, multiprocess=runs == 1) for i in range(runs)]
+    """Run one study's seeds 1..runs (a single run with a process per node, more with each run's nodes in one
+    process); returns its bag directories."""
+    folder = out / name
+    shutil.rmtree(folder, ignore_errors=True)
+    specs = [RunSpec(name, folder / f"run_{i:03d}", i + 1, multiprocess=runs == 1) for i in range(runs)]
     results = run_batch(specs, jobs=min(runs, 2), desc=name)
     failed = [r for r in results if not r.ok]
     if failed:
@@ -50,19 +55,20 @@ def main(argv: list[str] | None = None) -> int:
     studies = plugins.names("studies")
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory (default runs/demo)")
-    p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per study (default 1)")
+    p.add_argument("--runs", type=int, default=None,
+                   help="Monte Carlo runs of every study (default: each study's own count, its demo_runs)")
     p.add_argument("--studies", default=",".join(studies), help=f"comma-separated subset of {studies}")
     args = p.parse_args(argv)
     chosen = [s for s in args.studies.split(",") if s]
     unknown = sorted(set(chosen) - set(studies))
-    if unknown or args.runs < 1:
+    if unknown or (args.runs is not None and args.runs < 1):
         p.error(f"unknown study {unknown}; registered: {studies}" if unknown else "--runs must be >= 1")
     check_writable(args.out)  # a file, read-only or full: one line (run_main), before any run starts
     scored_all, series_all = {}, {}
     for name in chosen:
         try:
             with writing(args.out):
-                bags = run_study(name, args.out, args.runs)
+                bags = run_study(name, args.out, args.runs or study(name).demo_runs)
         except RuntimeError as err:
             print(f"error: {err}", file=sys.stderr)
             return 1
