@@ -38,6 +38,7 @@ setup(
             "range_rate = bench_studies.grace_velocity.metrics:RANGE_RATE",
             "star_attitude = bench_studies.star_tracker.metrics:STAR_ATTITUDE"],
         "tracking_bench.bounds": [
-            "wahba = bench_studies.star_tracker.bounds:WAHBA"]
+            "wahba = bench_studies.star_tracker.bounds:WAHBA",
+            "orbit_crb = bench_studies.grace_velocity.bounds:ORBIT_CRB"]
     },
 )

@@ -15,10 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_engine.config import ScenarioError
+from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.offline import pair_force_model
 from bench_eval.scoring import BagData, Estimates
 from orbit_sim.orbit_fit import information
 
+BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
 TRUTH_MODEL = {"zonal_degree": 6, "drag": True}
 """pair_hifi's force model as the fit's params (the scenario's truth.zonal_degree replaces the degree)."""
 
@@ -32,8 +35,9 @@ def range_rate_sd(b: np.ndarray, w: np.ndarray, P: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ki,kij,kj->k", g, P, g))
 
 
-def dynamic_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) -> tuple[np.ndarray, np.ndarray]:
-    """Bound (b): (t (K,), the range-rate standard deviation's bound (K,)) at the truth steps of the fixes' span."""
+def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) -> BoundSeries:
+    """Bound (b) on the baseline [bx by bz bvx bvy bvz] at the truth steps of the fixes' span: P_1 + P_2, each
+    satellite's Cramer-Rao bound mapped from its orbit's parameters (module docstring)."""
     cfg = data.scenario
     truth = cfg["truth"]
     params = {**TRUTH_MODEL, "zonal_degree": int(truth.get("zonal_degree", 6))}
@@ -41,19 +45,36 @@ def dynamic_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) 
     labels = data.truth_labels
     steps = np.array(sorted(data.truth))
     t_all = np.array([data.truth[int(k)][0] for k in steps])
-    states, P = [], []
+    P = []
     for sat, (name, ballistic) in enumerate(zip(sensors, truth["ballistic"])):
         fix_steps = np.array(sorted(data.measurements[name]))
         t = np.array([data.truth[int(k)][0] for k in fix_steps])
         cols = [labels.index(f"{c}{sat + 1}") for c in ("x", "y", "z", "vx", "vy", "vz")]
-        x0 = data.truth[int(fix_steps[0])][1][cols]
-        fit = information(model, x0, float(ballistic), t, float(cfg["sensors"][name]["sigma_position"]))
+        fit = information(model, data.truth[int(fix_steps[0])][1][cols], float(ballistic), t,
+                          float(cfg["sensors"][name]["sigma_position"]))
         keep = (t_all >= t[0]) & (t_all <= t[-1])
-        x, cov = fit.states(t_all[keep])
-        states.append(x)
-        P.append(cov)
-    b = states[1] - states[0]
-    return t_all[keep], range_rate_sd(b[:, :3], b[:, 3:], P[0] + P[1])
+        P.append(fit.states(t_all[keep])[1])
+    return BoundSeries(steps[keep], t_all[keep], list(BASELINE), P[0] + P[1])
+
+
+def dynamic_bound(data: BagData) -> tuple[np.ndarray, np.ndarray]:
+    """Bound (b) on the range rate: (t (K,), its standard deviation's bound (K,)), at the truth's baseline."""
+    series = baseline_bound(data)
+    cols = [data.truth_labels.index(c) for c in BASELINE]
+    truth = np.array([data.truth[int(k)][1][cols] for k in series.steps])
+    return series.t, range_rate_sd(truth[:, :3], truth[:, 3:], series.P)
+
+
+def _orbit_crb_check(cfg: dict, params: dict) -> None:
+    if params:
+        raise ScenarioError(f"'scoring.bounds' orbit_crb takes no params, got {sorted(params)}")
+    if (cfg.get("truth") or {}).get("model") != "pair_hifi":
+        raise ScenarioError("'scoring.bounds' orbit_crb needs the pair_hifi truth (its force model is the bound's)")
+
+
+ORBIT_CRB = Bound(run=lambda data, params: baseline_bound(data), check=_orbit_crb_check)
+"""Bound (b) on the baseline, registered in tracking_bench.bounds (bench_eval.bounds scores every estimator's
+baseline position and velocity against it)."""
 
 
 def smoother_bound(est: Estimates, baseline: list[str]) -> np.ndarray:
