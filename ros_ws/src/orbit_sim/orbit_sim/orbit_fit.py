@@ -108,14 +108,14 @@ class Trajectory:
             J[:, :, 6] = self.s_drag[idx]
             col = 7
         if n_params > col:
-            W = self.W[idx]
-            for j in range(self.W_edges.shape[0] - 1):
-                done = seg > j  # the whole interval j lies before t
-                inside = seg == j
-                delta = np.where(done[:, None, None], self.W_edges[j + 1], W) - self.W_edges[j]
-                block = np.einsum("kab,kbc->kac", phi, delta)
-                block[~(done | inside)] = 0.0
-                J[:, :, col + 3 * j:col + 3 * j + 3] = block
+            n_seg = self.W_edges.shape[0] - 1
+            at_edges = np.einsum("kab,jbc->kjac", phi, self.W_edges)  # Phi(t) W(t_j), (k, J + 1, 6, 3)
+            now = np.einsum("kab,kbc->kac", phi, self.W[idx])
+            j = np.arange(n_seg)
+            # interval j done before t: Phi (W(t_j+1) - W(t_j)); t inside it: Phi (W(t) - W(t_j)); after t: 0
+            block = np.where((j[None, :] < seg[:, None])[..., None, None], at_edges[:, 1:], now[:, None])
+            block = (block - at_edges[:, :-1]) * (j[None, :] <= seg[:, None])[..., None, None]
+            J[:, :, col:] = block.transpose(0, 2, 1, 3).reshape(len(phi), 6, 3 * n_seg)
         return J
 
 
