@@ -9,7 +9,8 @@ An offline estimator is registered in the entry-point group ``tracking_bench.off
         newton: {estimator: newton, source: baseline, params: {order: 4, labels: [bx, by, bz, bvx, bvy, bvz]}}
 
 ``source`` is an estimator of the run (rts) or one of its measurements, a sensor or a derived measurement
-(numerical differentiation: ``newton``, ``savgol``).
+(numerical differentiation: ``newton``, ``savgol``; dynamic orbit determination of a satellite pair from their
+GNSS sensors ``source`` and ``params.second``: ``pair_orbit_fit``, orbit_sim.orbit_fit).
 
 The scorer runs each over every bag and scores its output like another filter's (bench_eval.scoring).
 """
