@@ -39,6 +39,7 @@ setup(
             "star_attitude = bench_studies.star_tracker.metrics:STAR_ATTITUDE"],
         "tracking_bench.bounds": [
             "wahba = bench_studies.star_tracker.bounds:WAHBA",
+            "wahba_tracked = bench_studies.star_tracker.bounds:WAHBA_TRACKED",
             "orbit_crb = bench_studies.grace_velocity.bounds:ORBIT_CRB"]
     },
 )

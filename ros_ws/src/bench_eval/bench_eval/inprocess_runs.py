@@ -12,7 +12,8 @@ from bench_eval.scoring import BagData, Estimates
 
 def bag_data(cfg: dict, filters: list[str] | None, seed: int) -> BagData:
     """Run ``cfg`` in process with ``filters`` and ``seed``; return what the scorer would read from its bag:
-    truth, measurements (sensor -> step -> z) and every estimator's estimates in step order."""
+    truth, measurements (sensor -> step -> z, of a Measurement or any sensor item with ``z``, e.g. a star frame's
+    centroids) and every estimator's estimates in step order."""
     run = run_in_process(cfg, filters, seed=seed)
     estimators = [spec.name for spec in run.graph.of_role("estimator")]
     data = BagData({"scenario": {**cfg, "seed": int(seed)}, "filters": estimators})
@@ -21,7 +22,7 @@ def bag_data(cfg: dict, filters: list[str] | None, seed: int) -> BagData:
     data.truth_labels = list(truth[-1].labels)
     for topic, items in run.items.items():
         sensor, estimator = topic_owner(topic, MEASUREMENT), topic_owner(topic, ESTIMATE)
-        if sensor is not None and items and isinstance(items[0], Measurement):
+        if sensor is not None and items and (isinstance(items[0], Measurement) or hasattr(items[0], "z")):
             data.measurements[sensor] = {m.step: np.asarray(m.z, dtype=float) for m in items}
         elif estimator is not None and items and isinstance(items[0], Estimate):
             data.estimates[estimator] = estimates(items)

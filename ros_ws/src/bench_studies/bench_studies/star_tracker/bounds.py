@@ -1,9 +1,13 @@
-"""The star_tracker study's bound (registered in tracking_bench.bounds as ``wahba``): per frame, the attitude CRB
-of a star camera's recorded centroids (star_tracker.attitude_bound), for bench_eval.bounds' scoring.
+"""The star_tracker study's bounds (registered in tracking_bench.bounds), for bench_eval.bounds' scoring:
+
+- ``wahba``: per frame, the attitude CRB of a star camera's recorded centroids (star_tracker.attitude_bound);
+- ``wahba_tracked``: across frames, the attitude bound under a star tracker's motion model: each star's
+  centroid PCRB with the tracker's process noise, mapped to the attitude (star_tracker.tracked_bound).
 
     scoring:
       bounds:
         wahba: {bound: wahba, params: {camera: camera}, from_s: 1.0}
+        wahba_tracked: {bound: wahba_tracked, params: {tracker: jpdaf_wahba}, from_s: 1.0}
 """
 from __future__ import annotations
 
@@ -38,3 +42,86 @@ def _wahba_run(data: BagData, params: dict) -> BoundSeries:
 
 
 WAHBA = Bound(run=_wahba_run, check=_wahba_check)
+
+
+def _tracked_settings(cfg: dict, params: dict):
+    """(tracker config, camera config, dynamics) of the params: ``tracker``, a JPDAF star tracker of the
+    scenario (its motion model, aid and σ_a: _tracker_model); ``dynamics``: ``tracker`` (default: the bound
+    under the trackers' model, its σ_a and velocity prior) or ``truth`` (the truth's: the rate is exact, so a star's centroid is its first position
+    carried by the known turn, no residual velocity, Q = 0: the information of n detections is n/σ², a lower
+    bound for any estimator on this truth)."""
+    from bench_engine.config import ScenarioError
+    from star_tracker.camera_stage import camera_config
+    from star_tracker.tracker_stage import tracker_config
+    sec = Section(params, "scoring.bounds.params")
+    conf = tracker_config(cfg, sec.get("tracker", str))
+    dynamics = sec.choice("dynamics", ("tracker", "truth"), "tracker")
+    sec.finish()
+    if conf.tracker != "jpdaf":
+        raise ScenarioError(f"'scoring.bounds.params.tracker': '{conf.name}' must be a JPDAF (tracker: jpdaf), "
+                            f"got {conf.tracker}")
+    return conf, camera_config(cfg, conf.camera), dynamics
+
+
+def _tracked_check(cfg: dict, params: dict) -> None:
+    _tracked_settings(cfg, params)
+
+
+def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mount_rate: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(F, Q) of each frame interval (K − 1, 4, 4) and the start covariance P_0 of a JPDAF star tracker
+    (pipeline.JPDAFTracking), with the truth's body rate ``rates`` (K − 1, 3) over each interval (what its gyro
+    gives it) and the LVLH mount's boresight rate: ``aid: rate``, constant velocity with its σ_a on what the rate
+    does not explain, P_0 = σ² (px, px/s) for both; otherwise the motion model of pipeline.motion_for on the
+    image velocities (P_0: σ² px², 1 (px/s)²), and with ``aid: jitter`` the turn of the image by −j Δt before
+    each prediction (eq. 18, JPDAFTracker.turn_image: F ← F T, an offset of the positions adding no
+    information)."""
+    from star_tracker.motion import ConstantVelocity, CoordinatedTurn
+    F, Q = np.zeros((len(dts), 4, 4)), np.zeros((len(dts), 4, 4))
+    for i, (dt, w) in enumerate(zip(dts, rates)):
+        jitter = float(w[2]) - mount_rate if conf.aid == "jitter" else 0.0
+        if conf.aid != "rate" and conf.motion == "coordinated_turn":
+            motion = CoordinatedTurn(-(float(w[2]) - jitter), conf.sigma_a)
+        else:
+            motion = ConstantVelocity(conf.sigma_a)
+        F[i], Q[i] = motion.transition(float(dt))
+        if conf.aid == "jitter":
+            c, s = np.cos(-jitter * dt), np.sin(-jitter * dt)
+            F[i] = F[i] @ np.array([[c, 0, -s, 0], [0, c, 0, -s], [s, 0, c, 0], [0, s, 0, c]])
+    velocity = sigma_px ** 2 if conf.aid == "rate" else 1.0
+    return F, Q, np.diag([sigma_px ** 2, velocity, sigma_px ** 2, velocity])
+
+
+def _tracked_run(data: BagData, params: dict) -> BoundSeries:
+    """Per frame of the tracker's camera, the attitude bound (rx ry rz, camera frame) of
+    star_tracker.tracked_bound: the stars' frames chained with the truth's attitudes, each star's centroid PCRB
+    under the tracker's model (_tracker_model; R = σ² with the tracker's σ), mapped to the attitude; ``dynamics: truth``
+    takes the truth's (a centroid state alone, F = I, Q = 0, P_0 = σ² I: _tracked_settings)."""
+    from star_tracker.attitude import matrix_from_quaternion
+    from star_tracker.camera_stage import lvlh_boresight_rate
+    from star_tracker.motion import H as CENTROID
+    from star_tracker.tracked_bound import star_chains, tracked_attitude_covariance
+    conf, cam, dynamics = _tracked_settings(data.scenario, params)
+    sigma_px = conf.sigma_px if conf.sigma_px is not None else cam.sigma_px
+    ifov = cam.camera().ifov
+    frames_by_step = data.measurements.get(conf.camera, {})
+    steps = np.array(sorted(frames_by_step), dtype=np.int64)
+    t = np.array([data.truth[int(k)][0] for k in steps])
+    q = [data.truth_labels.index(lab) for lab in ("qw", "qx", "qy", "qz")]
+    attitudes = np.array([matrix_from_quaternion(data.truth[int(k)][1][q]) for k in steps]).reshape(-1, 3, 3)
+    frames = [np.asarray(frames_by_step[int(k)], dtype=float).reshape(-1, 2) for k in steps]
+    chains = star_chains(frames, attitudes, 6.0 * np.sqrt(2.0) * sigma_px * ifov, conf.max_misses)
+    if dynamics == "tracker":
+        w = [data.truth_labels.index(lab) for lab in ("wx", "wy", "wz")]
+        rates = np.array([data.truth[int(k)][1][w] for k in steps[:-1]]).reshape(-1, 3)
+        F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(data.scenario))
+        H = CENTROID
+    else:
+        F, Q = np.broadcast_to(np.eye(2), (max(len(t) - 1, 0), 2, 2)), np.zeros((max(len(t) - 1, 0), 2, 2))
+        P0, H = sigma_px ** 2 * np.eye(2), np.eye(2)
+    P = (tracked_attitude_covariance(frames, chains, F, Q, P0, sigma_px, ifov, H) if len(steps)
+         else np.zeros((0, 3, 3)))
+    return BoundSeries(steps, t, ["rx", "ry", "rz"], P)
+
+
+WAHBA_TRACKED = Bound(run=_tracked_run, check=_tracked_check)

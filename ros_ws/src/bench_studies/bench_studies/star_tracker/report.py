@@ -109,8 +109,10 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
 ARCSEC = 180.0 / np.pi * 3600.0
 BOUND_AXES = (("rx", "arcsec", ARCSEC), ("ry", "arcsec", ARCSEC), ("rz", "arcsec (roll)", ARCSEC))
 """The attitude error's camera-frame components in the bound table (bench_eval.report.bounds_table). The
-scenario's bound is per frame (bench_studies.star_tracker.bounds): a tracker that carries stars across frames
-(JPDAF) uses more than one frame's information and may go below it."""
+scenario's bounds (bench_studies.star_tracker.bounds): ``wahba`` per frame, which a tracker that carries stars
+across frames (JPDAF) may go below; ``wahba_tracked`` across frames under the JPDAF's motion model, which the
+JPDAF may beat slightly as the truth has no residual motion; ``wahba_truth`` across frames under the truth's
+motion (star_tracker.tracked_bound)."""
 
 
 def sweep_tables(sweep: Mapping) -> list[Table]:
