@@ -26,7 +26,8 @@ setup(
             "bench_montecarlo = bench_eval.cli.montecarlo:command",
             "bench_replay = bench_eval.cli.replay:command",
             "bench_sweep = bench_eval.cli.sweep:command",
-            "bench_demo = bench_eval.cli.demo:command"],
+            "bench_demo = bench_eval.cli.demo:command",
+            "bench_reproduce = bench_eval.cli.reproduce:command"],
         "tracking_bench.sections": [
             "scoring = bench_eval.scoring:scoring_options"],
         "tracking_bench.metrics": [

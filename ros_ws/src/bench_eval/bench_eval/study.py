@@ -3,7 +3,8 @@
 
 A study's folder holds its scenario (``scenario.yaml``, registered in ``tracking_bench.scenarios``), the
 paper's numbers and claims as data (``paper.yaml``: ``paper`` and ``claims``, bench_eval.claims), its report
-section and, optionally, its sweep report and the lookup of the paper's case for a sweep cell.
+section and, optionally, its sweep report, the lookup of the paper's case for a sweep cell and the README's
+result tables with their commands (``tables.yaml``, scripts/reproduce.py).
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from typing import Callable, Mapping
 import yaml
 
 from bench_engine import plugins
+from bench_eval.reproduce import Table, read_tables
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,9 @@ class Study:
     """Resolved scenario of a sweep cell -> the paper's numbers for that case (or None)."""
     sweep_extra: Callable | None = None
     """(distinct truths [(label, cfg)]) -> (JSON rows, Markdown) appended to a sweep's report."""
+    tables: tuple[Table, ...] = ()
+    """The README's result tables of the study and the command of each (bench_eval.reproduce.Table, read from
+    its folder's tables.yaml by load_tables): what scripts/reproduce.py runs."""
     demo_runs: int = 1
     """Seeded runs of the study in ``make demo`` (bench_eval.cli.demo): as many as its claims need to be
     decided (bench_eval.claims) where its runs are cheap, within the demo's time budget."""
@@ -52,6 +57,12 @@ def load_paper(path: Path) -> tuple[Mapping, list]:
     except ScenarioError as err:
         raise ScenarioError(f"{path}: {err}") from err
     return paper, claims
+
+
+def load_tables(folder: Path, name: str) -> tuple[Table, ...]:
+    """The tables a study's folder declares in tables.yaml (bench_eval.reproduce.read_tables), or none."""
+    path = Path(folder) / "tables.yaml"
+    return read_tables(path, name) if path.is_file() else ()
 
 
 def study(name: str | None) -> Study | None:

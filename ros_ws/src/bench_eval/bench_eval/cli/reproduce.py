@@ -1,0 +1,171 @@
+"""Regenerate every result table the README quotes: each study's declared tables (its folder's tables.yaml),
+each by its own command at the README's run counts, one after the other, locally or on a Dask cluster
+(--scheduler, passed to the commands that take it). Writes results/RESULTS.md and results/results.json with
+the commit, the machine (CPUs, model, load), and each table's command, wall time, load and Markdown. --resume skips
+a table already complete for the same commit and arguments, and resumes the runs of an interrupted batch.
+--mini runs the miniature (one run per cell, shortened runs) into runs/reproduce-mini, to prove every table
+has a working generator; --check only validates every command (script, flags, overrides) without running.
+
+Examples:
+  .venv/bin/python scripts/reproduce.py                       # every table (~40 min on 2 cores)
+  .venv/bin/python scripts/reproduce.py --resume --only leo_radar.montecarlo,star_tracker.bound
+  .venv/bin/python scripts/reproduce.py --scheduler tcp://HEAD:8786 --work /shared/reproduce
+  .venv/bin/python scripts/reproduce.py --mini
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from bench_engine import plugins  # noqa: E402
+from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
+from bench_engine import launcher  # noqa: E402
+from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant  # noqa: E402
+from bench_engine.graph import resolve_estimators  # noqa: E402
+from bench_eval import reproduce as rp  # noqa: E402
+from bench_eval.study import study  # noqa: E402
+
+EPILOG = exit_codes(
+    c0="every chosen table was produced (or was already complete with --resume); the record is written",
+    c1="a table's command failed (its log named); the others still ran and the record says which failed",
+    c2="bad input: an unknown table, a declared command that does not validate (--check), no scripts/ folder")
+
+
+def declared_tables() -> list[rp.Table]:
+    """Every registered study's tables, in the studies' registration order."""
+    return [t for name in plugins.names("studies") for t in study(name).tables]
+
+
+def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> list[str]:
+    """Problems with a table's command, without running it: a missing script, a flag its --help does not
+    list, a scenario that its --variant, --set overrides and --filters make invalid (bench_engine.launcher's
+    validate: every key and value of the run checked)."""
+    script = root / "scripts" / table.script
+    if not script.is_file():
+        return [f"{table.name}: no script {script}"]
+    if table.script not in helps:
+        res = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, cwd=root)
+        helps[table.script] = res.stdout if res.returncode == 0 else ""
+    text, args = helps[table.script], rp.arguments(table, mini)
+    wanted = rp.flags(args) + [f for f in (table.out_flag,) if f] + ["--scheduler"] * table.scheduler \
+        + ["--resume"] * table.resume
+    problems = [f"{table.name}: {table.script} --help lists no {f}" for f in wanted if f not in text]
+    if table.scenario:
+        try:
+            cfg = apply_overrides(select_variant(load_scenario(table.scenario), rp.value(args, "--variant")),
+                                  rp.overrides(args))
+            chosen = rp.value(args, "--filters")
+            launcher.validate(cfg, resolve_estimators(cfg, chosen.split(",") if chosen else None), "truth")
+        except ScenarioError as err:
+            problems.append(f"{table.name}: {table.scenario} rejects its settings: {err}")
+    return problems
+
+
+def run_table(table: rp.Table, root: Path, work: Path, mini: bool, scheduler: str | None, resume: bool) -> dict:
+    """Run one table's command; its log and output directory under work/NAME (the output directory emptied
+    first unless the command resumes it). Returns its record entry (without the commit)."""
+    out = work / table.name
+    if (out / "out").exists() and not (resume and table.resume):  # a fresh run never meets an old one's runs
+        shutil.rmtree(out / "out")
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = rp.command(table, sys.executable, root, out / "out", mini, scheduler, resume)
+    print(f"[reproduce] {table.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
+    load, start = rp.machine()["load_average"], time.perf_counter()
+    with open(out / "stdout.txt", "w") as stdout, open(out / "stderr.txt", "w") as stderr:
+        code = subprocess.run(cmd, cwd=root, stdout=stdout, stderr=stderr).returncode
+    wall = time.perf_counter() - start
+    source = out / "stdout.txt" if table.markdown == rp.STDOUT else out / "out" / table.markdown
+    markdown = source.read_text() if source.is_file() else ""
+    ok = code == 0 and bool(markdown.strip())
+    if table.text:
+        markdown = f"```\n{markdown.rstrip()}\n```\n"
+    status = "ok" if ok else f"FAILED (exit {code}; log {out / 'stderr.txt'})"
+    print(f"[reproduce] {table.name}: {status} in {wall:.0f} s", file=sys.stderr, flush=True)
+    return {"title": table.title, "status": "ok" if ok else f"failed (exit {code})", "wall_s": round(wall, 1),
+            "load_average": load, "identity": rp.identity(table, mini), "markdown": markdown, "log": str(out / "stderr.txt")}
+
+
+def write_record(results: Path, record: dict, order: list[str]) -> None:
+    """results.json and RESULTS.md (bench_eval.reproduce.render) under results/."""
+    with writing(results):
+        (results / "results.json").write_text(json.dumps(record, indent=1) + "\n")
+        (results / "RESULTS.md").write_text(rp.render(record, order))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Validate or run the chosen tables and write the record; the exit codes of EPILOG."""
+    p = ArgumentParser(description=__doc__, epilog=EPILOG)
+    p.add_argument("--only", help="comma-separated table names (default: every declared table; see --list)")
+    p.add_argument("--list", action="store_true", help="print the declared tables and their commands, then exit")
+    p.add_argument("--check", action="store_true", help="validate every chosen table's command, run nothing")
+    p.add_argument("--mini", action="store_true", help="the miniature: one run per cell, shortened runs")
+    p.add_argument("--resume", action="store_true", help="skip tables complete for this commit and arguments")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the commands that take it")
+    p.add_argument("--results", type=Path, default=None,
+                   help="where RESULTS.md and results.json go (default results/, with --mini runs/reproduce-mini)")
+    p.add_argument("--work", type=Path, default=None,
+                   help="the commands' output directories and logs (default runs/reproduce[-mini])")
+    p.add_argument("--root", type=Path, default=Path.cwd(), help="the repository (default: the current directory)")
+    args = p.parse_args(argv)
+    root = args.root.resolve()
+    if not (root / "scripts").is_dir():
+        p.error(f"{root} has no scripts/ folder: run from the repository or pass --root")
+    tables = declared_tables()
+    names = [t.name for t in tables]
+    if len(set(names)) != len(names):
+        p.error(f"duplicate table names: {sorted(n for n in set(names) if names.count(n) > 1)}")
+    if args.only:
+        chosen = [n for n in args.only.split(",") if n]
+        unknown = sorted(set(chosen) - set(names))
+        if unknown:
+            p.error(f"unknown table(s) {unknown}; declared: {names}")
+        tables = [t for t in tables if t.name in chosen]
+    if args.list:
+        for t in tables:
+            print(f"{t.name}: {t.title}\n  {' '.join(rp.identity(t, args.mini))}")
+        return 0
+    if args.check:
+        helps: dict[str, str] = {}
+        problems = [msg for t in tables for msg in validate(t, root, args.mini, helps)]
+        print("\n".join(problems) if problems else f"{len(tables)} table command(s) validate")
+        return 2 if problems else 0
+    suffix = "reproduce-mini" if args.mini else "reproduce"
+    results = args.results or (root / ("runs/" + suffix if args.mini else "results"))
+    work = args.work or root / "runs" / suffix
+    check_writable(results)
+    check_writable(work)
+    record = rp.read_results(results / "results.json")
+    if record.get("mini", args.mini) != args.mini:  # never mix miniature and full tables in one record
+        record = {"tables": {}}
+    head = rp.commit(root)
+    record.update(commit=head, machine=rp.machine(), mini=args.mini)
+    order = [x.name for x in declared_tables()]
+    start, failed = time.perf_counter(), []
+    for t in tables:
+        if args.resume and rp.is_complete(record["tables"].get(t.name), head, rp.identity(t, args.mini)):
+            print(f"[reproduce] {t.name}: complete for {head[:12]}, skipped", file=sys.stderr)
+            continue
+        entry = run_table(t, root, work, args.mini, args.scheduler, args.resume)
+        record["tables"][t.name] = {**entry, "commit": head}
+        if entry["status"] != "ok":
+            failed.append(t.name)
+        record["wall_s"] = round(time.perf_counter() - start, 1)
+        write_record(results, record, order)  # after every table: an interrupted reproduction keeps what it did
+    record["wall_s"] = round(time.perf_counter() - start, 1)
+    write_record(results, record, order)
+    print(f"[reproduce] {len(tables) - len(failed)}/{len(tables)} table(s) ok in {record['wall_s']:.0f} s; "
+          f"{results / 'RESULTS.md'}" + (f"; failed: {', '.join(failed)}" if failed else ""), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def command() -> None:
+    """Console script ``bench_reproduce``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
+    sys.exit(run_main(main))

@@ -1,0 +1,207 @@
+"""The README's result tables as data, and the record of their reproduction (scripts/reproduce.py).
+
+Each study declares the tables the README quotes in its own folder (``tables.yaml``, read into its Study's
+``tables``): the script of scripts/ that produces each, its arguments at the README's run counts, where its
+Markdown lands (the command's standard output or a file under its output directory), whether it takes
+``--scheduler`` and ``--resume``, and its miniature (flag values replaced, e.g. ``--runs 1``, and ``--set``
+overrides that shorten the runs). Nothing here names a study.
+
+The record (``RESULTS.md`` + ``results.json``) holds the commit, the machine and, per table, the command, its
+wall time and its Markdown; a table whose entry is complete for the same commit and command is skipped on
+``--resume``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import yaml
+
+from bench_engine.config import ScenarioError, Section
+
+STDOUT = "stdout"
+
+
+@dataclass(frozen=True)
+class Table:
+    """One README table and the command that produces it."""
+    name: str
+    """Unique over all studies, e.g. ``leo_radar.montecarlo``."""
+    title: str
+    script: str
+    """A script of the repository's scripts/ folder, e.g. ``montecarlo.py``."""
+    args: tuple[str, ...]
+    """Its arguments at the README's run counts (without the output directory, --scheduler, --resume)."""
+    markdown: str = STDOUT
+    """Where the table's Markdown is: ``stdout`` or a path under the output directory."""
+    text: bool = False
+    """The command prints plain text rather than Markdown: the record shows it as a code block."""
+    out_flag: str | None = None
+    """The flag that takes the output directory (e.g. ``--out``), if the command writes one."""
+    scheduler: bool = False
+    """The command takes ``--scheduler ADDRESS`` (a Dask cluster)."""
+    resume: bool = False
+    """The command takes ``--resume`` (keeps the finished runs of an interrupted batch)."""
+    scenario: str | None = None
+    """The scenario its ``--set`` overrides apply to (checked by ``validate``)."""
+    mini_args: Mapping[str, str] = field(default_factory=dict)
+    """In the miniature: flag -> value replacing the flag's value (e.g. ``--runs: 1``)."""
+    mini_set: tuple[str, ...] = ()
+    """In the miniature: ``--set KEY=VALUE`` overrides appended (e.g. a shorter ``time.duration``)."""
+
+
+def read_tables(path: Path, study: str) -> tuple[Table, ...]:
+    """A study's tables.yaml (a list under ``tables``), read strictly: an unknown or mistyped key raises
+    ScenarioError naming the file."""
+    path = Path(path)
+    top = Section(yaml.safe_load(path.read_text(encoding="utf-8")) or {}, "")
+    tables = []
+    try:
+        for i, raw in enumerate(top.get("tables", list, [])):
+            s = Section(raw, f"tables[{i}]")
+            mini = s.section("mini")
+            tables.append(Table(
+                name=f"{study}.{s.get('name', str)}", title=s.get("title", str), script=s.get("script", str),
+                args=tuple(str(a) for a in s.get("args", list, [])), markdown=s.get("markdown", str, STDOUT),
+                text=s.get("text", bool, False),
+                out_flag=s.get("out_flag", str, None), scheduler=s.get("scheduler", bool, False),
+                resume=s.get("resume", bool, False), scenario=s.get("scenario", str, None),
+                mini_args={str(k): str(v) for k, v in mini.get("args", dict, {}).items()},
+                mini_set=tuple(str(o) for o in mini.get("set", list, []))))
+            mini.finish()
+            s.finish()
+        top.finish()
+    except ScenarioError as err:
+        raise ScenarioError(f"{path}: {err}") from err
+    return tuple(tables)
+
+
+def arguments(table: Table, mini: bool) -> list[str]:
+    """The table's arguments, in the miniature with its flag values replaced and its overrides appended."""
+    args = list(table.args)
+    if mini:
+        for flag, value in table.mini_args.items():
+            if flag in args:
+                args[args.index(flag) + 1] = value
+            else:
+                args += [flag, value]
+        for override in table.mini_set:
+            args += ["--set", override]
+    return args
+
+
+def command(table: Table, python: str, root: Path, out: Path, mini: bool = False, scheduler: str | None = None,
+            resume: bool = False) -> list[str]:
+    """The full command line of a table: its script under root/scripts, output directory, cluster, resume."""
+    cmd = [python, str(root / "scripts" / table.script), *arguments(table, mini)]
+    if table.out_flag:
+        cmd += [table.out_flag, str(out)]
+    if scheduler and table.scheduler:
+        cmd += ["--scheduler", scheduler]
+    if resume and table.resume:
+        cmd += ["--resume"]
+    return cmd
+
+
+def identity(table: Table, mini: bool) -> list[str]:
+    """What a finished table's result depends on besides the commit: its script and arguments (not the
+    output directory, the cluster or --resume, which do not change the numbers)."""
+    return [table.script, *arguments(table, mini)]
+
+
+def flags(args: list[str]) -> list[str]:
+    """The long options among a command's arguments."""
+    return [a.split("=")[0] for a in args if a.startswith("--")]
+
+
+def value(args: list[str], flag: str) -> str | None:
+    """The value after a flag among a command's arguments, or None."""
+    return args[args.index(flag) + 1] if flag in args[:-1] else None
+
+
+def overrides(args: list[str]) -> list[str]:
+    """The ``--set`` values among a command's arguments."""
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--set"]
+
+
+def commit(root: Path) -> str:
+    """HEAD's hash, with ``+dirty-`` and a hash of ``git diff HEAD`` when tracked files differ from it (the
+    results are then not HEAD's, and a different edit gives a different identity)."""
+    def git(*a: str) -> str:
+        return subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True).stdout
+    head = git("rev-parse", "HEAD").strip() or "unknown"
+    diff = git("diff", "HEAD")
+    return head + (f"+dirty-{hashlib.sha1(diff.encode()).hexdigest()[:12]}" if diff else "")
+
+
+def machine() -> dict:
+    """CPU count, CPU model, load averages (1, 5, 15 min), OS and Python of this machine."""
+    model = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    load = [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else []
+    return {"cpus": os.cpu_count(), "cpu_model": model, "load_average": load, "system": platform.platform(),
+            "python": platform.python_version()}
+
+
+def read_results(path: Path) -> dict:
+    """results.json, or an empty record."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return {"tables": {}}
+
+
+def is_complete(entry: Mapping | None, head: str, ident: list[str]) -> bool:
+    """A recorded table that need not run again: finished, same commit (and uncommitted edits), same script
+    and arguments."""
+    return bool(entry) and entry.get("status") == "ok" and entry.get("commit") == head \
+        and entry.get("identity") == ident
+
+
+def demote(markdown: str) -> str:
+    """A command's Markdown with its headings two levels down, to sit under its table's heading (``##``);
+    code blocks untouched."""
+    lines, fenced = [], False
+    for line in markdown.splitlines():
+        fenced ^= line.startswith("```")
+        lines.append("##" + line if line.startswith("#") and not fenced else line)
+    return "\n".join(lines)
+
+
+def render(record: Mapping, order: list[str]) -> str:
+    """RESULTS.md: the commit and machine, then every table (in the studies' order) with its command, wall
+    time and the load average at its start."""
+    m = record.get("machine", {})
+    lines = ["# Results", "", "Generated by `scripts/reproduce.py`" + (" --mini" if record.get("mini") else "")
+             + "; do not edit by hand.", "",
+             f"- commit: `{record.get('commit')}`",
+             f"- machine: {m.get('cpus')} CPUs, {m.get('cpu_model')}, load average {m.get('load_average')} "
+             f"at the start; {m.get('system')}, Python {m.get('python')}",
+             f"- wall time: {sum(e['wall_s'] for e in record['tables'].values()):.0f} s over the tables "
+             f"({record.get('wall_s', 0):.0f} s in the last invocation; resumed tables keep their own)", ""]
+    if record.get("mini"):
+        lines += ["The miniature (one run per cell, shortened runs): it proves every table has a working "
+                  "generator; its figures are not the README's.", ""]
+    for name in order:
+        entry = record["tables"].get(name)
+        if not entry:
+            continue
+        load = entry.get("load_average")
+        lines += [f"## {entry['title']}", "", f"`{name}`: `{' '.join(entry['identity'])}`, "
+                  f"{entry['status']}, {entry['wall_s']:.0f} s" + (f" (load average {load} at its start)"
+                                                                   if load else "")
+                  + f", commit `{entry['commit'][:12]}`", ""]
+        lines += [demote(entry.get("markdown", "")).rstrip(), ""]
+    return "\n".join(lines).rstrip() + "\n"

@@ -1,0 +1,90 @@
+"""scripts/reproduce.py (bench_eval.reproduce, bench_eval.cli.reproduce): every table the studies declare has a
+command that validates, in full and in the miniature, and the cheapest one runs end to end into the record,
+which --resume then keeps."""
+import json
+from pathlib import Path
+
+import pytest
+
+from bench_engine.config import ScenarioError
+from bench_eval import reproduce as rp
+from bench_eval.cli import reproduce as cli
+from graph_helpers import ROOT
+
+CHEAPEST = "formation_cqkf.model_error"  # ~1 s in the miniature
+
+
+def test_every_declared_table_validates_in_full_and_in_the_miniature():
+    tables = cli.declared_tables()
+    studies = {t.name.split(".")[0] for t in tables}
+    assert {"leo_radar", "formation_pf", "formation_cqkf", "grace_velocity", "star_tracker"} <= studies
+    helps: dict[str, str] = {}
+    problems = [msg for mini in (False, True) for t in tables for msg in cli.validate(t, ROOT, mini, helps)]
+    assert problems == []
+
+
+def test_validate_names_an_unknown_flag_and_a_bad_override():
+    table = rp.Table("x.y", "t", "bounds.py", ("leo_radar", "--no-such-flag", "1"), scenario="leo_radar",
+                     mini_set=("sensors.radar.no_such_key=1",))
+    problems = cli.validate(table, ROOT, True, {})
+    assert any("--no-such-flag" in p for p in problems)
+    assert any("rejects its settings" in p for p in problems)
+
+
+def test_miniature_replaces_flag_values_and_appends_overrides():
+    table = rp.Table("s.t", "t", "sweep.py", ("s", "--runs", "10", "--jobs", "2"), out_flag="--out",
+                     scheduler=True, resume=True, mini_args={"--runs": "1", "--samples": "5"},
+                     mini_set=("time.duration=60",))
+    assert rp.arguments(table, False) == ["s", "--runs", "10", "--jobs", "2"]
+    assert rp.arguments(table, True) == ["s", "--runs", "1", "--jobs", "2", "--samples", "5",
+                                         "--set", "time.duration=60"]
+    cmd = rp.command(table, "py", Path("/r"), Path("/o"), True, "tcp://h:1", True)
+    assert cmd[-5:] == ["--out", "/o", "--scheduler", "tcp://h:1", "--resume"]
+    assert "--scheduler" not in rp.command(table, "py", Path("/r"), Path("/o"))
+    assert rp.identity(table, True) == ["sweep.py", *rp.arguments(table, True)]
+
+
+def test_tables_yaml_is_read_strictly(tmp_path):
+    path = tmp_path / "tables.yaml"
+    path.write_text("tables:\n- {name: a, title: A, script: launch.py, runs: 3}\n")
+    with pytest.raises(ScenarioError, match="tables.yaml"):
+        rp.read_tables(path, "s")
+    path.write_text("tables:\n- {name: a, title: A, script: launch.py, args: [s, --runs, 3], "
+                    "mini: {args: {--runs: 1}}}\n")
+    (table,) = rp.read_tables(path, "s")
+    assert table.name == "s.a" and table.args == ("s", "--runs", "3") and table.mini_args == {"--runs": "1"}
+
+
+def test_complete_needs_success_same_commit_and_same_arguments():
+    entry = {"status": "ok", "commit": "abc", "identity": ["a.py", "--runs", "1"]}
+    assert rp.is_complete(entry, "abc", ["a.py", "--runs", "1"])
+    assert not rp.is_complete(entry, "abd", ["a.py", "--runs", "1"])
+    assert not rp.is_complete(entry, "abc", ["a.py", "--runs", "2"])
+    assert not rp.is_complete({**entry, "status": "failed (exit 1)"}, "abc", ["a.py", "--runs", "1"])
+    assert not rp.is_complete(None, "abc", [])
+
+
+def test_headings_move_under_the_table_but_code_blocks_do_not():
+    assert rp.demote("# A\n```\n# not a heading\n```\n## B") == "### A\n```\n# not a heading\n```\n#### B"
+
+
+def test_cheapest_table_runs_in_the_miniature_and_resume_skips_it(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(rp, "commit", lambda root: "c0ffee")  # the shared tree's edits must not change it mid-test
+    results, work = tmp_path / "results", tmp_path / "work"
+    argv = ["--mini", "--only", CHEAPEST, "--results", str(results), "--work", str(work), "--root", str(ROOT)]
+    assert cli.main(argv) == 0
+    record = json.loads((results / "results.json").read_text())
+    assert record["commit"] == "c0ffee" and record["mini"] is True
+    assert record["machine"]["cpus"] >= 1 and len(record["machine"]["load_average"]) == 3
+    entry = record["tables"][CHEAPEST]
+    assert entry["status"] == "ok" and entry["wall_s"] > 0 and len(entry["load_average"]) == 3
+    assert "|" in entry["markdown"]
+    md = (results / "RESULTS.md").read_text()
+    assert "c0ffee" in md and entry["title"] in md and entry["markdown"].strip().splitlines()[-1] in md
+    capsys.readouterr()
+    assert cli.main([*argv, "--resume"]) == 0
+    assert "skipped" in capsys.readouterr().err
+    assert json.loads((results / "results.json").read_text())["tables"][CHEAPEST] == entry
+    monkeypatch.setattr(rp, "commit", lambda root: "beef")  # another commit: the table runs again
+    assert cli.main([*argv, "--resume"]) == 0
+    assert json.loads((results / "results.json").read_text())["tables"][CHEAPEST]["commit"] == "beef"
