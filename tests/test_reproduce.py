@@ -88,3 +88,23 @@ def test_cheapest_table_runs_in_the_miniature_and_resume_skips_it(tmp_path, monk
     monkeypatch.setattr(rp, "commit", lambda root: "beef")  # another commit: the table runs again
     assert cli.main([*argv, "--resume"]) == 0
     assert json.loads((results / "results.json").read_text())["tables"][CHEAPEST]["commit"] == "beef"
+
+
+def test_resume_keeps_a_commands_runs_only_from_the_same_commit_and_arguments(tmp_path, monkeypatch):
+    table = rp.Table("s.t", "t", "sweep.py", ("s", "--runs", "3"), out_flag="--out", resume=True)
+    calls = []
+
+    def fake_run(cmd, cwd, stdout, stderr):
+        """The command: notes its arguments and whether it found the previous run's file; prints a table."""
+        out = Path(cmd[cmd.index("--out") + 1])
+        calls.append(("--resume" in cmd, (out / "run_000").exists()))
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "run_000").write_text("")
+        stdout.write("| a |\n|---|\n")
+        return type("Done", (), {"returncode": 0})()
+
+    monkeypatch.setattr(cli.subprocess, "run", fake_run)
+    for head, resume in (("c1", False), ("c1", True), ("c2", True), ("c2", False)):
+        entry = cli.run_table(table, ROOT, tmp_path, head, False, None, resume)
+        assert entry["status"] == "ok" and entry["markdown"] == "| a |\n|---|\n"
+    assert calls == [(False, False), (True, True), (False, False), (False, False)]

@@ -69,14 +69,20 @@ def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> 
     return problems
 
 
-def run_table(table: rp.Table, root: Path, work: Path, mini: bool, scheduler: str | None, resume: bool) -> dict:
-    """Run one table's command; its log and output directory under work/NAME (the output directory emptied
-    first unless the command resumes it). Returns its record entry (without the commit)."""
-    out = work / table.name
-    if (out / "out").exists() and not (resume and table.resume):  # a fresh run never meets an old one's runs
+def run_table(table: rp.Table, root: Path, work: Path, head: str, mini: bool, scheduler: str | None,
+              resume: bool) -> dict:
+    """Run one table's command; its log and output directory under work/NAME. With --resume, a command that
+    resumes keeps the runs already in its output directory if they were made at the same commit with the same
+    arguments (work/NAME/made_by.json); otherwise the directory is emptied first, so that no table mixes runs
+    of two commits. Returns its record entry (without the commit)."""
+    out, ident = work / table.name, rp.identity(table, mini)
+    made_by = {"commit": head, "identity": ident}
+    keep = resume and table.resume and rp.read_results(out / "made_by.json") == made_by
+    if (out / "out").exists() and not keep:
         shutil.rmtree(out / "out")
     out.mkdir(parents=True, exist_ok=True)
-    cmd = rp.command(table, sys.executable, root, out / "out", mini, scheduler, resume)
+    (out / "made_by.json").write_text(json.dumps(made_by) + "\n")
+    cmd = rp.command(table, sys.executable, root, out / "out", mini, scheduler, keep)
     print(f"[reproduce] {table.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
     load, start = rp.machine()["load_average"], time.perf_counter()
     with open(out / "stdout.txt", "w") as stdout, open(out / "stderr.txt", "w") as stderr:
@@ -90,7 +96,7 @@ def run_table(table: rp.Table, root: Path, work: Path, mini: bool, scheduler: st
     status = "ok" if ok else f"FAILED (exit {code}; log {out / 'stderr.txt'})"
     print(f"[reproduce] {table.name}: {status} in {wall:.0f} s", file=sys.stderr, flush=True)
     return {"title": table.title, "status": "ok" if ok else f"failed (exit {code})", "wall_s": round(wall, 1),
-            "load_average": load, "identity": rp.identity(table, mini), "markdown": markdown, "log": str(out / "stderr.txt")}
+            "load_average": load, "identity": ident, "markdown": markdown, "log": str(out / "stderr.txt")}
 
 
 def write_record(results: Path, record: dict, order: list[str]) -> None:
@@ -153,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.resume and rp.is_complete(record["tables"].get(t.name), head, rp.identity(t, args.mini)):
             print(f"[reproduce] {t.name}: complete for {head[:12]}, skipped", file=sys.stderr)
             continue
-        entry = run_table(t, root, work, args.mini, args.scheduler, args.resume)
+        entry = run_table(t, root, work, head, args.mini, args.scheduler, args.resume)
         record["tables"][t.name] = {**entry, "commit": head}
         if entry["status"] != "ok":
             failed.append(t.name)
