@@ -231,3 +231,25 @@ def test_a_node_lingering_after_a_complete_run_is_stopped_and_named(tmp_path: Pa
     assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
     assert "node 'ekf' had not exited 1 s after the run completed" in capsys.readouterr().err
     assert procs["ekf"].returncode == -signal.SIGINT
+
+
+def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeeds(tmp_path: Path, monkeypatch,
+                                                                                   capsys) -> None:
+    """Once the bag is closed (its metadata.yaml written) the run is complete even if the recorder never exits
+    (seen under load: the recorder spinning in Fast DDS's destroy_participant after closing its bag, and the Monte
+    Carlo waiting for it for good). Here the recorder and the source hang with SIGINT ignored: both are stopped,
+    SIGKILL after the grace, and the run succeeds."""
+    from bench_engine import launcher
+    plan = launcher.prepare_run("leo_radar", tmp_path / "hang", overrides=list(SHORT_PASS[1::2]))
+    plan.logs.mkdir(exist_ok=True)
+    plan.bag_dir.mkdir(parents=True, exist_ok=True)
+    monkeypatch.setattr(launcher, "LINGER_S", 1.0)
+    monkeypatch.setattr(launcher, "_recover_bag", lambda plan: None)  # the stand-in bag has no data to check
+    hanging = {"recorder", "truth"}
+    procs = {spec.name: subprocess.Popen(["sh", "-c", "trap '' INT; exec sleep 60"] if spec.name in hanging else ["true"])
+             for spec in plan.graph.nodes}
+    (plan.bag_dir / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
+    err = capsys.readouterr().err
+    assert all(f"node '{name}' had not exited 1 s after the run completed" in err for name in hanging)
+    assert all(procs[name].returncode == -signal.SIGKILL for name in hanging)

@@ -287,8 +287,8 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
         first = [n for n, p in procs.items() if p.poll() not in (None, 0)]
         if first or interrupted or time.monotonic() > deadline:
             break
-        if complete_at is None and all(procs[n].poll() == 0 for n in ends):
-            complete_at = time.monotonic()  # the source finished and the bag is closed: the run is complete
+        if complete_at is None and _complete(plan, procs, ends):
+            complete_at = time.monotonic()
         if complete_at is not None and time.monotonic() - complete_at > LINGER_S:
             lingering = [n for n, p in procs.items() if p.poll() is None]
             break
@@ -318,6 +318,17 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
     if first and stopped:
         print(f"[launcher] stopped after it: {', '.join(stopped)}", file=sys.stderr)
     return 1 if first else 0
+
+
+def _complete(plan: RunPlan, procs: dict, ends: list[str]) -> bool:
+    """The run is complete once its bag is closed (``metadata.yaml`` is written when the recorder closes it, which
+    it does once it holds every topic's final count from the source), or, when nothing is recorded, once the
+    source (or player) and recorder processes exited 0. A node that hangs in its ROS teardown after that (seen:
+    the recorder spinning in Fast DDS's ``destroy_participant`` under load, its bag closed) is stopped after
+    LINGER_S, as is any other node still up."""
+    if plan.run.get("record", True) and (plan.bag_dir / "metadata.yaml").is_file():
+        return True
+    return all(procs[n].poll() == 0 for n in ends)
 
 
 def _recover_bag(plan: RunPlan) -> None:
