@@ -13,7 +13,7 @@ demo: setup
 	$(PY) scripts/demo.py --out runs/demo
 
 test: setup
-	$(PY) -m pytest -q -n auto --dist loadfile tests
+	$(PY) -m pytest -q -n auto --dist loadfile --no-loadscope-reorder tests
 
 bench: setup
 	$(PY) scripts/bench_filters.py
