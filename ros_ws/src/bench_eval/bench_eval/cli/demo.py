@@ -5,8 +5,8 @@ rosbag2-style MCAP bag, the scorer reads it back, and OUT/report.md opens with t
 verdicts, then a section per study (bench next to the paper) with plots. Each study runs as many seeds as it asks
 for (its Study's ``demo_runs``: enough for its claims to be decided where its runs are cheap); a claim the runs
 do not decide says "undecided" with the runs it would need (bench_eval.claims). --runs N runs N seeds of every
-study instead. A single run has one process per node; more are a Monte Carlo (2 in parallel, each run's nodes
-in one process).
+study instead. A study's single run has one process per node; more are a Monte Carlo (each run's nodes in one
+process). The runs of every study form one batch, two at a time, the longest simulated run first.
 
 Example:
   .venv/bin/python scripts/demo.py --out runs/demo
@@ -25,6 +25,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads
 
 from bench_engine import plugins  # noqa: E402
 from bench_engine.batch import RunSpec, run_batch  # noqa: E402
+from bench_engine.config import load_scenario  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
 from bench_eval.report import write_report  # noqa: E402
 from bench_eval.scoring import NothingToScore, print_summary, score_bags  # noqa: E402
@@ -37,17 +38,22 @@ EPILOG = exit_codes(
        "cannot be written (a file, read-only, no space left)")
 
 
-def run_study(name: str, out: Path, runs: int) -> list[Path]:
-    """Run one study's seeds 1..runs (a single run with a process per node, more with each run's nodes in one
-    process); returns its bag directories."""
-    folder = out / name
-    shutil.rmtree(folder, ignore_errors=True)
-    specs = [RunSpec(name, folder / f"run_{i:03d}", i + 1, multiprocess=runs == 1) for i in range(runs)]
-    results = run_batch(specs, jobs=min(runs, 2), desc=name)
+def run_studies(names: list[str], out: Path, runs: int | None) -> dict[str, list[Path]]:
+    """Run every chosen study's seeds 1..n (n = ``runs``, else its ``demo_runs``; a single run with a process per
+    node, more with each run's nodes in one process) in one batch, two at a time, the longest simulated run
+    first: a study's single long run (grace_velocity's day) then overlaps the other studies' short ones instead
+    of running alone. Returns each study's bag directories."""
+    specs: dict[str, list[RunSpec]] = {}
+    for name in names:
+        n = runs or study(name).demo_runs
+        shutil.rmtree(out / name, ignore_errors=True)
+        specs[name] = [RunSpec(name, out / name / f"run_{i:03d}", i + 1, multiprocess=n == 1) for i in range(n)]
+    longest_first = sorted(names, key=lambda name: -float(load_scenario(name)["time"]["duration"]))
+    results = run_batch([spec for name in longest_first for spec in specs[name]], jobs=2, desc="demo runs")
     failed = [r for r in results if not r.ok]
     if failed:
-        raise RuntimeError(f"{name}: {len(failed)} run(s) failed; logs: {', '.join(str(r.spec.log) for r in failed)}")
-    return [s.bag for s in specs]
+        raise RuntimeError(f"{len(failed)} run(s) failed; logs: {', '.join(str(r.spec.log) for r in failed)}")
+    return {name: [spec.bag for spec in specs[name]] for name in names}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,15 +70,15 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or (args.runs is not None and args.runs < 1):
         p.error(f"unknown study {unknown}; registered: {studies}" if unknown else "--runs must be >= 1")
     check_writable(args.out)  # a file, read-only or full: one line (run_main), before any run starts
+    try:
+        with writing(args.out):
+            bags = run_studies(chosen, args.out, args.runs)
+    except RuntimeError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
     scored_all, series_all = {}, {}
     for name in chosen:
-        try:
-            with writing(args.out):
-                bags = run_study(name, args.out, args.runs or study(name).demo_runs)
-        except RuntimeError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 1
-        scored, series = score_bags(bags, with_series=True)
+        scored, series = score_bags(bags[name], with_series=True)
         with writing(args.out / name):
             (args.out / name / "score.json").write_text(json.dumps(scored, indent=1))
         print(print_summary(scored))
