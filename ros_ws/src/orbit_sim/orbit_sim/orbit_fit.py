@@ -13,7 +13,9 @@ Gauss-Newton on the fixes z_k = r(t_k) + n_k, n_k ~ N(0, sigma^2 I), with the a-
     N = sum_k H_k' H_k / sigma^2 + Lambda_prior,   dp = N^-1 [sum_k H_k' (z_k - r(t_k)) / sigma^2 - Lambda_prior p]
 
 H_k = d r(t_k) / d p from the variational equations (Montenbruck & Gill, "Satellite Orbits", section 7.2):
-with A = [[0, I], [G, 0]], G = da/dr of the point mass and J2 (:func:`gravity_gradient`), the state transition matrix
+with A = [[0, I], [G, 0]], G = da/dr of the point mass and J2 (orbit_sim.gravity.gravity_gradient;
+the partials of J3.. and of drag are below 1e-6 of these and are left out: they change the Jacobian, not the
+converged fit), the state transition matrix
 Phi(t) = d x(t) / d x0 obeys Phi' = A Phi, the drag sensitivity s' = A s + [0; a_drag]. The sensitivity to e_j
 is Phi(t) [W(min(t, t_j+1)) - W(t_j)] for t > t_j, with W' = Phi^-1 [0; R_rtn]; Psi = Phi^-1 obeys
 Psi' = -Psi A, so no inversion is needed. The covariance of p is N^-1 at convergence (the Fisher information
@@ -28,6 +30,7 @@ from scipy.integrate import solve_ivp
 
 from orbit_sim.constants import OMEGA_EARTH, R_EARTH
 from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
+from orbit_sim.gravity import gravity_gradient
 
 RTOL, ATOL = 1.0e-11, 1.0e-6
 """The truth's integration tolerances (orbit_sim.pair): the fit's trajectory is as accurate as the truth's."""
@@ -60,28 +63,13 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rtn_frame(r: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3)."""
+    """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3): the
+    transpose of orbit_sim.relative.lvlh_basis, written out for one state because the fit's right-hand side calls
+    it at every integrator stage (10 us against 54 us, np.cross on 3-vectors being slow)."""
     radial = r / np.sqrt(r @ r)
     normal = _cross(r, v)
     normal /= np.sqrt(normal @ normal)
     return np.column_stack([radial, _cross(normal, radial), normal])
-
-
-def gravity_gradient(r: np.ndarray, mu: float, j2: float, re: float) -> np.ndarray:
-    """G = da/dr (3, 3) of the point mass and J2 (Montenbruck & Gill eq. 7.41 ff.); with
-    a_J2 = k [(r^-5 - 5 z^2 r^-7) r + 2 z r^-5 e_z], k = -3/2 J2 mu Re^2. The partials of J3.. and of drag are
-    below 1e-6 of these and are left out: they change the Jacobian, not the converged fit."""
-    rn2 = r @ r
-    rn = np.sqrt(rn2)
-    z = r[2]
-    ez = np.array([0.0, 0.0, 1.0])
-    G = mu / rn**3 * (3.0 * np.outer(r, r) / rn2 - np.eye(3))
-    k = -1.5 * j2 * mu * re**2
-    r5, r7 = rn**-5, rn**-7
-    f = r5 - 5.0 * z * z * r7
-    grad_f = r * (-5.0 * r7 + 35.0 * z * z * r7 / rn2) - 10.0 * z * r7 * ez
-    grad_zr5 = ez * r5 - 5.0 * z * r7 * r
-    return G + k * (f * np.eye(3) + np.outer(r, grad_f) + 2.0 * np.outer(ez, grad_zr5))
 
 
 @dataclass
@@ -129,7 +117,7 @@ def _rate(t: float, y: np.ndarray, model: ForceModel, ballistic: float, e: np.nd
         return np.concatenate([v, a])
     A = np.zeros((6, 6))
     A[:3, 3:] = np.eye(3)
-    A[3:, :3] = gravity_gradient(r, model.mu, model.zonals.get(2, 0.0), model.re)
+    A[3:, :3] = gravity_gradient(*r, model.mu, model.zonals.get(2, 0.0), model.re)
     phi, psi = y[6:42].reshape(6, 6), y[42:78].reshape(6, 6)
     s = y[78:84]
     return np.concatenate([v, a, (A @ phi).ravel(), (-psi @ A).ravel(), A @ s + np.concatenate([np.zeros(3), drag]),
