@@ -140,6 +140,11 @@ def commit(root: Path) -> str:
     return head + (f"+dirty-{hashlib.sha1(diff.encode()).hexdigest()[:12]}" if diff else "")
 
 
+def load_average() -> list[float]:
+    """This machine's load averages over 1, 5 and 15 min (empty where the OS has none)."""
+    return [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else []
+
+
 def machine() -> dict:
     """CPU count, CPU model, load averages (1, 5, 15 min), OS and Python of this machine."""
     model = platform.processor() or ""
@@ -150,8 +155,8 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    load = [round(x, 2) for x in os.getloadavg()] if hasattr(os, "getloadavg") else []
-    return {"cpus": os.cpu_count(), "cpu_model": model, "load_average": load, "system": platform.platform(),
+    return {"cpus": os.cpu_count(), "cpu_model": model, "load_average": load_average(),
+            "system": platform.platform(),
             "python": platform.python_version()}
 
 

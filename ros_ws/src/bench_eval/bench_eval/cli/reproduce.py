@@ -84,7 +84,7 @@ def run_table(table: rp.Table, root: Path, work: Path, head: str, mini: bool, sc
     (out / "made_by.json").write_text(json.dumps(made_by) + "\n")
     cmd = rp.command(table, sys.executable, root, out / "out", mini, scheduler, keep)
     print(f"[reproduce] {table.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
-    load, start = rp.machine()["load_average"], time.perf_counter()
+    load, start = rp.load_average(), time.perf_counter()
     with open(out / "stdout.txt", "w") as stdout, open(out / "stderr.txt", "w") as stderr:
         code = subprocess.run(cmd, cwd=root, stdout=stdout, stderr=stderr).returncode
     wall = time.perf_counter() - start
