@@ -19,6 +19,7 @@ from bench_engine.config import ScenarioError
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.offline import pair_force_model
 from bench_eval.scoring import BagData, Estimates
+from bench_studies.grace_velocity.metrics import range_rate
 from orbit_sim.orbit_fit import information
 
 BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
@@ -30,8 +31,7 @@ def range_rate_sd(b: np.ndarray, w: np.ndarray, P: np.ndarray) -> np.ndarray:
     """sqrt(g' P g) per row for baselines b, w (K, 3) and their covariance P (K, 6, 6) (module docstring)."""
     rng = np.linalg.norm(b, axis=1, keepdims=True)
     b_hat = b / rng
-    rho_dot = np.sum(b_hat * w, axis=1, keepdims=True)
-    g = np.hstack([(w - rho_dot * b_hat) / rng, b_hat])
+    g = np.hstack([(w - range_rate(b, w)[:, None] * b_hat) / rng, b_hat])
     return np.sqrt(np.einsum("ki,kij,kj->k", g, P, g))
 
 
