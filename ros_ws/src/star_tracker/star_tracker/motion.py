@@ -42,6 +42,13 @@ B = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
 """Noise input of the continuous models: accelerations drive the velocities."""
 
 
+def image_turn(angle: float) -> np.ndarray:
+    """T (4, 4) turning a track state [x ẋ y ẏ] by ``angle`` (rad, +x towards +y) about the image origin: the
+    paper's eq. 18 compensation of a measured rotation of the image (positions and velocities turn alike)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, -s, 0.0], [0.0, c, 0.0, -s], [s, 0.0, c, 0.0], [0.0, s, 0.0, c]])
+
+
 def measurement_noise(sigma_px: float) -> np.ndarray:
     """R = σ² I₂ for a centroid noise of σ pixels per axis."""
     return float(sigma_px) ** 2 * np.eye(2)

@@ -63,6 +63,16 @@ BIAS_SUSPECT = 11.34
 """χ²₃ at 0.99: above it a frame's filtered attitude is kept with its disagreement added to its covariance."""
 
 
+def jpdaf_motion(motion: str, aid: str, sigma_a: float, omega_z: float, jitter_rate: float = 0.0) -> MotionModel:
+    """The JPDAF's motion model (``motion`` of MOTIONS, ``aid`` of AIDS) for a boresight body rate ``omega_z``
+    and its measured jitter part: constant velocity, or the turn at the image's rotation rate less what ``aid``
+    compensates (JPDAFTracking.motion_for)."""
+    if motion == "coordinated_turn" and aid != "rate":
+        compensated = jitter_rate if aid == "jitter" else 0.0
+        return CoordinatedTurn(-(omega_z - compensated), sigma_a)
+    return ConstantVelocity(sigma_a)
+
+
 @dataclass
 class FrameResult:
     """One frame's outcome."""
@@ -152,10 +162,7 @@ class StarTrackerPipeline:
         rate (the sky turns opposite to the camera) less what ``aid`` compensates: −(ω_z − j) with
         ``"jitter"``, −ω_z with ``"none"``; rate-aided, the velocity states hold the motion the rate does not
         explain, which does not turn."""
-        if self.motion_kind == "coordinated_turn" and self.aid != "rate":
-            compensated = jitter_rate if self.aid == "jitter" else 0.0
-            return CoordinatedTurn(-(float(omega_body[2]) - compensated), self.sigma_a)
-        return ConstantVelocity(self.sigma_a)
+        return jpdaf_motion(self.motion_kind, self.aid, self.sigma_a, float(omega_body[2]), jitter_rate)
 
     # ------------------------------------------------------------------------------------------------ frame
     def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float, omega_body: np.ndarray,

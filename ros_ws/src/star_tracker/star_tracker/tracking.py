@@ -36,7 +36,7 @@ from scipy.special import chdtr
 from star_tracker.attitude import rotation_matrix
 from star_tracker.camera import Camera
 from star_tracker.jpdaf import JointProbabilisticAssociator
-from star_tracker.motion import MotionModel, measurement_noise
+from star_tracker.motion import MotionModel, image_turn, measurement_noise
 from tracker_filters.association import gaussian_hypotheses
 from tracker_filters.filter_base import gate_threshold
 
@@ -236,8 +236,7 @@ class JPDAFTracker:
         """Turn every track by ``angle`` (rad, +x towards +y) about the image point ``centre``: positions
         about the centre, velocities and covariances with them (X ← T X + shift, P ← T P Tᵀ) — the paper's
         eq. 18 compensation of a measured rotation of the image (boresight jitter)."""
-        c, s = np.cos(angle), np.sin(angle)
-        T = np.array([[c, 0.0, -s, 0.0], [0.0, c, 0.0, -s], [s, 0.0, c, 0.0], [0.0, s, 0.0, c]])
+        T = image_turn(angle)
         centre = np.asarray(centre, dtype=float)
         self.x[:, [0, 2]] -= centre
         self.x = self.x @ T.T

@@ -76,18 +76,14 @@ def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mo
     image velocities (P_0: σ² px², 1 (px/s)²), and with ``aid: jitter`` the turn of the image by −j Δt before
     each prediction (eq. 18, JPDAFTracker.turn_image: F ← F T, an offset of the positions adding no
     information)."""
-    from star_tracker.motion import ConstantVelocity, CoordinatedTurn
+    from star_tracker.motion import image_turn
+    from star_tracker.pipeline import jpdaf_motion
     F, Q = np.zeros((len(dts), 4, 4)), np.zeros((len(dts), 4, 4))
     for i, (dt, w) in enumerate(zip(dts, rates)):
         jitter = float(w[2]) - mount_rate if conf.aid == "jitter" else 0.0
-        if conf.aid != "rate" and conf.motion == "coordinated_turn":
-            motion = CoordinatedTurn(-(float(w[2]) - jitter), conf.sigma_a)
-        else:
-            motion = ConstantVelocity(conf.sigma_a)
-        F[i], Q[i] = motion.transition(float(dt))
+        F[i], Q[i] = jpdaf_motion(conf.motion, conf.aid, conf.sigma_a, float(w[2]), jitter).transition(float(dt))
         if conf.aid == "jitter":
-            c, s = np.cos(-jitter * dt), np.sin(-jitter * dt)
-            F[i] = F[i] @ np.array([[c, 0, -s, 0], [0, c, 0, -s], [s, 0, c, 0], [0, s, 0, c]])
+            F[i] = F[i] @ image_turn(-jitter * dt)
     velocity = sigma_px ** 2 if conf.aid == "rate" else 1.0
     return F, Q, np.diag([sigma_px ** 2, velocity, sigma_px ** 2, velocity])
 
