@@ -20,7 +20,7 @@ from bench_eval import metrics
 from bench_eval.report import bound_curves, bounds_table
 from bench_models.isl import RelativePositionModel
 from bench_models.relative_dynamics import CWDynamics
-from inprocess_bags import bag_data
+from bench_eval.inprocess_runs import bag_data
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.pcrb import pcrb_along_truth
 

@@ -264,7 +264,7 @@ def test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario():
     from bench_engine.config import load_scenario
     from bench_eval.metrics import nees_summary
     from bench_eval.scoring import track_of
-    from inprocess_bags import bag_data
+    from bench_eval.inprocess_runs import bag_data
 
     cfg = load_scenario("formation_cqkf")
     tracks = [track_of(bag_data(cfg, ["ss"], seed), "ss") for seed in (1, 2, 3)]

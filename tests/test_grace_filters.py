@@ -299,7 +299,7 @@ def test_the_range_rate_residual_reports_a_known_bias_with_its_sign(bias_mm_s: f
 def grace_runs():
     """Three seeded one-hour runs of grace_velocity (KF (a), (b) and the fixed-lag smoother), in process, as the
     scorer reads them; scored with the scenario's own scoring section (RTS, Newton, Savitzky-Golay offline)."""
-    from inprocess_bags import bag_data
+    from bench_eval.inprocess_runs import bag_data
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=3600"])
     return [bag_data(cfg, ["kf_a", "kf_b"], seed) for seed in (1, 2, 3)]
 

@@ -344,7 +344,7 @@ def test_the_papers_sir_is_not_consistent_on_formation_pf_and_the_bench_pf_is_co
     from bench_engine.config import load_scenario
     from bench_eval.metrics import nees_summary
     from bench_eval.scoring import track_of
-    from inprocess_bags import bag_data
+    from bench_eval.inprocess_runs import bag_data
 
     cfg = load_scenario("formation_pf", ["time.duration=60"])
     runs = [bag_data(cfg, ["pf", "sir"], seed) for seed in range(1, 6)]

@@ -16,7 +16,7 @@ from scipy.stats import chi2
 from bench_engine.config import Section, load_scenario, select_variant
 from bench_eval.bounds import read_bounds, score_bounds
 from bench_eval.scoring import track_of
-from inprocess_bags import bag_data
+from bench_eval.inprocess_runs import bag_data
 from star_tracker.attitude import rotation_matrix
 from star_tracker.attitude_bound import attitude_information, centroid_jacobians
 from star_tracker.motion import H, ConstantVelocity
