@@ -1,17 +1,19 @@
-"""ros_ws is a real ROS 2 workspace: `colcon build` builds every package (bench_msgs with ament_cmake against the
-wheels' CMake exports, the others with ament_python) into an install space outside the repository, and the
-installed commands run from it the colcon way (`. install/setup.sh`, then install/PKG/lib/PKG/COMMAND, which is
-what `ros2 run PKG COMMAND` runs).
+"""ros_ws is a real ROS 2 workspace built with colcon, as a ROS user builds one, in two layers:
+
+- bench_msgs (ament_cmake, against the wheels' CMake exports) is built by colcon in ``make setup``
+  (scripts/setup_env.sh) with the venv as its merged install space, so every fresh machine proves that build
+  before any test runs; the test checks colcon's record of it in the venv.
+- Here, every ament_python package is built by colcon from a copy of ros_ws/src into an install space outside
+  the repository, on top of that underlay, and the installed commands run from it the colcon way
+  (`. install/setup.sh`, then install/PKG/lib/PKG/COMMAND, which is what `ros2 run PKG COMMAND` runs).
 
 The venv is the underlay, as /opt/ros/jazzy is in a regular installation: AMENT_PREFIX_PATH and
-CMAKE_PREFIX_PATH name it while building (as scripts/setup_env.sh does for its bench_msgs build). The venv also
-holds the bench's packages installed editable (make setup), so a module or an entry point could come from
-either. install/setup.sh puts the install space first on PYTHONPATH, which Python searches before the venv's
-site-packages and the paths its .pth files add, and importlib.metadata, like bench_engine.plugins, takes the
-first distribution of a name on sys.path: the installed commands see only the install space's copies. The test
-asserts that for every package and for the registered scenarios, rather than building a second venv. (Not for
-bench_msgs' C libraries: the wheels' bootstrap re-executes Python with LD_LIBRARY_PATH in no fixed order, so
-they load from the install space or from the venv's build of the same .msg files.)
+CMAKE_PREFIX_PATH name it while building. The venv also holds the bench's packages installed editable (make
+setup), so a module or an entry point could come from either. install/setup.sh puts the install space first on
+PYTHONPATH, which Python searches before the venv's site-packages and the paths its .pth files add, and
+importlib.metadata, like bench_engine.plugins, takes the first distribution of a name on sys.path: the installed
+commands see only the install space's copies. The test asserts that for every package and for the registered
+scenarios, rather than building a second venv.
 """
 from __future__ import annotations
 
@@ -31,6 +33,8 @@ VENV = Path(sys.prefix)
 COLCON = Path(sys.executable).parent / "colcon"
 PYTHON_PACKAGES = sorted(p.parent.name for p in SRC.glob("*/setup.py"))
 PACKAGES = sorted(p.parent.name for p in SRC.glob("*/package.xml"))
+UNDERLAY_PACKAGES = ["bench_msgs"]
+"""Built by colcon into the venv by make setup (scripts/setup_env.sh)."""
 
 
 def console_scripts(package: str) -> list[str]:
@@ -60,10 +64,12 @@ def sourced(install: Path, *command: str, timeout: float = 60) -> subprocess.Com
 
 @pytest.fixture(scope="module")
 def install(tmp_path_factory) -> Path:
-    """colcon build of a copy of ros_ws/src (build, install and log bases in a scratch directory)."""
+    """colcon build of a copy of ros_ws/src without the underlay's packages (build, install and log bases in a
+    scratch directory)."""
     assert COLCON.is_file(), f"{COLCON} is missing: run make setup (requirements.txt names colcon-core, colcon-ros)"
     work = tmp_path_factory.mktemp("colcon")
-    shutil.copytree(SRC, work / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__"))
+    shutil.copytree(SRC, work / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__",
+                                                                     *UNDERLAY_PACKAGES))
     env = user_env(AMENT_PREFIX_PATH=str(VENV), CMAKE_PREFIX_PATH=str(VENV), COLCON_HOME=str(work / "colcon_home"))
     res = subprocess.run(
         [str(COLCON), "--log-base", str(work / "log"), "build", "--base-paths", str(work / "src"),
@@ -81,8 +87,16 @@ def test_setup_cfg_puts_the_console_scripts_where_ros2_run_looks(package):
     assert cfg["develop"]["script_dir"] == cfg["install"]["install_scripts"] == f"$base/lib/{package}"
 
 
+def test_make_setup_built_the_interface_package_with_colcon_into_the_venv():
+    for package in UNDERLAY_PACKAGES:
+        assert (VENV / "share" / "colcon-core" / "packages" / package).is_file(), f"run make setup: {package}"
+        assert (VENV / "share" / package / "package.xml").is_file()
+        assert (VENV / "share" / "ament_index" / "resource_index" / "rosidl_interfaces" / package).is_file()
+    assert sorted(PYTHON_PACKAGES + UNDERLAY_PACKAGES) == PACKAGES
+
+
 def test_colcon_builds_every_package_with_its_console_scripts(install):
-    assert sorted(p.name for p in install.iterdir() if p.is_dir()) == PACKAGES
+    assert sorted(p.name for p in install.iterdir() if p.is_dir()) == PYTHON_PACKAGES
     missing = [f"{p}/lib/{p}/{name}" for p in PYTHON_PACKAGES for name in console_scripts(p)
                if not (install / p / "lib" / p / name).is_file()]
     assert not missing, missing
@@ -94,7 +108,7 @@ def test_colcon_builds_every_package_with_its_console_scripts(install):
 def test_the_install_space_shadows_the_venvs_editable_packages(install):
     code = ("import importlib, importlib.metadata as md\n"
             "from bench_engine import plugins\n"
-            f"for name in {PACKAGES!r}:\n"
+            f"for name in {PYTHON_PACKAGES!r}:\n"
             "    print(importlib.import_module(name).__file__)\n"
             f"for name in {PYTHON_PACKAGES!r}:\n"
             "    print(md.distribution(name).locate_file(''))\n"
@@ -102,7 +116,7 @@ def test_the_install_space_shadows_the_venvs_editable_packages(install):
     res = sourced(install, "python", "-c", code)
     assert res.returncode == 0, res.stderr[-2000:]
     outside = [line for line in res.stdout.split() if not Path(line).resolve().is_relative_to(install.resolve())]
-    assert len(res.stdout.split()) == len(PACKAGES) + len(PYTHON_PACKAGES) + 1 and not outside, outside
+    assert len(res.stdout.split()) == 2 * len(PYTHON_PACKAGES) + 1 and not outside, outside
 
 
 def test_every_installed_command_answers_help(install):

@@ -274,6 +274,9 @@ def _exit_text(code: int) -> str:
 LINGER_S = 15.0
 """How long nodes may take to exit once the source finished and the recorder closed the bag."""
 
+STOP_GRACE_S = 10.0
+"""How long a node may take to exit after SIGINT before it is killed (SIGKILL)."""
+
 
 def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
     """Wait for the nodes; on the first failure stop the others and name the node that died first. A bag a
@@ -353,7 +356,7 @@ def _stop_all(procs: dict) -> None:
                 p.send_signal(signal.SIGINT)
         for p in group:
             try:
-                p.wait(timeout=10)
+                p.wait(timeout=STOP_GRACE_S)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
