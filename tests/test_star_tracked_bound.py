@@ -108,3 +108,16 @@ def test_the_jpdaf_is_above_the_truths_bound_and_at_its_own_models_bound_up_to_t
             stat += float(e @ np.linalg.solve(series.P[i], e))
             dof += 3
     assert stat >= chi2.ppf(1e-3, dof), (stat, dof)
+
+
+def test_the_reports_error_plot_draws_each_bound_of_the_whole_attitude():
+    """The star report's error plot draws, per bound, √(sum of the three axes' bounds) in arcsec: the bound on the
+    error rotation's angle, which is what the estimators' RMS per frame is."""
+    from bench_studies.star_tracker.report import ARCSEC, attitude_bounds
+    axes = {"rx": np.array([3e-6, 1e-6]), "ry": np.array([4e-6, 1e-6]), "rz": np.array([12e-6, 1e-6])}
+    series = {"sna": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes}}},
+              "jpdaf": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes},
+                                   "partial": {"t": np.array([0.0, 0.1]), "axes": {"rx": axes["rx"]}}}}}
+    ((name, t, values),) = attitude_bounds(series)
+    assert name == "wahba" and list(t) == [0.0, 0.1]
+    assert np.allclose(values, ARCSEC * np.array([13e-6, np.sqrt(3) * 1e-6]))

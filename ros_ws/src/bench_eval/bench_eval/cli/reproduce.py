@@ -4,13 +4,15 @@ each by its own command at the README's run counts, one after the other, locally
 the commit, the machine (CPUs, model, load), and each table's command, wall time, load and Markdown. --resume skips
 a table already complete for the same commit and arguments, and resumes the runs of an interrupted batch.
 --mini runs the miniature (one run per cell, shortened runs) into runs/reproduce-mini, to prove every table
-has a working generator; --check only validates every command (script, flags, overrides) without running.
+has a working generator; --check only validates every command (script, flags, overrides) without running;
+--readme rewrites the README's result tables (its generated blocks) from the record.
 
 Examples:
   .venv/bin/python scripts/reproduce.py                       # every table (~40 min on 2 cores)
   .venv/bin/python scripts/reproduce.py --resume --only leo_radar.montecarlo,star_tracker.bound
   .venv/bin/python scripts/reproduce.py --scheduler tcp://HEAD:8786 --work /shared/reproduce
   .venv/bin/python scripts/reproduce.py --mini
+  .venv/bin/python scripts/reproduce.py --readme              # README's result tables from results/results.json
 """
 from __future__ import annotations
 
@@ -106,12 +108,28 @@ def write_record(results: Path, record: dict, order: list[str]) -> None:
         (results / "RESULTS.md").write_text(rp.render(record, order))
 
 
+def write_readme(readme: Path, record_path: Path, tables: list[rp.Table]) -> str:
+    """Rewrite the README's generated blocks from a full record; returns what was done, in one line."""
+    record = rp.read_results(record_path)
+    if record.get("mini") or not record.get("tables"):
+        raise rp.ExcerptError(f"{record_path} holds no full reproduction: run scripts/reproduce.py first")
+    text = readme.read_text(encoding="utf-8")
+    new = rp.fill_readme(text, record, {t.name: t for t in tables})
+    with writing(readme.parent):
+        readme.write_text(new, encoding="utf-8")
+    return (f"{readme.name}: {len(rp.readme_names(new))} generated block(s) from {record_path} "
+            f"({'changed' if new != text else 'unchanged'})")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Validate or run the chosen tables and write the record; the exit codes of EPILOG."""
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("--only", help="comma-separated table names (default: every declared table; see --list)")
     p.add_argument("--list", action="store_true", help="print the declared tables and their commands, then exit")
     p.add_argument("--check", action="store_true", help="validate every chosen table's command, run nothing")
+    p.add_argument("--readme", action="store_true",
+                   help="rewrite README.md's generated blocks (<!-- results: TABLE --> ... <!-- /results -->) from "
+                        "the record (results/results.json), run nothing")
     p.add_argument("--mini", action="store_true", help="the miniature: one run per cell, shortened runs")
     p.add_argument("--resume", action="store_true", help="skip tables complete for this commit and arguments")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the commands that take it")
@@ -145,6 +163,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2 if problems else 0
     suffix = "reproduce-mini" if args.mini else "reproduce"
     results = args.results or (root / ("runs/" + suffix if args.mini else "results"))
+    if args.readme:
+        if args.mini:
+            p.error("--readme shows the full tables: leave out --mini")
+        try:
+            print(write_readme(root / "README.md", results / "results.json", declared_tables()))
+        except rp.ExcerptError as err:
+            p.error(str(err))
+        return 0
     work = args.work or root / "runs" / suffix
     check_writable(results)
     check_writable(work)

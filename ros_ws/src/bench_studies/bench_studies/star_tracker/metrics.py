@@ -163,15 +163,21 @@ def score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
 
 
 def series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
-    """Per estimator: frame index and the attitude error (arcsec) per frame, RMS over the runs."""
+    """Per estimator: frame index, its time ``t`` and the attitude error (arcsec) per frame, RMS over the runs.
+    ``t`` has the origin of the bound series (bench_eval.bounds.score_bounds: the first estimate of any
+    estimator), so that √bound can be drawn on the same axis."""
     out = {}
+    first = min((float(tr.t[0]) for group in tracks.values() for tr in group if len(tr.t)), default=None)
+    offset = _start(runs[0]) - first if runs and first is not None else 0.0
+    dt = _dt(runs[0]) if runs else 0.1
     for name, blocks in _per_run(tracks, runs, options).items():
         per_frame: dict[int, list[float]] = {}
         for b in blocks:
             for k, a in zip(*b["series"]):
                 per_frame.setdefault(int(k), []).append(float(a))
         frames = sorted(per_frame)
-        out[name] = {"frame": frames, "error_arcsec": [_rms(per_frame[k]) for k in frames]}
+        out[name] = {"frame": frames, "t": [k * dt + offset for k in frames],
+                     "error_arcsec": [_rms(per_frame[k]) for k in frames]}
     return out
 
 

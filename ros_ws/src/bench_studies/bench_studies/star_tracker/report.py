@@ -9,7 +9,7 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import Plot, Section, Table, bounds_table, fmt
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bound_curves, bounds_table, fmt, thin
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -57,15 +57,31 @@ def _names(scored: Mapping) -> list[str]:
     return [n for n in ORDER if n in scored] + sorted(set(scored) - set(ORDER))
 
 
+BOUND_DASHES = [(0, (6, 2)), (0, (2, 2)), (0, (8, 2, 1, 2))]
+"""One dash pattern per bound (all black, as BOUND_STYLE): the study has up to three (per frame, under the
+trackers' motion model, under the truth's motion)."""
+
+
+def attitude_bounds(series: Mapping) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(bound name, t, √bound of the whole attitude error [arcsec]): the square root of the sum of the three axes'
+    bounds, i.e. the bound on the error rotation's angle that the estimators' RMS is drawn against."""
+    axes = [{name: (t, v) for name, t, v in bound_curves(series, key)} for key, _, _ in BOUND_AXES]
+    return [(name, t, ARCSEC * np.sqrt(sum(a[name][1] ** 2 for a in axes))) for name, (t, _) in axes[0].items()
+            if all(name in a for a in axes)]
+
+
 def _draw_errors(series: Mapping):
     def draw(fig: Figure) -> None:
         ax = fig.subplots()
         for name in _names(series):
             s = series[name]
-            ax.plot(s["frame"], s["error_arcsec"], lw=0.8, label=name)
-        ax.set_xlabel("frame")
+            ax.semilogy(s["t"], s["error_arcsec"], lw=0.8, label=name)
+        for (name, t, values), dashes in zip(attitude_bounds(series), BOUND_DASHES):
+            k = thin(t)
+            ax.semilogy(t[k], values[k], label=f"√{name}", **{**BOUND_STYLE, "ls": dashes})
+        ax.set_xlabel("time since the first estimate [s]")
         ax.set_ylabel("attitude error [arcsec] (RMS over runs)")
-        ax.grid(True, alpha=0.3)
+        ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     return draw
 
@@ -100,7 +116,8 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
                  f"(paper Table {case['table']})")
     else:
         title = "Attitude error (this case is not one of the paper's tables)"
-    plots = [Plot(f"{scenario}_attitude_error.png", "Attitude error per frame (RMS over the runs)",
+    plots = [Plot(f"{scenario}_attitude_error.png", "Attitude error per frame (RMS over the runs) and each bound's "
+                  "square root (black dashed)",
                   _draw_errors(series), (10.0, 4.5))] if series else []
     bounds = bounds_table(scored, BOUND_AXES)
     return [Section(scenario, text, [Table(title, header, rows)] + ([bounds] if bounds else []), plots)]
