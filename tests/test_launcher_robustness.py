@@ -254,3 +254,35 @@ def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeed
     err = capsys.readouterr().err
     assert all(f"node '{name}' had not exited 1 s after the run completed" in err for name in hanging)
     assert all(procs[name].returncode == -signal.SIGKILL for name in hanging)
+
+
+HANGING_TEARDOWN = """
+import time, rclpy
+from rclpy.node import Node
+from bench_engine import bench_node
+
+class Finished(Node):
+    finished, failed = True, None
+
+    def destroy_node(self):
+        print("destroying", flush=True)
+        time.sleep(3600)
+
+bench_node.TEARDOWN_S = 1.0
+rclpy.init()
+print("spin_nodes returned", bench_node.spin_nodes([Finished("finished")]), flush=True)
+"""
+
+
+def test_a_process_whose_ros_teardown_hangs_ends_after_the_teardown_deadline(tmp_path: Path) -> None:
+    """A node closed, then stuck in rclpy's teardown (as Fast DDS's destroy_participant once spun for good): the
+    process ends after TEARDOWN_S with the stuck thread's traceback and exit code 1, instead of hanging a
+    single-process run, whose launcher process nothing outside would stop."""
+    from bench_engine.domains import reserve
+    domain = reserve(None)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain.domain))
+    res = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN], env=env, capture_output=True, text=True,
+                         timeout=60)
+    domain.release()
+    assert res.returncode == 1 and "destroying" in res.stdout and "spin_nodes returned" not in res.stdout
+    assert "Timeout (0:00:01)!" in res.stderr and "destroy_node" in res.stderr

@@ -331,6 +331,13 @@ class _StopFlag:
 ORPHAN_EXIT_S = 10.0
 """How long an orphaned node process (its launcher killed) may take to close its nodes and exit."""
 
+TEARDOWN_S = 30.0
+"""How long rclpy's teardown of the nodes (destroy_node, the executor's shutdown) may take once every node is
+closed (its bag and files written) before the process ends anyway, with the hanging threads' tracebacks on stderr
+and exit code 1. Seen under load: Fast DDS's destroy_participant spinning for good (rmw_destroy_node ->
+DomainParticipant::set_listener). In a node process the launcher would stop it after LINGER_S; in a
+single-process run nothing outside would."""
+
 
 def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,
                shutdown_executor: bool = True) -> int:
@@ -346,6 +353,7 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
     for node in nodes:
         executor.add_node(node)
     next_parent_check = time.monotonic() + 1.0
+    orphaned = False
     try:
         while not stop.signal and not all(n.finished for n in nodes):
             executor.spin_once(timeout_sec=0.05)
@@ -358,6 +366,7 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
                     # EventsExecutor's destructor spinning in EventHandler.__exit__ with the GIL held): the
                     # nodes close (the bag first), then faulthandler's own thread ends the process regardless.
                     faulthandler.dump_traceback_later(ORPHAN_EXIT_S, exit=True)
+                    orphaned = True
                     break
     except Exception as err:  # a callback raised (rclpy logged which node): stop cleanly, report it
         for node in nodes:
@@ -370,10 +379,17 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
             close = getattr(node, "close", None)
             if close is not None:
                 close()
-            executor.remove_node(node)
-            node.destroy_node()
-        if shutdown_executor:
-            executor.shutdown(timeout_sec=1.0)
+        if not orphaned:  # (an orphan's own deadline already runs)
+            faulthandler.dump_traceback_later(TEARDOWN_S, exit=True)
+        try:
+            for node in nodes:
+                executor.remove_node(node)
+                node.destroy_node()
+            if shutdown_executor:
+                executor.shutdown(timeout_sec=1.0)
+        finally:
+            if not orphaned:
+                faulthandler.cancel_dump_traceback_later()
     failed = [n for n in nodes if n.failed]
     for node in failed:
         print(f"[{names[id(node)]}] failed: {node.failed}", file=sys.stderr)
