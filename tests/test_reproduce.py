@@ -108,3 +108,95 @@ def test_resume_keeps_a_commands_runs_only_from_the_same_commit_and_arguments(tm
         entry = cli.run_table(table, ROOT, tmp_path, head, False, None, resume)
         assert entry["status"] == "ok" and entry["markdown"] == "| a |\n|---|\n"
     assert calls == [(False, False), (True, True), (False, False), (False, False)]
+
+
+MARKDOWN = """# Report
+
+**Table A: errors**
+
+| a | b |
+|---|---|
+| 1 | 2 |
+
+Some prose.
+
+**Table B: the text form**
+
+```
+x  y
+1  2
+```
+
+**Table C: unused**
+
+| c |
+|---|
+"""
+
+
+def test_excerpt_takes_each_captions_table_or_code_block_and_nothing_else():
+    assert rp.excerpt(MARKDOWN, ()) == MARKDOWN.strip()
+    part = rp.excerpt(MARKDOWN, ("Table B", "Table A"))
+    assert part == "**Table B: the text form**\n\n```\nx  y\n1  2\n```\n\n**Table A: errors**\n\n| a | b |\n|---|---|\n| 1 | 2 |"
+    with pytest.raises(rp.ExcerptError, match="'Table Z'"):
+        rp.excerpt(MARKDOWN, ("Table Z",))
+
+
+def test_fill_readme_rewrites_only_the_generated_blocks_and_names_what_it_cannot_fill():
+    table = rp.Table("s.t", "T", "x.py", ("s",), readme=("Table A",), figures=("report/a.png",))
+    entry = {"status": "ok", "commit": "0123456789abcdef", "identity": ["x.py", "s"], "wall_s": 12.0,
+             "load_average": [1.5, 1, 1], "markdown": MARKDOWN}
+    readme = "intro\n<!-- results: s.t -->\nstale | 9 |\n<!-- /results -->\noutro\n"
+    filled = rp.fill_readme(readme, {"tables": {"s.t": entry}}, {"s.t": table})
+    assert filled.startswith("intro\n<!-- results: s.t -->\n**Table A: errors**") and filled.endswith(
+        "<!-- /results -->\noutro\n")
+    assert "stale" not in filled and "| 1 | 2 |" in filled and "`x.py s`, commit `0123456789ab`, 12 s" in filled
+    assert "![s.t: a.png](results/figures/s.t/a.png)" in filled
+    assert rp.fill_readme(filled, {"tables": {"s.t": entry}}, {"s.t": table}) == filled  # idempotent
+    assert rp.readme_names(filled) == ["s.t"]
+    with pytest.raises(rp.ExcerptError, match="no declared table: s.u"):
+        rp.fill_readme(readme.replace("s.t", "s.u"), {"tables": {"s.t": entry}}, {"s.t": table})
+    with pytest.raises(rp.ExcerptError, match="no complete run"):
+        rp.fill_readme(readme, {"tables": {"s.t": {**entry, "status": "failed (exit 1)"}}}, {"s.t": table})
+
+
+def test_the_readmes_result_tables_are_the_records():
+    """README.md's generated blocks are what scripts/reproduce.py --readme writes from results/results.json: one
+    block per declared table, none edited by hand."""
+    record = rp.read_results(ROOT / "results" / "results.json")
+    assert record.get("tables") and not record.get("mini"), "results/results.json: run scripts/reproduce.py"
+    tables = {t.name: t for t in cli.declared_tables()}
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert sorted(rp.readme_names(text)) == sorted(tables)
+    assert rp.fill_readme(text, record, tables) == text, "README.md is stale: run scripts/reproduce.py --readme"
+    missing = [rp.figure_path(t, f) for t in tables.values() for f in t.figures
+               if not (ROOT / rp.figure_path(t, f)).is_file()]
+    assert not missing, missing
+
+
+def test_figures_are_copied_only_from_the_recorded_run(tmp_path):
+    table = rp.Table("s.t", "T", "x.py", ("s",), figures=("report/plot.png",))
+    work, root = tmp_path / "work", tmp_path / "repo"
+    (work / "s.t" / "out" / "report").mkdir(parents=True)
+    (work / "s.t" / "out" / "report" / "plot.png").write_bytes(b"png of commit c1")
+    (work / "s.t" / "made_by.json").write_text(json.dumps({"commit": "c1", "identity": ["x.py", "s"]}))
+    entry = {"commit": "c1", "identity": ["x.py", "s"]}
+    cli.copy_figures(table, root, work, entry)
+    copied = root / rp.figure_path(table, "report/plot.png")
+    assert copied.read_bytes() == b"png of commit c1" and rp.figure_path(table, "x/plot.png") == \
+        "results/figures/s.t/plot.png"
+    (work / "s.t" / "out" / "report" / "plot.png").write_bytes(b"png of another run")
+    cli.copy_figures(table, root, work, {**entry, "commit": "c2"})  # not the recorded run: the copy stays
+    assert copied.read_bytes() == b"png of commit c1"
+    copied.unlink()
+    with pytest.raises(rp.ExcerptError, match="no figure report/plot.png"):
+        cli.copy_figures(table, root, work, {**entry, "commit": "c2"})
+
+
+def test_readme_is_never_written_from_a_miniature_record(tmp_path, capsys):
+    (tmp_path / "results.json").write_text(json.dumps({"mini": True, "tables": {CHEAPEST: {"status": "ok"}}}))
+    before = (ROOT / "README.md").read_bytes()
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--readme", "--results", str(tmp_path), "--root", str(ROOT)])
+    assert stop.value.code == 2 and "holds no full reproduction" in capsys.readouterr().err
+    assert (ROOT / "README.md").read_bytes() == before

@@ -16,6 +16,7 @@ The scorer runs each over every bag and scores its output like another filter's 
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Callable
 
@@ -169,22 +170,39 @@ def pair_force_model(cfg: dict, params: dict):
                       params.get("empirical_interval_s"))
 
 
+def _fit_and_sample(t: np.ndarray, z: np.ndarray, sigma: float, model, ballistic_guess: float,
+                    empirical_sigma: float | None, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One satellite's orbit fitted to its fixes (orbit_sim.orbit_fit.fit_orbit): its states and covariance at
+    the times ``at``."""
+    from orbit_sim.orbit_fit import fit_orbit
+    return fit_orbit(t, z, sigma, model, ballistic_guess, empirical_sigma).states(at)
+
+
+def _both(jobs: list[tuple]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``_fit_and_sample`` of the two satellites, one process each where this process may start children (the
+    fits are independent and each takes a core for minutes with empirical accelerations); in turn otherwise."""
+    import multiprocessing
+    if multiprocessing.current_process().daemon or (os.cpu_count() or 1) < 2:
+        return [_fit_and_sample(*job) for job in jobs]
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(len(jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
+        return list(pool.map(_fit_and_sample, *zip(*jobs)))
+
+
 def _pair_fit_run(data: BagData, source: str, params: dict) -> Estimates:
     """Both satellites' orbits fitted to their own GNSS fixes by batch least squares (orbit_sim.orbit_fit), each
     fit's states and covariance at every truth step of the fixes' span; the state is the truth's 18 components
     (leader, follower, baseline = follower - leader, their covariance mapped linearly)."""
-    from orbit_sim.orbit_fit import fit_orbit
     from orbit_sim.pair import LABELS
     model = pair_force_model(data.scenario, params)
     all_steps = np.array(sorted(data.truth))
     all_t = np.array([data.truth[int(k)][0] for k in all_steps])
-    fits = []
-    for name in (source, params["second"]):
-        _, t, z = _measurement_series(data, name)
-        fits.append(fit_orbit(t, z, float(data.scenario["sensors"][name]["sigma_position"]), model,
-                              params.get("ballistic_guess", 0.0), params.get("empirical_sigma")))
-    keep = (all_t >= max(f.t_edges[0] for f in fits)) & (all_t <= min(f.t_edges[-1] for f in fits))
-    (x1, P1), (x2, P2) = (f.states(all_t[keep]) for f in fits)
+    names = (source, params["second"])
+    fixes = [_measurement_series(data, name)[1:] for name in names]
+    keep = (all_t >= max(t[0] for t, _ in fixes)) & (all_t <= min(t[-1] for t, _ in fixes))  # the fits' spans
+    (x1, P1), (x2, P2) = _both([(t, z, float(data.scenario["sensors"][name]["sigma_position"]), model,
+                                 params.get("ballistic_guess", 0.0), params.get("empirical_sigma"), all_t[keep])
+                                for name, (t, z) in zip(names, fixes)])
     L = np.zeros((18, 12))  # [leader, follower, follower - leader] from [leader, follower]
     L[:12] = np.eye(12)
     L[12:, :6], L[12:, 6:] = -np.eye(6), np.eye(6)

@@ -108,11 +108,32 @@ def write_record(results: Path, record: dict, order: list[str]) -> None:
         (results / "RESULTS.md").write_text(rp.render(record, order))
 
 
-def write_readme(readme: Path, record_path: Path, tables: list[rp.Table]) -> str:
-    """Rewrite the README's generated blocks from a full record; returns what was done, in one line."""
+def copy_figures(table: rp.Table, root: Path, work: Path, entry: dict) -> None:
+    """Copy a table's figures from its output directory (work/NAME/out) into the repository (rp.figure_path),
+    when that directory holds the run the record's entry describes (work/NAME/made_by.json: same commit and
+    arguments). A figure with neither a matching source nor a copy raises ExcerptError."""
+    made_by = rp.read_results(work / table.name / "made_by.json")
+    current = made_by == {"commit": entry.get("commit"), "identity": entry.get("identity")}
+    for figure in table.figures:
+        source, target = work / table.name / "out" / figure, root / rp.figure_path(table, figure)
+        if current and source.is_file():
+            with writing(target.parent):
+                target.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(source, target)
+        elif not target.is_file():
+            raise rp.ExcerptError(f"{table.name}: no figure {figure} from its recorded run in {work}: run the "
+                                  "table again (scripts/reproduce.py --only " + table.name + ")")
+
+
+def write_readme(readme: Path, record_path: Path, tables: list[rp.Table], work: Path) -> str:
+    """Rewrite the README's generated blocks from a full record, and copy the figures they show from the work
+    directory; returns what was done, in one line."""
     record = rp.read_results(record_path)
     if record.get("mini") or not record.get("tables"):
         raise rp.ExcerptError(f"{record_path} holds no full reproduction: run scripts/reproduce.py first")
+    for table in tables:
+        if table.figures and table.name in record["tables"]:
+            copy_figures(table, readme.parent, work, record["tables"][table.name])
     text = readme.read_text(encoding="utf-8")
     new = rp.fill_readme(text, record, {t.name: t for t in tables})
     with writing(readme.parent):
@@ -163,15 +184,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2 if problems else 0
     suffix = "reproduce-mini" if args.mini else "reproduce"
     results = args.results or (root / ("runs/" + suffix if args.mini else "results"))
+    work = args.work or root / "runs" / suffix
     if args.readme:
         if args.mini:
             p.error("--readme shows the full tables: leave out --mini")
         try:
-            print(write_readme(root / "README.md", results / "results.json", declared_tables()))
+            print(write_readme(root / "README.md", results / "results.json", declared_tables(), work))
         except rp.ExcerptError as err:
             p.error(str(err))
         return 0
-    work = args.work or root / "runs" / suffix
     check_writable(results)
     check_writable(work)
     record = rp.read_results(results / "results.json")
@@ -187,6 +208,11 @@ def main(argv: list[str] | None = None) -> int:
             continue
         entry = run_table(t, root, work, head, args.mini, args.scheduler, args.resume)
         record["tables"][t.name] = {**entry, "commit": head}
+        if entry["status"] == "ok" and not args.mini:
+            try:
+                copy_figures(t, root, work, record["tables"][t.name])
+            except rp.ExcerptError as err:
+                print(f"[reproduce] {err}", file=sys.stderr)
         if entry["status"] != "ok":
             failed.append(t.name)
         record["wall_s"] = round(time.perf_counter() - start, 1)
