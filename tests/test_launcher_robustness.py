@@ -244,7 +244,6 @@ def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeed
     plan.logs.mkdir(exist_ok=True)
     plan.bag_dir.mkdir(parents=True, exist_ok=True)
     monkeypatch.setattr(launcher, "LINGER_S", 1.0)
-    monkeypatch.setattr(launcher, "STOP_GRACE_S", 1.0)
     monkeypatch.setattr(launcher, "_recover_bag", lambda plan: None)  # the stand-in bag has no data to check
     hanging = {"recorder", "truth"}
     procs = {spec.name: subprocess.Popen(["sh", "-c", "trap '' INT; exec sleep 60"] if spec.name in hanging else ["true"])

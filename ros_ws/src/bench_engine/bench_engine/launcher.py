@@ -271,11 +271,16 @@ def _exit_text(code: int) -> str:
     return f"exit code {code}"
 
 
-LINGER_S = 15.0
-"""How long nodes may take to exit once the source finished and the recorder closed the bag."""
+LINGER_S = 5.0
+"""How long nodes may take to exit once the source finished and the recorder closed the bag (a node's normal
+exit takes well under a second; one stuck in Fast DDS's teardown never exits: seen several times a suite run)."""
 
 STOP_GRACE_S = 10.0
 """How long a node may take to exit after SIGINT before it is killed (SIGKILL)."""
+
+LINGER_GRACE_S = 2.0
+"""The same for a node still up LINGER_S after the run completed: its bag is closed, and a node stuck in C code
+does not run its SIGINT handler anyway."""
 
 
 def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, quiet: bool) -> int:
@@ -297,7 +302,7 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
             break
         time.sleep(0.05)
     if first or interrupted or lingering or time.monotonic() > deadline:
-        _stop_all(procs)
+        _stop_all(procs, LINGER_GRACE_S if lingering and not (first or interrupted) else STOP_GRACE_S)
     for name in lingering:
         print(f"[launcher] warning: node '{name}' had not exited {LINGER_S:.0f} s after the run completed (the "
               f"bag is complete); stopped it", file=sys.stderr)
@@ -347,8 +352,8 @@ def _recover_bag(plan: RunPlan) -> None:
         print(f"[launcher] {done.summary()}", file=sys.stderr)
 
 
-def _stop_all(procs: dict) -> None:
-    """SIGINT every node except the recorder, then the recorder (it closes the bag), escalating if needed."""
+def _stop_all(procs: dict, grace_s: float = STOP_GRACE_S) -> None:
+    """SIGINT every node except the recorder, then the recorder (it closes the bag), SIGKILL after ``grace_s``."""
     others = [p for n, p in procs.items() if n != "recorder"]
     for group in (others, [procs["recorder"]] if "recorder" in procs else []):
         for p in group:
@@ -356,7 +361,7 @@ def _stop_all(procs: dict) -> None:
                 p.send_signal(signal.SIGINT)
         for p in group:
             try:
-                p.wait(timeout=STOP_GRACE_S)
+                p.wait(timeout=grace_s)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
