@@ -24,13 +24,16 @@ UV_VERSION=0.13.9
 # pip-style install arguments, installed by uv (parallel downloads, unpacking and bytecode compilation: 12 s
 # instead of pip's 62 s for requirements.txt on a fresh 2-core machine) or, where uv cannot be had or cannot
 # install (e.g. an index that only pip's configuration names), by pip.
+pip_install() {
+  "$PY" -m pip install -q --disable-pip-version-check "$@" > "$VENV/pip.log" 2>&1 \
+    || { grep -v "is ignored: it is neither" "$VENV/pip.log" >&2; return 1; }
+}
 install() {
-  if [ -x "$VENV/bin/uv" ] || "$PY" -m pip install -q --disable-pip-version-check "uv==$UV_VERSION" > /dev/null 2>&1; then
+  if [ -x "$VENV/bin/uv" ] || pip_install "uv==$UV_VERSION" 2> /dev/null; then
     "$VENV/bin/uv" pip install -q --compile-bytecode --python "$PY" "$@" && return 0
     echo "[setup] uv could not install that; trying pip" >&2
   fi
-  "$PY" -m pip install -q --disable-pip-version-check "$@" > "$VENV/pip.log" 2>&1 \
-    || { grep -v "is ignored: it is neither" "$VENV/pip.log" >&2; return 1; }
+  pip_install "$@"
 }
 
 req_hash=$(hash_of requirements.txt)
@@ -59,8 +62,8 @@ fi
 # bench_msgs is built by colcon, as a ROS user builds a workspace, with the venv as its install space (merged);
 # tests/test_colcon_workspace.py builds the other packages in a scratch workspace on top of it. The build runs in
 # the background while the bench's packages install (neither touches the other's files).
-msg_hash=$( (echo colcon-merged; cat ros_ws/src/bench_msgs/CMakeLists.txt ros_ws/src/bench_msgs/package.xml \
-  ros_ws/src/bench_msgs/msg/*.msg) | sha256sum | cut -c1-16)
+msg_hash=$(hash_of <(echo colcon-merged) ros_ws/src/bench_msgs/CMakeLists.txt ros_ws/src/bench_msgs/package.xml \
+  ros_ws/src/bench_msgs/msg/*.msg)
 msgs_pid=
 if ! stamp_ok msgs "$msg_hash" || ! "$PY" -c "import bench_msgs.msg" 2>/dev/null; then
   echo "[setup] building bench_msgs (colcon, in the background)"
@@ -85,9 +88,8 @@ if ! stamp_ok packages "$pkg_hash"; then
   rm -f "$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")/zz_tracking_bench.pth"
   # pip, not uv: pip's develop install honours each setup.cfg's script_dir ($base/lib/PKG, where `ros2 run`
   # looks: tests/test_standalone_node.py), uv's editable install puts the console scripts in .venv/bin.
-  "$PY" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation \
-    "${present[@]/#/--editable=}" > "$VENV/pip.log" 2>&1 \
-    || { cat "$VENV/pip.log" >&2; echo "[setup] the editable install of ros_ws/src/* failed: see above" >&2; exit 1; }
+  pip_install --no-deps --no-build-isolation "${present[@]/#/--editable=}" \
+    || { echo "[setup] the editable install of ros_ws/src/* failed: see above" >&2; exit 1; }
   stamp_set packages "$pkg_hash"
 fi
 

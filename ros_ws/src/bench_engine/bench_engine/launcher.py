@@ -302,7 +302,7 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
             break
         time.sleep(0.05)
     if first or interrupted or lingering or time.monotonic() > deadline:
-        _stop_all(procs, LINGER_GRACE_S if lingering and not (first or interrupted) else STOP_GRACE_S)
+        _stop_all(procs, LINGER_GRACE_S if lingering else STOP_GRACE_S)  # lingering: nothing else went wrong
     for name in lingering:
         print(f"[launcher] warning: node '{name}' had not exited {LINGER_S:.0f} s after the run completed (the "
               f"bag is complete); stopped it", file=sys.stderr)

@@ -269,9 +269,7 @@ def figure_path(table: Table, figure: str) -> str:
 def readme_block(table: Table, entry: Mapping) -> str:
     """A README block's body: the table's excerpt, its figures and where they come from (command, commit, wall
     time, load)."""
-    body = excerpt(entry.get("markdown", ""), table.readme)
-    if table.text and not body.startswith("```"):
-        body = f"```\n{body}\n```"
+    body = excerpt(entry.get("markdown", ""), table.readme)  # a text table's Markdown is fenced already
     for figure in table.figures:
         body += f"\n\n![{table.name}: {Path(figure).name}]({figure_path(table, figure)})"
     load = entry.get("load_average")

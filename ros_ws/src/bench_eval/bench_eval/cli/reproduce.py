@@ -163,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     root = args.root.resolve()
     if not (root / "scripts").is_dir():
         p.error(f"{root} has no scripts/ folder: run from the repository or pass --root")
-    tables = declared_tables()
-    names = [t.name for t in tables]
+    declared = declared_tables()
+    tables, names = declared, [t.name for t in declared]
     if len(set(names)) != len(names):
         p.error(f"duplicate table names: {sorted(n for n in set(names) if names.count(n) > 1)}")
     if args.only:
@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.mini:
             p.error("--readme shows the full tables: leave out --mini")
         try:
-            print(write_readme(root / "README.md", results / "results.json", declared_tables(), work))
+            print(write_readme(root / "README.md", results / "results.json", declared, work))
         except rp.ExcerptError as err:
             p.error(str(err))
         return 0
@@ -200,7 +200,6 @@ def main(argv: list[str] | None = None) -> int:
         record = {"tables": {}}
     head = rp.commit(root)
     record.update(commit=head, machine=rp.machine(), mini=args.mini)
-    order = [x.name for x in declared_tables()]
     start, failed = time.perf_counter(), []
     for t in tables:
         if args.resume and rp.is_complete(record["tables"].get(t.name), head, rp.identity(t, args.mini)):
@@ -216,9 +215,9 @@ def main(argv: list[str] | None = None) -> int:
         if entry["status"] != "ok":
             failed.append(t.name)
         record["wall_s"] = round(time.perf_counter() - start, 1)
-        write_record(results, record, order)  # after every table: an interrupted reproduction keeps what it did
+        write_record(results, record, names)  # after every table: an interrupted reproduction keeps what it did
     record["wall_s"] = round(time.perf_counter() - start, 1)
-    write_record(results, record, order)
+    write_record(results, record, names)
     print(f"[reproduce] {len(tables) - len(failed)}/{len(tables)} table(s) ok in {record['wall_s']:.0f} s; "
           f"{results / 'RESULTS.md'}" + (f"; failed: {', '.join(failed)}" if failed else ""), file=sys.stderr)
     return 1 if failed else 0
