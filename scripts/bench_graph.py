@@ -20,8 +20,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-import yaml
 
+from bench_engine import yamlio
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
@@ -38,7 +38,7 @@ def one_run(scenario: str, mode: str, filters: str, domain: int, extra: list[str
         if res.returncode != 0:
             raise RuntimeError(f"{mode} run failed:\n{res.stderr[-2000:]}")
         timing = json.loads((out / "timing.json").read_text())
-        run = yaml.safe_load((out / "run_config.yaml").read_text())
+        run = yamlio.load((out / "run_config.yaml").read_text())
     timing["sim_s"] = (timing["steps"] - 1) * run["scenario"]["time"]["dt"]
     return timing
 

@@ -1,6 +1,9 @@
 """The Dask executor of the one Monte Carlo runner (bench_engine.executors) against the local one, on a
-LocalCluster on 127.0.0.1: the same seeds give the same bags and scores, a run whose worker is killed is run
-again, and --resume keeps the complete runs. Short leo_radar passes (20 s of sim time) keep it quick."""
+LocalCluster on 127.0.0.1: a sweep made on the cluster is resumed by the local executor, a run whose worker is
+killed is run again and records what the local executor records, and --resume keeps the complete runs. That a
+Dask batch scores as the local one, value for value and bag for bag, is tests/test_chaos.py's comparison (its
+Dask batch, on ``--scheduler local``, against the fault-free local batch). Short leo_radar passes (20 s of sim
+time) keep it quick."""
 from __future__ import annotations
 
 import json
@@ -40,45 +43,38 @@ def local_mc(tmp_path_factory) -> Path:
     return out
 
 
-def test_montecarlo_on_a_dask_cluster_equals_the_local_executor_and_runs_alone(cluster, local_mc, tmp_path):
-    out = tmp_path / "dask"
-    res = script("montecarlo.py", "leo_radar", *RUNS, "--out", str(out), "--scheduler", cluster.scheduler_address)
-    assert res.returncode == 0, res.stderr[-2000:]
-    dask_scores = json.loads((out / "score.json").read_text())
-    local_scores = json.loads((local_mc / "score.json").read_text())
-    assert dask_scores["runs"] == 2 and dask_scores["filters"] == local_scores["filters"]
-    for run in ("run_000", "run_001"):
-        assert digests(out / run / "bag") == digests(local_mc / run / "bag")
-    # run 1 (seed 2) alone, one process per node, records the same messages as in either batch, and the
-    # standard views besides (a batch runs without them: bench_engine.batch_run.RunSpec.standard_views)
+def test_a_batch_run_records_what_the_same_seed_records_alone(local_mc, tmp_path):
+    """Run 1 (seed 2) alone, one process per node, records the same messages as in the batch, and the standard
+    views besides (a batch runs without them: bench_engine.batch_run.RunSpec.standard_views). (That a Dask batch
+    equals the local one, value for value and bag for bag, is tests/test_chaos.py's fault-free comparison.)"""
     alone = tmp_path / "alone"
     res = script("launch.py", "leo_radar", "--seed", "2", *SHORT_PASS, "--out", str(alone), "--no-score")
     assert res.returncode == 0, res.stderr[-2000:]
-    found, batch = digests(alone / "bag"), digests(out / "run_001" / "bag")
+    found, batch = digests(alone / "bag"), digests(local_mc / "run_001" / "bag")
     assert {t: found[t] for t in batch} == batch and found["/truth/state"][1] == 201
     assert {t.rsplit("/", 1)[1] for t in set(found) - set(batch)} == {"odometry", "diagnostics", "markers"}
-    assert batch != digests(out / "run_000" / "bag")  # a different seed: other messages
+    assert batch != digests(local_mc / "run_000" / "bag")  # a different seed: other messages
 
 
 def test_a_sweep_on_a_dask_cluster_is_resumed_by_the_local_executor(cluster, tmp_path):
     from test_sweep import scenario_with
-    grid = scenario_with(tmp_path, {"tiny": {"axes": {"rho": {"1km": [], "10km": ["size10km"]}}}})
+    grid = scenario_with(tmp_path, {"tiny": {"axes": {"rho": {"10km": ["size10km"]}}}})
     out = tmp_path / "sweep"
     args = ["sweep.py", str(grid), "--grid", "tiny", "--runs", "1", "--out", str(out), "--set", "time.duration=60"]
     res = script(*args, "--scheduler", cluster.scheduler_address)
     assert res.returncode == 0, res.stderr[-2000:]
     cells = json.loads((out / "sweep.json").read_text())["cells"]
-    assert [c["id"] for c in cells] == ["rho-1km", "rho-10km"] and all(c["runs_ok"] == 1 for c in cells)
+    assert [c["id"] for c in cells] == ["rho-10km"] and cells[0]["runs_ok"] == 1
     resumed = script(*args, "--resume")
-    assert resumed.returncode == 0 and "(2 reused)" in resumed.stderr, resumed.stderr[-2000:]
+    assert resumed.returncode == 0 and "(1 reused)" in resumed.stderr, resumed.stderr[-2000:]
     assert [c["score"] for c in json.loads((out / "sweep.json").read_text())["cells"]] == [c["score"] for c in cells]
 
 
 def kill_worker_on_first_attempt(spec: RunSpec):
-    """Dask task: on its first attempt the run starts, then its worker process is killed (SIGKILL) once the
-    run's bag directory exists; later attempts run normally."""
+    """Dask task: on the first attempt of run_000 the run starts, then its worker process is killed (SIGKILL)
+    once the run's bag directory exists; later attempts, and the other runs, run normally."""
     marker = spec.out.with_name(spec.out.name + ".killed")
-    if marker.exists():
+    if marker.exists() or spec.out.name != "run_000":
         return run_task(spec)
     marker.write_text(str(os.getpid()))
 
@@ -103,9 +99,10 @@ def test_a_run_whose_worker_is_killed_is_run_again(cluster, local_mc, tmp_path):
     assert all(r.spec is next(s for s in specs if s.out == r.spec.out) for r in results)  # the caller's specs
     for r in results:
         assert r.ok, (r.code, r.error, r.spec.log.read_text()[-2000:])
-        assert (tmp_path / f"{r.spec.out.name}.killed").is_file()
+        killed = r.spec.out.name == "run_000"
+        assert (tmp_path / f"{r.spec.out.name}.killed").is_file() == killed
         # the retry found the killed attempt's partial output and removed it before running again
-        assert any("lost with its worker" in note for note in r.reruns), r.reruns
+        assert any("lost with its worker" in note for note in r.reruns) == killed, r.reruns
         assert digests(r.spec.bag) == digests(local_mc / r.spec.out.name / "bag")
 
 

@@ -66,6 +66,7 @@ from mcap.records import AttachmentIndex, Channel, ChunkIndex, Message, Metadata
 from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
+from bench_engine import yamlio
 from bench_engine.bag_errors import BagDamaged, BagError, BagUnsupported, MessageDamaged  # noqa: F401 - re-exported
 from bench_engine.columns import Table, table
 from bench_engine.msg_schema import canonical_type_name, message_class, schema_text, type_hash
@@ -927,7 +928,7 @@ class BagReader:
         metadata = self.path / "metadata.yaml"
         if metadata.is_file():
             try:
-                info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+                info = yamlio.load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
                 storage, relative = info["storage_identifier"], list(info["relative_file_paths"])
             except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
                 mark = getattr(err, "problem_mark", None)

@@ -20,8 +20,8 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
 
-import yaml
 
+from bench_engine import yamlio
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError
 from bench_engine.executors import run_dask
@@ -46,7 +46,7 @@ def reusable_run(out: Path, expected: dict, resume: bool) -> bool:
     if not complete(out):
         shutil.rmtree(out)
         return False
-    if _comparable(yaml.safe_load((out / "bag" / "run_config.yaml").read_text())["scenario"]) != _comparable(expected):
+    if _comparable(yamlio.load((out / "bag" / "run_config.yaml").read_text())["scenario"]) != _comparable(expected):
         raise ScenarioError(f"{out} was run with another configuration or seed: remove it or choose another --out")
     if crosstalk(out / "bag", recorded_steps(out / "bag")):
         raise ScenarioError(f"{out} holds messages of another graph: remove it to run it again")

@@ -26,9 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-import yaml
 
-from bench_engine import phases
+from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 
@@ -103,7 +102,7 @@ class RunResult:
 def crosstalk(bag: Path, steps: int) -> bool:
     """True when the bag holds another number of truth messages than the run has steps: another graph on the
     same ROS domain published into this run's topics."""
-    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    info = yamlio.load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
     return counts.get(TRUTH_TOPIC) != steps
 
@@ -111,7 +110,7 @@ def crosstalk(bag: Path, steps: int) -> bool:
 def recorded_steps(bag: Path) -> int:
     """The number of steps of the run a bag recorded (from its run config)."""
     from bench_engine.timegrid import build_time
-    return build_time(yaml.safe_load((bag / "run_config.yaml").read_text())["scenario"]).steps
+    return build_time(yamlio.load((bag / "run_config.yaml").read_text())["scenario"]).steps
 
 
 PRELOAD = "bench_engine.preload"

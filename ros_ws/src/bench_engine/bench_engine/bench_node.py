@@ -43,7 +43,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
-from bench_engine import phases
+from bench_engine import phases, yamlio
 from bench_engine.config import ScenarioError
 from bench_engine.cdr import deserialize, lite_class, serialize
 from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph,
@@ -78,7 +78,7 @@ def delivered(publishers: list, timeout_s: float = FLUSH_TIMEOUT_S) -> list:
 def load_run_config(path: str) -> dict:
     """The launcher's run config: {scenario: {...}, filters: [...], record: bool, source: str, ...}."""
     with open(path, encoding="utf-8") as f:
-        run = yaml.safe_load(f)
+        run = yamlio.load(f)
     for key in ("scenario", "filters"):
         if key not in run:
             raise ScenarioError(f"run config {path} has no '{key}' key")

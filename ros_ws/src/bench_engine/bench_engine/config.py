@@ -14,7 +14,7 @@ from typing import Any, Callable, Iterable
 
 import yaml
 
-from bench_engine import plugins
+from bench_engine import plugins, yamlio
 from bench_engine.errors import ScenarioError   # defined below plugins, which raises it too; imported from here
 
 
@@ -50,7 +50,7 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     if not path:
         raise ScenarioError(f"override {text!r} has an empty key")
     try:
-        value = yaml.safe_load(raw)
+        value = yamlio.load(raw)
     except yaml.YAMLError as err:
         raise ScenarioError(f"override {text!r}: value is not valid YAML ({' '.join(str(err).split())})") from err
     return path, value
@@ -79,7 +79,7 @@ def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:
     path = scenario_path(name_or_path)
     with open(path, encoding="utf-8") as f:
         try:
-            cfg = yaml.safe_load(f) or {}
+            cfg = yamlio.load(f) or {}
         except yaml.YAMLError as err:
             mark = getattr(err, "problem_mark", None)
             where = f", line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

@@ -17,7 +17,7 @@ from pathlib import Path
 import setproctitle
 import yaml
 
-from bench_engine import phases, plugins
+from bench_engine import phases, plugins, yamlio
 from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
                                  select_variant)
 from bench_engine.domains import DomainInUse, reserve
@@ -394,7 +394,7 @@ def node_class(node: str) -> type:
 def _file_parameters(plan: RunPlan, name: str) -> dict:
     """The parameters :func:`write_parameters` wrote for node ``name`` (nodes in one process share rclpy's
     global arguments, so each takes its own file's values in code)."""
-    return next(iter(yaml.safe_load(plan.parameters_file(name).read_text()).values()))["ros__parameters"]
+    return next(iter(yamlio.load(plan.parameters_file(name).read_text()).values()))["ros__parameters"]
 
 
 def pin_to_one_cpu(domain_id: int) -> int | None:

@@ -21,6 +21,7 @@ from typing import Any
 
 import yaml
 
+from bench_engine import yamlio
 from bench_engine.config import ScenarioError
 from bench_engine.graph import node_kinds
 
@@ -93,7 +94,7 @@ def _load_yaml(name: str, text: Any) -> Any:
     if not isinstance(text, str):
         raise ScenarioError(f"parameter '{name}' must be a string holding YAML, got {text!r}")
     try:
-        return yaml.safe_load(text)
+        return yamlio.load(text)
     except yaml.YAMLError as err:
         raise ScenarioError(f"parameter '{name}' holds no valid YAML: {str(err).splitlines()[0]}") from None
 

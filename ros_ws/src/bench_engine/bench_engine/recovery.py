@@ -33,6 +33,7 @@ from typing import Any
 import yaml
 from mcap.records import Channel, Schema
 
+from bench_engine import yamlio
 from bench_engine.bag import CHUNK_SIZE, BagWriter, RecordScan
 from bench_engine.bag_errors import BagDamaged, BagUnrecoverable, BagUnsupported  # noqa: F401 - re-exported
 
@@ -75,7 +76,7 @@ def _custom_data(bag_dir: Path) -> dict[str, str]:
     if not metadata.is_file():
         return {}
     try:
-        info = yaml.safe_load(metadata.read_text(encoding="utf-8")) or {}
+        info = yamlio.load(metadata.read_text(encoding="utf-8")) or {}
         custom = (info.get("rosbag2_bagfile_information") or {}).get("custom_data") or {}
         return {str(key): str(value) for key, value in custom.items()}
     except (yaml.YAMLError, UnicodeDecodeError, AttributeError):
@@ -89,15 +90,13 @@ def _qos(channel: Channel) -> Any:
 
 @functools.lru_cache(maxsize=64)
 def _parsed_qos(text: str) -> Any:
-    """QoS YAML text parsed (with libyaml when PyYAML has it: the pure-Python parser took most of a recovery);
-    channels mostly share one text, so it is parsed once."""
+    """QoS YAML text parsed (with libyaml: the pure-Python parser took most of a recovery); channels mostly share
+    one text, so it is parsed once."""
     try:
-        return yaml.load(text or "null", Loader=_LOADER)  # noqa: S506 - a safe loader
+        return yamlio.load(text or "null")
     except yaml.YAMLError:
         return None
 
-
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 class _Rebuild:

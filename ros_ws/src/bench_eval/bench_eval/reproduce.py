@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-import yaml
 
+from bench_engine import yamlio
 from bench_engine.config import ScenarioError, Section
 
 STDOUT = "stdout"
@@ -68,7 +68,7 @@ def read_tables(path: Path, study: str) -> tuple[Table, ...]:
     """A study's tables.yaml (a list under ``tables``), read strictly: an unknown or mistyped key raises
     ScenarioError naming the file."""
     path = Path(path)
-    top = Section(yaml.safe_load(path.read_text(encoding="utf-8")) or {}, "")
+    top = Section(yamlio.load(path.read_text(encoding="utf-8")) or {}, "")
     tables = []
     try:
         for i, raw in enumerate(top.get("tables", list, [])):

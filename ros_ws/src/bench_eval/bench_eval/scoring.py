@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from bench_engine import plugins
+from bench_engine import plugins, yamlio
 from bench_engine.bag import BagDamaged, BagReader
 from bench_engine.columns import Table
 from bench_engine.config import ScenarioError, Section
@@ -123,7 +123,7 @@ def load_bag(bag_dir: Path | str) -> BagData:
     if not config.is_file():
         raise FileNotFoundError(f"{bag_dir} has no run_config.yaml: not a bag recorded by this bench")
     try:
-        data = BagData(yaml.safe_load(config.read_text()))
+        data = BagData(yamlio.load(config.read_text()))
         data.scenario.get("scenario")
     except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError, AttributeError) as err:
         raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err

@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping
 
-import yaml
 
-from bench_engine import plugins
+from bench_engine import plugins, yamlio
 from bench_eval.reproduce import Table, read_tables
 
 
@@ -49,7 +48,7 @@ def load_paper(path: Path) -> tuple[Mapping, list]:
     from bench_engine.config import ScenarioError, Section
     from bench_eval.claims import read_claims
     path = Path(path)
-    top = Section(yaml.safe_load(path.read_text(encoding="utf-8")) or {}, "")
+    top = Section(yamlio.load(path.read_text(encoding="utf-8")) or {}, "")
     paper = top.get("paper", dict, {})
     try:
         claims = read_claims(top.get("claims", list, []))

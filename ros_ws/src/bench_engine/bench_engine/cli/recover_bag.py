@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from bench_engine import yamlio
 from bench_engine.cli.guard import ArgumentParser, exit_codes, file_error_in, os_error_line, run_main
 from bench_engine.recovery import BagUnrecoverable, needs_recovery, recover
 
@@ -32,7 +33,7 @@ def set_aside_unreadable_metadata(bag: Path) -> None:
     if not metadata.is_file():
         return
     try:
-        yaml.safe_load(metadata.read_text(encoding="utf-8"))
+        yamlio.load(metadata.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError):
         os.replace(metadata, metadata.with_name("metadata.yaml.damaged"))
         print(f"{bag}: metadata.yaml is not YAML: kept as metadata.yaml.damaged", file=sys.stderr)

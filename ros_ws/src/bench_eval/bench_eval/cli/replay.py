@@ -20,6 +20,7 @@ import yaml
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
+from bench_engine import yamlio
 from bench_engine.bag import BagDamaged, BagReader  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
@@ -41,7 +42,7 @@ def recorded_run(bag: Path) -> dict:
         raise ScenarioError(f"{bag} is not a bag recorded by this bench (no run_config.yaml)")
     BagReader(bag).topics()  # no .mcap, a damaged metadata.yaml or file: BagDamaged, before anything starts
     try:
-        recorded = yaml.safe_load(config.read_text())
+        recorded = yamlio.load(config.read_text())
         recorded["scenario"]["scenario"]
     except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
         raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err
