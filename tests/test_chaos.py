@@ -13,8 +13,8 @@ kills it, once: the retry of that run is left alone. The launcher names the node
 fault-free one value for value, except ``runs_per_minute`` (wall time: a batch with retries is slower); each
 run's bag holds the same messages as the fault-free run's (per-topic digests).
 
-Budget: 4 runs on 2 jobs, 2 of them disturbed (a filter and the recorder), per executor: about 2 min in all
-on 2 busy cores (the Dask batch is the slower: its runs are fresh interpreters, not forked).
+Budget: 3 runs on 2 jobs, 2 of them disturbed (a filter and the recorder), per executor: about a minute in
+all on 2 busy cores (the Dask batch is the slower: its runs are fresh interpreters, not forked).
 A larger campaign: BENCH_CHAOS_RUNS=N (runs per batch), BENCH_CHAOS_KILLS=K (disturbed runs, <= N; the
 kinds cycle filter, recorder, sensor), BENCH_CHAOS_SEED=S (the killer's plan), e.g.
 ``BENCH_CHAOS_RUNS=12 BENCH_CHAOS_KILLS=9 .venv/bin/python -m pytest tests/test_chaos.py``.
@@ -37,7 +37,7 @@ from bench_engine.batch_run import NODE_RETRIES, RunSpec, killed_from_outside, r
 from graph_helpers import script
 from test_bag_digests import digests
 
-RUNS = int(os.environ.get("BENCH_CHAOS_RUNS", "4"))
+RUNS = int(os.environ.get("BENCH_CHAOS_RUNS", "3"))
 KILLS = int(os.environ.get("BENCH_CHAOS_KILLS", "2"))
 SEED = int(os.environ.get("BENCH_CHAOS_SEED", "18"))
 ARGS = ["leo_radar", "--runs", str(RUNS), "--jobs", "2", "--multiprocess", "--set", "time.duration=30",

@@ -54,10 +54,10 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     OUT/score.json and OUT/report/. Raises ScenarioError before any run for a bad scenario or override, or
     for run directories already in OUT (unless ``resume``). ``scheduler``: a Dask scheduler address or
     ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times."""
-    from bench_eval.report import write_report
-    from bench_eval.scoring import load_bag, score_bags
     mc.out.mkdir(parents=True, exist_ok=True)
     pending = mc.pending(mc.validate(), resume)
+    from bench_eval.report import write_report  # the scorer and matplotlib: after a bad input is refused
+    from bench_eval.scoring import load_bag, score_bags
     phases.mark("validated", "montecarlo", mc.out.resolve())
     if len(pending) < mc.runs:
         print(f"[montecarlo] resuming: {mc.runs - len(pending)} complete runs kept, {len(pending)} to run",

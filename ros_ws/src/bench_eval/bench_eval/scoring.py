@@ -22,6 +22,7 @@ from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC
 from bench_engine.stage import codec
 from bench_eval import metrics
 from bench_eval.bounds import compute_bounds, read_bounds, score_bounds
+from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
 from bench_models.states import error_labels
 
 
@@ -175,10 +176,6 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     truth_index = [data.truth_labels.index(lab) for lab in labels]
     x_true = np.array([data.truth[int(k)][1][truth_index] for k in est.steps])
     return metrics.Track(est.t, est.x[:, scored], est.P[:, cov][:, :, cov], x_true, labels)
-
-
-class NothingToScore(ValueError):
-    """The bags hold no estimate of any of their run's estimators."""
 
 
 def _scenario_name(runs: list[BagData]) -> str:
