@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from bench_engine import phases
+from bench_engine.batch import RunSpec, run_batch
 from bench_engine.launcher import NO_FORK_ENV
 from graph_helpers import ROOT, SHORT_PASS, read_bag, script
 from test_bag_digests import digests
@@ -38,15 +39,20 @@ def test_forked_and_fresh_node_processes_record_the_same_bag(tmp_path):
     assert found["fresh"]["/truth/state"][1] == 201 and found["fresh"]["/clock"][1] == 201
 
 
-def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path):
+def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path, monkeypatch):
+    """A Monte Carlo run (bench_engine.batch, as montecarlo.py makes it; its scoring is other tests') forked from
+    the preloaded fork server records what a fresh interpreter records."""
     bags = {}
-    for mode, env in (("fresh", {NO_FORK_ENV: "1"}), ("forked", {})):
-        out = tmp_path / mode
-        res = script("montecarlo.py", "leo_radar", "--runs", "1", "--jobs", "1", *SHORT_PASS, "--out", str(out),
-                     "--seed0", "11", extra_env=env)
-        assert res.returncode == 0, res.stderr[-2000:]
-        bags[mode] = digests(out / "run_000" / "bag")
-        assert "[launch] leo_radar" in (out / "run_000.log").read_text()  # the run's own output, in its log
+    for mode in ("fresh", "forked"):
+        if mode == "fresh":
+            monkeypatch.setenv(NO_FORK_ENV, "1")
+        else:
+            monkeypatch.delenv(NO_FORK_ENV)
+        spec = RunSpec("leo_radar", tmp_path / mode / "run_000", 11, overrides=SHORT_PASS[1:])
+        [result] = run_batch([spec], jobs=1)
+        assert result.ok, spec.log.read_text()[-2000:]
+        bags[mode] = digests(spec.bag)
+        assert "[launch] leo_radar" in spec.log.read_text()  # the run's own output, in its log
     assert bags["fresh"] == bags["forked"] and bags["fresh"]["/truth/state"][1] == 201
 
 
@@ -83,7 +89,7 @@ def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_pat
 
 
 def test_phase_benchmark_prints_every_phase_and_the_ratios(tmp_path):
-    res = script("bench_phases.py", "--modes", "single-process,montecarlo", "--runs", "2", *SHORT_PASS,
+    res = script("bench_phases.py", "--modes", "single-process,montecarlo", "--runs", "1", "--jobs", "1", *SHORT_PASS,
                  timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
     lines = res.stdout.splitlines()
