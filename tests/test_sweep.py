@@ -42,6 +42,18 @@ def test_tables_grid_resolves_placeholders_and_variant_order():
     assert len(sweep.distinct_truths(grid)) == 4  # e x rho; measurement and interval keep the truth
 
 
+def test_a_grids_own_set_reaches_every_cell_before_its_levels_and_the_command_line(tmp_path):
+    grids = {"g": {"set": {"scoring.bounds": {}, "time.dt": 2.0},
+                   "axes": {"rho": {"1km": [], "10km": {"variants": ["size10km"], "set": {"time.dt": 5.0}}}}}}
+    grid = sweep.load_grid(str(scenario_with(tmp_path, grids)), "g", ["time.duration=100"])
+    one, ten = grid.cells
+    assert one.cfg["scoring"]["bounds"] == {} == ten.cfg["scoring"]["bounds"]
+    assert (one.cfg["time"]["dt"], ten.cfg["time"]["dt"]) == (2.0, 5.0)  # a level's set after the grid's
+    assert "scoring.bounds={}" in one.overrides and one.overrides[-1] == "time.duration=100"
+    assert load_scenario("formation_cqkf")["scoring"]["bounds"]  # the scenario itself keeps its bounds
+    assert all(c.cfg["scoring"]["bounds"] == {} for c in sweep.load_grid("star_tracker", "tables").cells)
+
+
 def test_numeric_axes_set_and_scale_the_keys_each_cell_has():
     noise = sweep.load_grid("formation_cqkf", "noise", ["time.duration=100"])
     base = load_scenario("formation_cqkf")["sensors"]["isl"]

@@ -7,6 +7,7 @@ Grids are declared in the scenario's ``sweeps`` section; a grid is the product o
       tables:
         description: free text
         columns: rho                 # optional: axis whose levels are the paper-style table's columns
+        set: {scoring.bounds: {}}    # optional: overrides of every cell (here: no bound is computed)
         axes:
           e: {"0": [], "0.005": [e0005]}                 # level label -> variants applied in axis order
           rho: {1km: [], 10km: [size10km]}
@@ -19,8 +20,8 @@ Grids are declared in the scenario's ``sweeps`` section; a grid is the product o
 
 A level is a list of variants or a mapping {variants: [...], set: {key: value}}. A numeric axis sets each
 value on every ``set`` key and multiplies every ``scale`` key by it (keys a cell lacks are skipped; a key no
-cell has, or a cell with none of them, is an error). A cell applies its variants, then its ``set`` and
-``scale`` overrides, then the command line's --set. Every cell is resolved and validated before the first run.
+cell has, or a cell with none of them, is an error). A cell applies its variants, then the grid's ``set``, its
+levels' ``set`` and ``scale`` overrides, then the command line's --set. Every cell is resolved and validated before the first run.
 Run i of every cell uses seed SEED0 + i (the same noise realisations in every cell) and writes
 OUT/CELL/run_NNN/bag. The study's hooks (bench_eval.study) give the paper's case of a cell, the sweep report
 and extra rows (e.g. formation_cqkf's model errors); without them a generic table is written.
@@ -133,10 +134,12 @@ def _lookup(cfg: dict, key: str) -> Any:
     return node
 
 
-def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli: list[str]) -> Cell:
-    """Resolve one cell: placeholders, variants (validated), set and scale overrides, command-line overrides."""
+def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli: list[str],
+          common: Mapping[str, Any]) -> Cell:
+    """Resolve one cell: placeholders, variants (validated), the grid's and its levels' set and scale overrides,
+    command-line overrides."""
     by_axis = {a.name: lab for a, lab in zip(axes, labels)}
-    variants, sets, scales = [], {}, {}
+    variants, sets, scales = [], dict(common), {}
     for axis, label in zip(axes, labels):
         level = axis.levels[label]
         where = f"{path}.axes.{axis.name}.{label}"
@@ -176,11 +179,12 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
         raise ScenarioError(f"'{path}' must be a mapping with a non-empty 'axes' mapping")
     description = str(sec.get("description", str, ""))
     columns = sec.get("columns", str, None)
+    common = dict(sec.get("set", dict, {}))
     sec.finish()
     axes = [_axis(str(a), s, f"{path}.axes.{a}") for a, s in axes_spec.items()]
     if columns is not None and columns not in axes_spec:
         raise ScenarioError(f"'{path}.columns' must name an axis ({', '.join(axes_spec)}), got {columns!r}")
-    cells = [_cell(base, path, axes, labels, list(cli_overrides))
+    cells = [_cell(base, path, axes, labels, list(cli_overrides), common)
              for labels in itertools.product(*[list(a.levels) for a in axes])]
     scaled_keys = {k for a in axes for lev in a.levels.values() for k in lev.scales}
     for key in sorted(scaled_keys):
