@@ -37,7 +37,7 @@ def _paper_rows(paper: Mapping) -> list[list[str]]:
     return rows
 
 
-def _rolling_rms(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+def rolling_rms(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """RMS of x over consecutive windows of ``window_s`` seconds: (window centres, values)."""
     bins = np.floor((t - t[0]) / window_s).astype(int)
     sums, counts = np.bincount(bins, x * x), np.bincount(bins)
@@ -50,7 +50,7 @@ def _draw_residuals(series: Mapping):
         top, bottom = fig.subplots(2, 1)
         for name, s in series.items():
             t, r = np.asarray(s["t"]), np.asarray(s["kbr"])
-            tc, rms = _rolling_rms(t, r, 1800.0)
+            tc, rms = rolling_rms(t, r, 1800.0)
             top.plot(tc / 3600.0, rms * MM, lw=1.0, marker=".", ms=3, label=name)
             zoom = t <= t[0] + 3 * 3600.0
             bottom.plot(t[zoom] / 3600.0, r[zoom] * MM, lw=0.6, label=name)
