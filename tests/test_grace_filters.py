@@ -337,3 +337,18 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
         assert hi / 2.0 < nees[name] < lo, f"{name}: NEES {nees[name]:.2f}, band [{lo:.2f}, {hi:.2f}]"
     assert hi < nees["kf_b"] < 2.0 * lo, f"kf_b: NEES {nees['kf_b']:.2f}, band [{lo:.2f}, {hi:.2f}]"
     assert nees["kf_a_lag"] == pytest.approx(nees["kf_a_rts"], rel=0.05)    # 300 s of lag: nearly the full RTS
+
+
+def test_the_report_shows_the_distance_to_bound_b_where_the_run_was_scored_against_it() -> None:
+    from bench_studies.grace_velocity.report import grace_velocity_sections
+    stats = {"std": 1e-3, "mean": 0.0, "max": 3e-3, "min": -3e-3}
+    block = {"runs": 1, "rr_kbr": stats, "rr_truth": stats, "velocity_rmse": 2e-3, "kbr_noise_std": 1e-6}
+    group = {"rmse": 2e-3, "sqrt_bound": 1e-3, "efficiency": 0.5, "final_rmse": 2e-3, "final_sqrt_bound": 1e-3}
+    bound = {"position": group, "velocity": group}
+    plain = grace_velocity_sections("grace_velocity", {"kf_a": block}, None, None)[0]
+    scored = grace_velocity_sections("grace_velocity", {"kf_a": {**block, "bounds": {"orbit_crb": bound}}}, None,
+                                     None)[0]
+    assert len(plain.tables) == 1 and len(scored.tables) == 2
+    rows = scored.tables[1].rows
+    assert [r[:3] for r in rows] == [["kf_a", "orbit_crb", "position [m]"], ["kf_a", "orbit_crb", "velocity [m/s]"]]
+    assert rows[0][5] == "0.5"
