@@ -200,3 +200,23 @@ def test_readme_is_never_written_from_a_miniature_record(tmp_path, capsys):
         cli.main(["--readme", "--results", str(tmp_path), "--root", str(ROOT)])
     assert stop.value.code == 2 and "holds no full reproduction" in capsys.readouterr().err
     assert (ROOT / "README.md").read_bytes() == before
+
+
+def test_the_commit_is_dirty_for_an_edited_source_not_for_the_record(tmp_path):
+    import subprocess
+
+    def git(*a: str) -> None:
+        subprocess.run(["git", "-C", str(tmp_path), "-c", "user.email=t@t", "-c", "user.name=t", *a], check=True,
+                       capture_output=True)
+    (tmp_path / rp.RESULTS_DIR).mkdir()
+    (tmp_path / rp.RESULTS_DIR / "results.json").write_text("{}")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("init", "-q")
+    git("add", ".")
+    git("commit", "-qm", "c")
+    head = rp.commit(tmp_path)
+    assert len(head) == 40 and "+dirty" not in head
+    (tmp_path / rp.RESULTS_DIR / "results.json").write_text('{"tables": {}}')  # an earlier --only run's record
+    assert rp.commit(tmp_path) == head
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert rp.commit(tmp_path).startswith(head + "+dirty-")

@@ -140,13 +140,18 @@ def overrides(args: list[str]) -> list[str]:
     return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--set"]
 
 
+RESULTS_DIR = "results"
+"""The record's directory in the repository (RESULTS.md, results.json, figures/)."""
+
+
 def commit(root: Path) -> str:
-    """HEAD's hash, with ``+dirty-`` and a hash of ``git diff HEAD`` when tracked files differ from it (the
+    """HEAD's hash, with ``+dirty-`` and a hash of ``git diff HEAD`` when tracked files other than the record
+    (results/: what this command writes, which an earlier --only run has already changed) differ from it (the
     results are then not HEAD's, and a different edit gives a different identity)."""
     def git(*a: str) -> str:
         return subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True).stdout
     head = git("rev-parse", "HEAD").strip() or "unknown"
-    diff = git("diff", "HEAD")
+    diff = git("diff", "HEAD", "--", ".", f":(exclude){RESULTS_DIR}")
     return head + (f"+dirty-{hashlib.sha1(diff.encode()).hexdigest()[:12]}" if diff else "")
 
 
@@ -257,7 +262,7 @@ BLOCK = re.compile(r"(<!-- results: (?P<name>[\w.]+) -->\n)(?P<body>.*?)(<!-- /r
 """A generated block of the README: ``<!-- results: TABLE -->`` … ``<!-- /results -->``."""
 
 
-FIGURES = "results/figures"
+FIGURES = f"{RESULTS_DIR}/figures"
 """Where the figures the README shows are kept, relative to the repository: FIGURES/TABLE/FILE."""
 
 

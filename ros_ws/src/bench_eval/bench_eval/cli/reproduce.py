@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
         print("\n".join(problems) if problems else f"{len(tables)} table command(s) validate")
         return 2 if problems else 0
     suffix = "reproduce-mini" if args.mini else "reproduce"
-    results = args.results or (root / ("runs/" + suffix if args.mini else "results"))
+    results = args.results or (root / ("runs/" + suffix if args.mini else rp.RESULTS_DIR))
     work = args.work or root / "runs" / suffix
     if args.readme:
         if args.mini:
