@@ -36,7 +36,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.cowell import rk4, state_rate
@@ -118,6 +117,7 @@ class OrbitJ2Dynamics:
         """[state, Phi flattened] (k, 42) at ``times``, ordered away from t0 (all on one side of it)."""
         if times.size == 0 or times[-1] == t0:
             return np.tile(y0, (times.size, 1))
+        from scipy.integrate import solve_ivp  # here, not at import: scipy.integrate costs 0.3-0.6 s of a start-up
         sol = solve_ivp(self._variational_derivative, (t0, times[-1]), y0, method="DOP853", t_eval=times,
                         rtol=VARIATIONAL_RTOL, atol=VARIATIONAL_ATOL)
         if not sol.success:
