@@ -143,12 +143,18 @@ def fork_context():
     with _fork_lock:
         if _fork_context is None:
             import multiprocessing
+            from multiprocessing import forkserver
             from bench_engine.preload import WARM_ENV
             os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
             os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything
-            _fork_context = multiprocessing.get_context("forkserver")
-            _fork_context.set_forkserver_preload([PRELOAD])
+            try:
+                context = multiprocessing.get_context("forkserver")
+                context.set_forkserver_preload([PRELOAD])
+                forkserver.ensure_running()  # now, while WARM_ENV is set ...
+            finally:
+                del os.environ[WARM_ENV]  # ... and only for it: this process's other children import as usual
+            _fork_context = context
     return _fork_context
 
 
