@@ -81,10 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     skip = opts.options["skip_s"]
     t_b, sd_b = dynamic_bound(data)
     first = min(t for t, _ in data.truth.values())
-    bound_b = _rms(sd_b[t_b - first >= skip])
+    late_b = t_b - first >= skip
+    bound_b = _rms(sd_b[late_b])
     rts = data.estimates["kf_a_rts"]
     sd_a = smoother_bound(rts, opts.options["baseline"])
-    bound_a = _rms(sd_a[rts.t - first >= skip])
+    late_a = rts.t - first >= skip
+    bound_a = _rms(sd_a[late_a])
     print(f"grace_velocity seed {args.seed} ({args.variant or 'default'}): range-rate residual [um/s], "
           f"after {skip:g} s")
     print(f"bound (a) white-jerk q (RTS covariance): {bound_a * 1e6:.3f}; bound (b) truth's dynamics: "
@@ -101,7 +103,6 @@ def main(argv: list[str] | None = None) -> int:
               f"{seconds.get(name, float('nan')):9.1f}")
     print(f"total {time.perf_counter() - start:.0f} s")
     if args.out is not None:
-        late_b, late_a = t_b - first >= skip, rts.t - first >= skip
         path = draw_bounds_figure(args.out, errors, {"bound (b)": (t_b[late_b] - first, sd_b[late_b]),
                                                      "bound (a)": (rts.t[late_a] - first, sd_a[late_a])})
         print(f"figure: {path}", file=sys.stderr)

@@ -94,7 +94,7 @@ if ! stamp_ok packages "$pkg_hash"; then
 fi
 
 # The bench's own modules compiled ahead (the wheels are compiled at install): where PYTHONDONTWRITEBYTECODE is
-# set, as on this project's CI machines, every process would otherwise compile all it imports (0.1 s of CPU for a
+# set (as on the machine this was measured on), every process would otherwise compile all it imports (0.1 s of CPU for a
 # score.py, on each of the test suite's hundreds of processes). Up-to-date files are skipped.
 "$PY" -m compileall -q -j 0 ros_ws/src scripts > /dev/null \
   || echo "[setup] warning: some of the bench's modules do not compile (see python -m compileall ros_ws/src)" >&2

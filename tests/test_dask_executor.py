@@ -21,6 +21,7 @@ from dask.distributed import LocalCluster
 
 from bench_engine.batch import RunSpec, complete, run_batch
 from bench_engine.executors import run_dask, run_task
+from bench_eval.montecarlo import MonteCarlo
 from graph_helpers import SHORT_PASS, script
 from test_bag_digests import digests
 
@@ -36,11 +37,10 @@ def cluster():
 
 @pytest.fixture(scope="module")
 def local_mc(tmp_path_factory) -> Path:
-    """The runs of ``montecarlo.py leo_radar RUNS`` (seeds 1 and 2), made by the default local executor
-    (bench_engine.batch; not scored: montecarlo.py --resume scores them in test_resume_...)."""
+    """The runs of ``montecarlo.py leo_radar RUNS`` (its MonteCarlo's specs: seeds 1 and 2), made by the default
+    local executor (bench_engine.batch; not scored: montecarlo.py --resume scores them in test_resume_...)."""
     out = tmp_path_factory.mktemp("local") / "mc"
-    specs = [RunSpec("leo_radar", out / f"run_{i:03d}", 1 + i, overrides=SHORT_PASS[1:]) for i in range(2)]
-    results = run_batch(specs, jobs=2)
+    results = run_batch(MonteCarlo("leo_radar", out, 2, overrides=SHORT_PASS[1:]).specs(), jobs=2)
     assert all(r.ok for r in results), [r.spec.log.read_text()[-2000:] for r in results if not r.ok]
     return out
 
@@ -95,7 +95,7 @@ cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 
 def test_a_run_whose_worker_is_killed_is_run_again(cluster, local_mc, tmp_path):
-    specs = [RunSpec("leo_radar", tmp_path / f"run_{i:03d}", 1 + i, overrides=SHORT_PASS[1:]) for i in range(2)]
+    specs = MonteCarlo("leo_radar", tmp_path, 2, overrides=SHORT_PASS[1:]).specs()
     results = run_dask(specs, cluster.scheduler_address, task=kill_worker_on_first_attempt)
     assert sorted(r.spec.out.name for r in results) == ["run_000", "run_001"]
     assert all(r.spec is next(s for s in specs if s.out == r.spec.out) for r in results)  # the caller's specs

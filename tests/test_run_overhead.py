@@ -12,9 +12,10 @@ import time
 from pathlib import Path
 
 from bench_engine import phases
-from bench_engine.batch import RunSpec, run_batch
+from bench_engine.batch import run_batch
 from bench_engine.launcher import NO_FORK_ENV
 from bench_engine.preload import WARM_ENV
+from bench_eval.montecarlo import MonteCarlo
 from graph_helpers import ROOT, SHORT_PASS, read_bag, script
 from test_bag_digests import digests
 
@@ -49,7 +50,7 @@ def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path, monkeyp
             monkeypatch.setenv(NO_FORK_ENV, "1")
         else:
             monkeypatch.delenv(NO_FORK_ENV)
-        spec = RunSpec("leo_radar", tmp_path / mode / "run_000", 11, overrides=SHORT_PASS[1:])
+        [spec] = MonteCarlo("leo_radar", tmp_path / mode, 1, seed0=11, overrides=SHORT_PASS[1:]).specs()
         [result] = run_batch([spec], jobs=1)
         assert result.ok, spec.log.read_text()[-2000:]
         assert WARM_ENV not in os.environ  # the fork server's warm-up is its own, not its caller's children's

@@ -21,7 +21,8 @@ Grids are declared in the scenario's ``sweeps`` section; a grid is the product o
 A level is a list of variants or a mapping {variants: [...], set: {key: value}}. A numeric axis sets each
 value on every ``set`` key and multiplies every ``scale`` key by it (keys a cell lacks are skipped; a key no
 cell has, or a cell with none of them, is an error). A cell applies its variants, then the grid's ``set``, its
-levels' ``set`` and ``scale`` overrides, then the command line's --set. Every cell is resolved and validated before the first run.
+levels' ``set`` and ``scale`` overrides, then the command line's --set. Every cell is resolved and validated
+before the first run.
 Run i of every cell uses seed SEED0 + i (the same noise realisations in every cell) and writes
 OUT/CELL/run_NNN/bag. The study's hooks (bench_eval.study) give the paper's case of a cell, the sweep report
 and extra rows (e.g. formation_cqkf's model errors); without them a generic table is written.
