@@ -15,22 +15,30 @@ stamp_set() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; echo "[setup]   done
 stage() { stage_start=$SECONDS; echo "[setup] $1"; }
 hash_of() { cat "$@" | sha256sum | cut -c1-16; }
 
+UV_VERSION=0.13.9
 if [ ! -x "$PY" ]; then
   echo "[setup] creating $VENV"
-  python3 -m venv "$VENV"
+  python3 -m venv --without-pip "$VENV"
+fi
+# The venv's pip and setuptools are those Python 3.11's ensurepip bundles (the editable install below relies on
+# this pip's `setup.py develop`), installed by uv: 0.4 s instead of ensurepip's 4.5 s. ensurepip where uv
+# cannot be had.
+if [ ! -x "$VENV/bin/pip" ]; then
+  { python3 -m pip --python "$PY" install -q --disable-pip-version-check "uv==$UV_VERSION" > /dev/null 2>&1 \
+      && "$VENV/bin/uv" pip install -q --python "$PY" pip==23.2.1 setuptools==65.5.0; } \
+    || "$PY" -m ensurepip -q || { echo "[setup] no pip in $VENV: python3 -m ensurepip failed" >&2; exit 1; }
 fi
 
-UV_VERSION=0.13.9
-# pip-style install arguments, installed by uv (parallel downloads, unpacking and bytecode compilation: 12 s
-# instead of pip's 62 s for requirements.txt on a fresh 2-core machine) or, where uv cannot be had or cannot
-# install (e.g. an index that only pip's configuration names), by pip.
+# pip-style install arguments, installed by uv (parallel downloads and unpacking: 4 s instead of pip's 62 s for
+# requirements.txt on a fresh 2-core machine; the bytecode is compiled later, beside the bench_msgs build) or,
+# where uv cannot be had or cannot install (e.g. an index that only pip's configuration names), by pip.
 pip_install() {
   "$PY" -m pip install -q --disable-pip-version-check "$@" > "$VENV/pip.log" 2>&1 \
     || { grep -v "is ignored: it is neither" "$VENV/pip.log" >&2; return 1; }
 }
 install() {
   if [ -x "$VENV/bin/uv" ] || pip_install "uv==$UV_VERSION" 2> /dev/null; then
-    "$VENV/bin/uv" pip install -q --compile-bytecode --python "$PY" "$@" && return 0
+    "$VENV/bin/uv" pip install -q --python "$PY" "$@" && return 0
     echo "[setup] uv could not install that; trying pip" >&2
   fi
   pip_install "$@"
@@ -39,9 +47,8 @@ install() {
 req_hash=$(hash_of requirements.txt)
 if ! stamp_ok wheels "$req_hash"; then
   stage "installing wheels"
+  rm -f "$STAMPS/bytecode"
   install -r requirements.txt || { echo "[setup] installing requirements.txt failed: see the output above" >&2; exit 1; }
-  "$PY" -c "import rclpy, numpy, scipy, mcap, yaml, matplotlib, rosbags" \
-    || { echo "[setup] the wheels are installed but do not import: see the error above" >&2; exit 1; }
   stamp_set wheels "$req_hash"
   rm -f "$STAMPS/cmake_patch" "$STAMPS/msgs"
 fi
@@ -69,12 +76,29 @@ if ! stamp_ok msgs "$msg_hash" || ! "$PY" -c "import bench_msgs.msg" 2>/dev/null
   echo "[setup] building bench_msgs (colcon, in the background)"
   msgs_log=$ROOT/ros_ws/log/bench_msgs_setup.log
   rm -rf "$ROOT/ros_ws/build/bench_msgs"; mkdir -p "$ROOT/ros_ws/log"
-  AMENT_PREFIX_PATH=$VENV CMAKE_PREFIX_PATH=$VENV PATH=$VENV/bin:$PATH COLCON_HOME=$ROOT/ros_ws/log/colcon_home \
-    "$VENV/bin/colcon" --log-base "$ROOT/ros_ws/log" build --base-paths ros_ws/src/bench_msgs \
+  # MAKEFLAGS: colcon's default `make -j2 -l2` runs one job at a time while the other stages load the machine.
+  MAKEFLAGS="-j$(nproc)" AMENT_PREFIX_PATH=$VENV CMAKE_PREFIX_PATH=$VENV PATH=$VENV/bin:$PATH \
+    COLCON_HOME=$ROOT/ros_ws/log/colcon_home "$VENV/bin/colcon" --log-base "$ROOT/ros_ws/log" build --base-paths ros_ws/src/bench_msgs \
     --build-base "$ROOT/ros_ws/build" --install-base "$VENV" --merge-install \
     --cmake-args -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$msgs_log" 2>&1 &
   msgs_pid=$!
   msgs_start=$SECONDS
+fi
+
+# The wheels' bytecode, compiled beside the bench_msgs build and niced below it (the build is the longer path):
+# a compiling install (uv --compile-bytecode) spent 15 s of one core before the build could start. Where
+# PYTHONDONTWRITEBYTECODE is set (as on the machine this was measured on), every process would otherwise compile
+# all it imports. Skipped: bench_msgs, which colcon writes meanwhile and compiles itself, and what the bench
+# never imports, about half of the 108 MB of source: the wheels' test suites, plotly and narwhals (stonesoup's
+# plotting), pip, pygments and docutils.
+site=$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+bytecode_pid=
+if ! stamp_ok bytecode "$req_hash"; then
+  echo "[setup] compiling the wheels' bytecode (in the background)"
+  nice -n 10 "$PY" -m compileall -q -j 0 -x '/bench_msgs/|/tests?/|/site-packages/(plotly|narwhals|pip|pygments|docutils)/' \
+    "$site" > "$VENV/compileall.log" 2>&1 &
+  bytecode_pid=$!
+  bytecode_start=$SECONDS
 fi
 
 # The project's ament_python packages are installed editable (sources used in place), so that their entry
@@ -85,7 +109,7 @@ for pkg in "${pkgs[@]}"; do [ -f "ros_ws/src/$pkg/setup.py" ] && present+=("ros_
 pkg_hash=$( (printf '%s\n' "${present[@]}"; cat "${present[@]/%//setup.py}") | sha256sum | cut -c1-16)
 if ! stamp_ok packages "$pkg_hash"; then
   stage "installing the bench's packages (editable)"
-  rm -f "$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")/zz_tracking_bench.pth"
+  rm -f "$site/zz_tracking_bench.pth"
   # pip, not uv: pip's develop install honours each setup.cfg's script_dir ($base/lib/PKG, where `ros2 run`
   # looks: tests/test_standalone_node.py), uv's editable install puts the console scripts in .venv/bin.
   pip_install --no-deps --no-build-isolation "${present[@]/#/--editable=}" \
@@ -98,6 +122,16 @@ fi
 # score.py, on each of the test suite's hundreds of processes). Up-to-date files are skipped.
 "$PY" -m compileall -q -j 0 ros_ws/src scripts > /dev/null \
   || echo "[setup] warning: some of the bench's modules do not compile (see python -m compileall ros_ws/src)" >&2
+
+if [ -n "$bytecode_pid" ]; then
+  # compileall exits 1 where some file of a wheel does not compile (e.g. a template): a missing .pyc only costs time.
+  wait "$bytecode_pid" || true
+  "$PY" -c "import rclpy, numpy, scipy, mcap, yaml, matplotlib, rosbags" \
+    || { echo "[setup] the wheels are installed but do not import: see the error above" >&2; exit 1; }
+  stage_start=$bytecode_start
+  echo "[setup] the wheels' bytecode compiled"
+  stamp_set bytecode "$req_hash"
+fi
 
 if [ -n "$msgs_pid" ]; then
   wait "$msgs_pid" || { echo "[setup] bench_msgs build failed; log: $msgs_log" >&2; tail -n 30 "$msgs_log" >&2; exit 1; }
