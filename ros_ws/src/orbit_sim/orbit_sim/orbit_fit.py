@@ -76,7 +76,12 @@ def rtn_frame(r: np.ndarray, v: np.ndarray) -> np.ndarray:
 class Trajectory:
     """A propagated orbit and its partials at the times ``t``: state x (K, 6); Phi (K, 6, 6) = dx/dx0;
     s_drag (K, 6) = dx/dB; W (K, 6, 3) the empirical integral; ``segment`` (K,) the interval of each time;
-    ``W_edges`` (J + 1, 6, 3) W at the intervals' edges."""
+    ``W_edges`` (J + 1, 6, 3) W at the intervals' edges.
+
+    The partials dx(t)/dp are never formed (K x 6 x n_params, n_params = 2167 for a day at 2 min): they factor as
+    dx(t)/dp = F(t) G(t), F = [Phi | s_drag] (6, nb), nb = 6 (+1 with drag), and G(t) = [I | dW_0 .. dW_s-1,
+    V(t), 0 ..] with the intervals' steps dW_j = W(t_j+1) - W(t_j) and V(t) = W(t) - W(t_s) in the interval s
+    of t (both padded with a zero row for B). Sums over the fixes then collapse to sums per interval."""
 
     t: np.ndarray
     x: np.ndarray
@@ -86,25 +91,30 @@ class Trajectory:
     segment: np.ndarray
     W_edges: np.ndarray
 
-    def partials(self, idx: np.ndarray | slice, n_params: int, drag: bool) -> np.ndarray:
-        """dx(t) / dp (k, 6, n_params) at the times ``idx``: [x0 | B | e_0 .. e_J-1]."""
-        phi, seg = self.phi[idx], self.segment[idx]
-        J = np.zeros((len(phi), 6, n_params))
-        J[:, :, :6] = phi
-        col = 6
-        if drag:
-            J[:, :, 6] = self.s_drag[idx]
-            col = 7
-        if n_params > col:
-            n_seg = self.W_edges.shape[0] - 1
-            at_edges = np.einsum("kab,jbc->kjac", phi, self.W_edges)  # Phi(t) W(t_j), (k, J + 1, 6, 3)
-            now = np.einsum("kab,kbc->kac", phi, self.W[idx])
-            j = np.arange(n_seg)
-            # interval j done before t: Phi (W(t_j+1) - W(t_j)); t inside it: Phi (W(t) - W(t_j)); after t: 0
-            block = np.where((j[None, :] < seg[:, None])[..., None, None], at_edges[:, 1:], now[:, None])
-            block = (block - at_edges[:, :-1]) * (j[None, :] <= seg[:, None])[..., None, None]
-            J[:, :, col:] = block.transpose(0, 2, 1, 3).reshape(len(phi), 6, 3 * n_seg)
-        return J
+    def base(self, drag: bool) -> np.ndarray:
+        """F (K, 6, nb) = dx(t)/d[x0 (, B)]."""
+        return np.concatenate([self.phi, self.s_drag[:, :, None]], axis=2) if drag else self.phi
+
+    def steps(self, nb: int) -> tuple[np.ndarray, np.ndarray]:
+        """dW (J, nb, 3), the intervals' steps, and V (K, nb, 3), the step into each time's interval."""
+        dW = np.zeros((self.W_edges.shape[0] - 1, nb, 3))
+        dW[:, :6] = np.diff(self.W_edges, axis=0)
+        V = np.zeros((len(self.t), nb, 3))
+        V[:, :6] = self.W - self.W_edges[self.segment]
+        return dW, V
+
+    def per_interval(self, values: np.ndarray) -> np.ndarray:
+        """Sums of ``values`` (K, ...) over the times of each interval (J, ...)."""
+        out = np.zeros((self.W_edges.shape[0] - 1, *values.shape[1:]))
+        np.add.at(out, self.segment, values)
+        return out
+
+
+def _suffix_sums(per_interval: np.ndarray) -> np.ndarray:
+    """Suffix sums (J + 1, ...): row m is the sum of the rows j >= m (row J is zero)."""
+    out = np.zeros((len(per_interval) + 1, *per_interval.shape[1:]))
+    out[:-1] = np.cumsum(per_interval[::-1], axis=0)[::-1]
+    return out
 
 
 def _rate(t: float, y: np.ndarray, model: ForceModel, ballistic: float, e: np.ndarray, with_partials: bool):
@@ -189,32 +199,84 @@ class OrbitFit:
         traj = propagate(self.x0, self.ballistic, self.e, self.model, t, self.t_edges, with_partials=with_covariance)
         if not with_covariance:
             return traj.x, None
-        P = np.empty((len(t), 6, 6))
-        chunk = _chunk(self.n_params)
-        for start in range(0, len(t), chunk):
-            idx = slice(start, start + chunk)
-            J = traj.partials(idx, self.n_params, self.model.drag)
-            P[idx] = J @ self.covariance @ J.transpose(0, 2, 1)
-        return traj.x, P
+        return traj.x, state_covariance(traj, self.covariance, self.model.drag)
 
 
-def _chunk(n_params: int) -> int:
-    """Times per block of partials (6 x n_params each): about 16 MB a block."""
-    return max(50, 2_000_000 // (6 * n_params))
+def state_covariance(traj: Trajectory, covariance: np.ndarray, drag: bool) -> np.ndarray:
+    """F Cov(h) F' (K, 6, 6), the covariance of the states x(t) = F(t) h(t) (Trajectory): h = y_s + V(t) e_s
+    with y_s = [x0 (, B)] + sum_{j<s} dW_j e_j, whose covariance and cross-covariance with e_s are carried from
+    interval to interval."""
+    F = traj.base(drag)
+    nb = F.shape[2]
+    if covariance.shape[0] == nb:
+        return F @ covariance @ F.transpose(0, 2, 1)
+    dW, V = traj.steps(nb)
+    n_seg = len(dW)
+    X = covariance[:nb].copy()                      # Cov(y_s, p)
+    Y = covariance[:nb, :nb].copy()                 # Cov(y_s)
+    Ys, Zs = np.empty((n_seg, nb, nb)), np.empty((n_seg, nb, 3))
+    for j in range(n_seg):
+        e_rows = slice(nb + 3 * j, nb + 3 * j + 3)
+        Z = X[:, e_rows]                            # Cov(y_s, e_s)
+        Ys[j], Zs[j] = Y, Z
+        step = dW[j] @ Z.T
+        Y = Y + step + step.T + dW[j] @ covariance[e_rows, e_rows] @ dW[j].T
+        X = X + dW[j] @ covariance[e_rows]
+    Cee = np.stack([covariance[nb + 3 * j:nb + 3 * j + 3, nb + 3 * j:nb + 3 * j + 3] for j in range(n_seg)])
+    seg = traj.segment
+    cross = Zs[seg] @ V.transpose(0, 2, 1)
+    Ch = Ys[seg] + cross + cross.transpose(0, 2, 1) + V @ Cee[seg] @ V.transpose(0, 2, 1)
+    return F @ Ch @ F.transpose(0, 2, 1)
 
 
 def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """(N, b) = (sum H'H / sigma^2, sum H'(z - r) / sigma^2) over the fixes z (K, 3) at the trajectory's times."""
+    """(N, b) = (sum H'H / sigma^2, sum H'(z - r) / sigma^2) over the fixes z (K, 3) at the trajectory's times,
+    H = dr/dp = C G with C = F[:3] (Trajectory), summed interval by interval: with M = C'C / sigma^2, S_m the
+    sum of M over the intervals from m on, T_j = sum M V and R_j = sum V'M V over interval j,
+
+        N_bb = S_0,  N_b,e_j = Q_j = S_j+1 dW_j + T_j,  N_e_i,e_j = dW_i' Q_j (i < j),
+        N_e_j,e_j = dW_j' S_j+1 dW_j + R_j
+
+    (b likewise): O(K + J^2) instead of the O(K J^2) of forming H."""
+    C = traj.base(drag)[:, :3]
+    nb = C.shape[2]
+    M = np.einsum("kai,kaj->kij", C, C) / sigma**2
+    w = np.einsum("kai,ka->ki", C, z - traj.x[:, :3]) / sigma**2
     N, b = np.zeros((n_params, n_params)), np.zeros(n_params)
-    chunk = _chunk(n_params)
-    for start in range(0, len(z), chunk):
-        idx = slice(start, start + chunk)
-        H = traj.partials(idx, n_params, drag)[:, :3].reshape(-1, n_params)
-        res = (z[idx] - traj.x[idx, :3]).ravel()
-        N += H.T @ H / sigma**2
-        b += H.T @ res / sigma**2
+    N[:nb, :nb], b[:nb] = M.sum(axis=0), w.sum(axis=0)
+    if n_params == nb:
+        return N, b
+    dW, V = traj.steps(nb)
+    n_seg = len(dW)
+    S = _suffix_sums(traj.per_interval(M))[1:]                       # S_j+1, (J, nb, nb)
+    Q = S @ dW + traj.per_interval(M @ V)
+    N[:nb, nb:] = Q.transpose(1, 0, 2).reshape(nb, 3 * n_seg)
+    j = np.arange(n_seg)
+    upper = np.einsum("iab,jac->ibjc", dW, Q) * (j[:, None] < j[None, :])[:, None, :, None]
+    Nee = upper.reshape(3 * n_seg, 3 * n_seg)
+    Nee = Nee + Nee.T
+    diagonal = dW.transpose(0, 2, 1) @ S @ dW + traj.per_interval(V.transpose(0, 2, 1) @ M @ V)
+    for i in range(n_seg):
+        Nee[3 * i:3 * i + 3, 3 * i:3 * i + 3] = diagonal[i]
+    N[nb:, nb:], N[nb:, :nb] = Nee, N[:nb, nb:].T
+    ws = _suffix_sums(traj.per_interval(w))[1:]
+    b[nb:] = (np.einsum("jab,ja->jb", dW, ws) + traj.per_interval(np.einsum("kab,ka->kb", V, w))).ravel()
     return N, b
+
+
+def position_change(traj: Trajectory, dp: np.ndarray, drag: bool) -> np.ndarray:
+    """dr(t) = C(t) G(t) dp (K, 3) at the trajectory's times, G's empirical part by prefix sums."""
+    C = traj.base(drag)[:, :3]
+    nb = C.shape[2]
+    h = np.broadcast_to(dp[:nb], (len(C), nb)).copy()
+    if len(dp) > nb:
+        dW, V = traj.steps(nb)
+        de = dp[nb:].reshape(-1, 3)
+        before = np.zeros((len(dW) + 1, nb))
+        before[1:] = np.cumsum(dW @ de[:, :, None], axis=0)[..., 0]   # sum_{j<s} dW_j de_j
+        h += before[traj.segment] + (V @ de[traj.segment][:, :, None])[..., 0]
+    return np.einsum("kai,ki->ka", C, h)
 
 
 def information(model: ForceModel, x0: np.ndarray, ballistic: float, t: np.ndarray, sigma: float,
@@ -249,7 +311,7 @@ def initial_guess(t: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, ballistic_guess: float = 0.0,
-              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-5,
+              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-8,
               warm_start_s: float = 5400.0) -> OrbitFit:
     """Batch least-squares orbit of one satellite from its position fixes z (K, 3) at times t (K,), noise
     sigma [m] per axis (module docstring). The state is first fitted over the first ``warm_start_s`` seconds
@@ -279,8 +341,7 @@ def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, bal
             ballistic += dp[6]
         if n_e:
             e = e + dp[-n_e:].reshape(-1, 3)
-        change = max(np.max(np.abs(traj.partials(slice(k, k + _chunk(n_params)), n_params, model.drag)[:, :3] @ dp))
-                     for k in range(0, len(t), _chunk(n_params)))
+        change = np.max(np.abs(position_change(traj, dp, model.drag)))
         if change < tol_m:
             break
     traj = propagate(x0, ballistic, e, model, t, t_edges, with_partials=False)
