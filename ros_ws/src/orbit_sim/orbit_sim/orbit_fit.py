@@ -311,7 +311,7 @@ def initial_guess(t: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, ballistic_guess: float = 0.0,
-              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-8,
+              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-5,
               warm_start_s: float = 5400.0) -> OrbitFit:
     """Batch least-squares orbit of one satellite from its position fixes z (K, 3) at times t (K,), noise
     sigma [m] per axis (module docstring). The state is first fitted over the first ``warm_start_s`` seconds
