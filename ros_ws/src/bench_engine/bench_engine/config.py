@@ -94,7 +94,7 @@ def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:
 
 def override_strings(mapping: dict) -> list[str]:
     """{key.path: value} -> ["key.path=value", ...] (values as flow-style YAML)."""
-    return [f"{k}={yaml.safe_dump(v, default_flow_style=True, width=10**6).strip().removesuffix(chr(10) + '...')}"
+    return [f"{k}={yamlio.dump(v, default_flow_style=True, width=10**6).strip().removesuffix(chr(10) + '...')}"
             for k, v in mapping.items()]
 
 

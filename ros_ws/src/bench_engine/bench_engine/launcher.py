@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import setproctitle
-import yaml
 
 from bench_engine import phases, plugins, yamlio
 from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
@@ -124,7 +123,7 @@ def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed
            "bag_dir": str(out / "bag"), "seed": scenario_seed(cfg)}
     run.update(extra or {})
     config_path = out / "run_config.yaml"
-    config_path.write_text(yaml.safe_dump(run, sort_keys=False))
+    config_path.write_text(yamlio.dump(run, sort_keys=False))
     plan = RunPlan(out, run, graph, config_path)
     write_parameters(plan)
     return plan

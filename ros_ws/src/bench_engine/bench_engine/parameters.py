@@ -50,7 +50,7 @@ def _array(values: list) -> list | None:
 
 def _yaml_text(value: Any) -> str:
     """One line of YAML (a lone scalar such as null without the document end marker YAML adds to it)."""
-    return yaml.safe_dump(value, default_flow_style=True, width=1 << 30).removesuffix("...\n").strip()
+    return yamlio.dump(value, default_flow_style=True, width=1 << 30).removesuffix("...\n").strip()
 
 
 def flatten(tree: dict, prefix: str = "") -> dict[str, Any]:
@@ -110,7 +110,7 @@ class _Quoted(str):
     double whenever it can (``3.986004418e14``, ``y``, ``0x1F``), where PyYAML's YAML 1.1 rules see a string."""
 
 
-class _ParametersDumper(yaml.SafeDumper):
+class _ParametersDumper(yamlio.DUMPER):
     pass
 
 

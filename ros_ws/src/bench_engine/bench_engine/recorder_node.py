@@ -20,9 +20,8 @@ import time
 from functools import partial
 from pathlib import Path
 
-import yaml
 
-from bench_engine import phases
+from bench_engine import phases, yamlio
 from bench_engine.bag import BagWriter, SimClock
 from bench_msgs.msg import StepAck
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
@@ -55,7 +54,7 @@ class RecorderNode(BenchNode):
     def setup(self) -> None:
         self.bag = BagWriter(self.run["bag_dir"])
         # The scorer needs the scenario (sensor models, scoring options): the bag carries its run config.
-        Path(self.run["bag_dir"], "run_config.yaml").write_text(yaml.safe_dump(self.run, sort_keys=False))
+        Path(self.run["bag_dir"], "run_config.yaml").write_text(yamlio.dump(self.run, sort_keys=False))
         self.counts: dict[str, int] = {}
         grid = build_time(self.cfg)
         self.sim_clock = SimClock(grid.start_ns)
