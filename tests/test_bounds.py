@@ -144,10 +144,11 @@ def test_leo_radar_ukf_error_is_above_the_pcrb_within_monte_carlo_tolerance_and_
         "prior: ukf}}}"])
     params = scoring_options(cfg).bounds["pcrb"].params
     runs = [bag_data(cfg, ["ukf"], seed) for seed in range(4)]
+    bounds = [PCRB.run(data, params) for data in runs]
     for after in (150.0, 250.0, 400.0):
         total = 0.0
-        for data in runs:
-            est, bound = data.estimates["ukf"], PCRB.run(data, params)
+        for data, bound in zip(runs, bounds):
+            est = data.estimates["ukf"]
             k = int(np.searchsorted(est.t, est.t[0] + after))
             j = int(np.searchsorted(bound.steps, est.steps[k]))
             e = est.x[k] - data.truth[int(est.steps[k])][1]
