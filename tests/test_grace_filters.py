@@ -340,15 +340,18 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
 
 
 def test_the_report_shows_the_distance_to_bound_b_where_the_run_was_scored_against_it() -> None:
+    """Bound (b) is scored per baseline axis (bench_eval.bounds: the baseline's labels are in no position /
+    velocity group), so the report's bounds table has a row per estimator and axis, in mm and mm/s."""
     from bench_studies.grace_velocity.report import grace_velocity_sections
     stats = {"std": 1e-3, "mean": 0.0, "max": 3e-3, "min": -3e-3}
     block = {"runs": 1, "rr_kbr": stats, "rr_truth": stats, "velocity_rmse": 2e-3, "kbr_noise_std": 1e-6}
-    group = {"rmse": 2e-3, "sqrt_bound": 1e-3, "efficiency": 0.5, "final_rmse": 2e-3, "final_sqrt_bound": 1e-3}
-    bound = {"position": group, "velocity": group}
+    axis = {"rmse": 2e-3, "sqrt_bound": 1e-3, "efficiency": 0.5, "final_rmse": 2e-3, "final_sqrt_bound": 1e-3}
+    bound = {"axes": {a: axis for a in ("bx", "by", "bz", "bvx", "bvy", "bvz")}}
     plain = grace_velocity_sections("grace_velocity", {"kf_a": block}, None, None)[0]
     scored = grace_velocity_sections("grace_velocity", {"kf_a": {**block, "bounds": {"orbit_crb": bound}}}, None,
                                      None)[0]
     assert len(plain.tables) == 1 and len(scored.tables) == 2
     rows = scored.tables[1].rows
-    assert [r[:3] for r in rows] == [["kf_a", "orbit_crb", "position [m]"], ["kf_a", "orbit_crb", "velocity [m/s]"]]
-    assert rows[0][5] == "0.5"
+    assert [r[:3] for r in rows] == [["kf_a", "orbit_crb", f"{a} [{u}]"] for a, u in (
+        ("bx", "mm"), ("by", "mm"), ("bz", "mm"), ("bvx", "mm/s"), ("bvy", "mm/s"), ("bvz", "mm/s"))]
+    assert rows[0][3:6] == ["2", "1", "0.5"]

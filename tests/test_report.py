@@ -102,16 +102,3 @@ def test_the_report_opens_with_the_claims_and_their_verdicts(tmp_path):
     row = next(line for line in text.splitlines() if "about 645 m" in line)
     assert row.endswith("| **holds only for ukf (95 % CI vs ±15 %, 8 runs)** |")
 
-
-def test_the_grace_report_places_the_baseline_against_bound_b_axis_by_axis():
-    """grace_velocity's bound (b) is scored per baseline axis (no position/velocity groups): its report's bounds
-    table has a row per estimator and axis, in mm and mm/s, with the efficiency as scored."""
-    from bench_studies.grace_velocity.report import grace_velocity_sections
-    axis = {"rmse": 2e-3, "sqrt_bound": 1e-3, "efficiency": 0.5, "final_rmse": 3e-3, "final_sqrt_bound": 1e-3}
-    scored = {"orbit_fit": {"bounds": {"orbit_crb": {"axes": {a: axis for a in ("bx", "by", "bz", "bvx", "bvy",
-                                                                                  "bvz")}}}}}
-    [section] = grace_velocity_sections("grace_velocity", scored, None, None)
-    bounds = section.tables[-1]
-    assert [row[2] for row in bounds.rows] == ["bx [mm]", "by [mm]", "bz [mm]", "bvx [mm/s]", "bvy [mm/s]",
-                                              "bvz [mm/s]"]
-    assert bounds.rows[0][3:6] == ["2", "1", "0.5"]
