@@ -127,12 +127,15 @@ def test_reduced_model_fits_worse_on_truth_data():
 
 def test_pair_orbit_fit_scores_in_grace_velocity():
     """The registered offline estimator on a short in-process grace_velocity run: its baseline range rate is
-    far closer to the truth than Savitzky-Golay's, and its covariance matches bound (b) at the truth."""
+    far closer to the truth than Savitzky-Golay's, its covariance matches bound (b) at the truth, and the
+    report's residual figure draws that bound (the metric's series carry it mapped to the range rate)."""
+    from matplotlib.figure import Figure
     from bench_engine.config import apply_overrides, load_scenario, select_variant
     from bench_eval.inprocess_runs import bag_data
     from bench_eval.scoring import run_offline, scoring_options
-    from bench_studies.grace_velocity.bounds import dynamic_bound, range_rate_sd
-    from bench_studies.grace_velocity.metrics import residuals
+    from bench_studies.grace_velocity.bounds import ORBIT_CRB
+    from bench_studies.grace_velocity.metrics import range_rate_bounds, range_rate_sd, residuals
+    from bench_studies.grace_velocity.report import _draw_residuals
 
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "dynamic"),
                           ["time.duration=3600.0", "default_filters=[kf_a]"])
@@ -142,8 +145,14 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
     run_offline(data, opts)
     rms = {n: np.sqrt(np.mean(residuals(data, n, opts.options)["truth"] ** 2)) for n in opts.offline}
     assert rms["orbit_fit"] < rms["savgol"] / 10
-    t, bound = dynamic_bound(data)
+    data.bounds = {"orbit_crb": ORBIT_CRB.run(data, {})}
+    bound = range_rate_bounds(data)["orbit_crb"]
     est = data.estimates["orbit_fit"]
     cols = [est.labels.index(c) for c in opts.options["baseline"]]
     own = range_rate_sd(est.x[:, cols[:3]], est.x[:, cols[3:]], est.P[:, cols][:, :, cols])
-    assert np.allclose(own, bound[np.isin(t, est.t)], rtol=0.05)
+    t0 = min(t for t, _ in data.truth.values())
+    assert np.allclose(own, bound["sd"][np.isin(bound["t"], est.t - t0)], rtol=0.05)
+    fig = Figure()
+    series = {**residuals(data, "orbit_fit", opts.options), "rr_bounds": {"orbit_crb": bound}}
+    _draw_residuals({"orbit_fit": series})(fig)
+    assert "√orbit_crb (vs truth)" in [line.get_label() for line in fig.axes[0].get_lines()]

@@ -19,20 +19,11 @@ from bench_engine.config import ScenarioError
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.offline import pair_force_model
 from bench_eval.scoring import BagData, Estimates
-from bench_studies.grace_velocity.metrics import range_rate
+from bench_studies.grace_velocity.metrics import BASELINE, range_rate_sd
 from orbit_sim.orbit_fit import information
 
-BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
 TRUTH_MODEL = {"zonal_degree": 6, "drag": True}
 """pair_hifi's force model as the fit's params (the scenario's truth.zonal_degree replaces the degree)."""
-
-
-def range_rate_sd(b: np.ndarray, w: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """sqrt(g' P g) per row for baselines b, w (K, 3) and their covariance P (K, 6, 6) (module docstring)."""
-    rng = np.linalg.norm(b, axis=1, keepdims=True)
-    b_hat = b / rng
-    g = np.hstack([(w - range_rate(b, w)[:, None] * b_hat) / rng, b_hat])
-    return np.sqrt(np.einsum("ki,kij,kj->k", g, P, g))
 
 
 def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) -> BoundSeries:

@@ -35,9 +35,22 @@ def _options(sec: Section) -> dict:
             "pairs": {k: list(v) for k, v in pairs.items()}}
 
 
+BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
+"""The baseline's labels (truth and estimates): position, then velocity."""
+
+
 def range_rate(b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """rho_dot = b . w / |b| (paper 002, eq. 27) per row."""
     return np.sum(b * w, axis=-1) / np.linalg.norm(b, axis=-1)
+
+
+def range_rate_sd(b: np.ndarray, w: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """sqrt(g' P g) per row for baselines b, w (K, 3) and their covariance P (K, 6, 6): the standard deviation of
+    rho_dot mapped by its gradient g = [(w - rho_dot b_hat) / |b|, b_hat] (bench_studies.grace_velocity.bounds)."""
+    rng = np.linalg.norm(b, axis=1, keepdims=True)
+    b_hat = b / rng
+    g = np.hstack([(w - range_rate(b, w)[:, None] * b_hat) / rng, b_hat])
+    return np.sqrt(np.einsum("ki,kij,kj->k", g, P, g))
 
 
 def _columns(labels: list[str], wanted: list[str]) -> list[int] | None:
@@ -139,13 +152,29 @@ def _kbr_noise(data: BagData, options: dict) -> float | None:
     return float(np.std(np.array([z[-1] for z in kbr.values()]) - range_rate(truth[:, :3], truth[:, 3:])))
 
 
-def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
-    """First run's residual time series per estimator (plots over the day)."""
+def range_rate_bounds(data: BagData) -> dict[str, dict[str, np.ndarray]]:
+    """Each bound on the baseline that ``data`` was scored against (bench_eval.bounds: ``data.bounds``) mapped
+    to the range rate at the truth: {bound: {t (s from the first truth step), sd}}."""
+    t0 = min(tt for tt, _ in data.truth.values())
+    cols = _columns(data.truth_labels, BASELINE)
     out = {}
+    for name, series in (data.bounds or {}).items():
+        if cols is None or list(series.labels) != BASELINE:
+            continue
+        truth = np.array([data.truth[int(k)][1][cols] for k in series.steps])
+        out[name] = {"t": series.t - t0, "sd": range_rate_sd(truth[:, :3], truth[:, 3:], series.P)}
+    return out
+
+
+def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+    """First run's residual time series per estimator (plots over the day), each with the first run's bounds
+    on the range rate (``rr_bounds``: the same for every estimator)."""
+    out = {}
+    bounds = range_rate_bounds(runs[0])
     for name in _names(tracks, runs, options):
         r = residuals(runs[0], name, options)
         if r is not None:
-            out[name] = {"t": r["t"], "kbr": r["kbr"], "truth": r["truth"]}
+            out[name] = {"t": r["t"], "kbr": r["kbr"], "truth": r["truth"], "rr_bounds": bounds}
     return out
 
 

@@ -8,7 +8,7 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import Plot, Section, Table, bounds_table, fmt, thin
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, thin
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -57,6 +57,11 @@ def _draw_residuals(series: Mapping):
             top.plot(tc / 3600.0, rms * MM, lw=1.0, marker=".", ms=3, label=name)
             zoom = t <= t[0] + 3 * 3600.0
             bottom.plot(t[zoom] / 3600.0, r[zoom] * MM, lw=0.6, label=name)
+        # the bounds on the range rate (the same for every estimator): against the truth, so below the KBR's noise
+        bounds = next((s["rr_bounds"] for s in series.values() if s.get("rr_bounds")), {})
+        for name, b in bounds.items():
+            tc, rms = rolling_rms(np.asarray(b["t"]), np.asarray(b["sd"]), 1800.0)
+            top.plot(tc / 3600.0, rms * MM, **BOUND_STYLE, label=f"√{name} (vs truth)")
         top.set_yscale("log")
         top.set_ylabel("RMS over 30 min [mm/s]")
         top.set_xlabel("time [h]")
