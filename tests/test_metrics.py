@@ -193,3 +193,19 @@ def test_score_formation_is_json_ready():
     json.dumps(scored, allow_nan=False)
     assert scored["pf"]["settling_time_s"] is None  # stationary unit-scale errors never go under 0.02 m/s
     assert set(scored["pf"]["mae"]) == set(LABELS)
+
+
+def test_effective_samples_count_independent_samples_not_steps():
+    """White noise is worth its length; an AR(1) series with phi = 0.9 about (1 - phi) / (1 + phi) of it; a smooth
+    error (two periods of a sine, as a fitted orbit's) almost nothing."""
+    from bench_eval.metrics import effective_samples
+    rng = np.random.default_rng(3)
+    n = 20000
+    assert 0.9 * n < effective_samples(rng.standard_normal(n)) <= n
+    ar = np.zeros(n)
+    w = rng.standard_normal(n)
+    for k in range(1, n):
+        ar[k] = 0.9 * ar[k - 1] + w[k]
+    assert effective_samples(ar) == pytest.approx(n * 0.1 / 1.9, rel=0.25)
+    smooth = np.sin(np.linspace(0.0, 4.0 * np.pi, n)) ** 2 + 1e-3 * rng.standard_normal(n)
+    assert effective_samples(smooth) < n / 500

@@ -178,6 +178,23 @@ def nees(track: Track, components: Components | None = None) -> np.ndarray:
     return np.einsum("ki,ki->k", e, np.linalg.solve(P, e[:, :, None])[:, :, 0])
 
 
+def effective_samples(x: np.ndarray) -> float:
+    """The number of independent samples a stationary series x (K,) is worth: K / (1 + 2 sum rho_k), its
+    autocorrelations rho_k summed up to the first lag where they stop being positive (Sokal's window). A filter's
+    NEES decorrelates in seconds; a fitted orbit's, a smooth function of a few parameters, hardly at all, so
+    chi-square bounds for a time average must count these samples, not the steps."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    n = len(x)
+    if n < 3 or not np.any(x):
+        return float(n)
+    spectrum = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    rho = acf[1:] / acf[0]
+    ends = np.flatnonzero(rho <= 0.0)
+    tau = 1.0 + 2.0 * float(np.sum(rho[:ends[0] if len(ends) else n - 1]))
+    return n / max(tau, 1.0)
+
+
 def nees_series(tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05,
                 tol: float = DEFAULT_TOL_S) -> dict:
     """Average NEES over runs per grid step and its two-sided (1 - alpha) chi-square bounds.

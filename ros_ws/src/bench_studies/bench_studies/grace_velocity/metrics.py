@@ -4,8 +4,8 @@ Paper 002's yardstick (eq. 27): the range rate implied by an estimated baseline 
 rho_dot = b . w / |b|, minus the K-band ranging (KBR) range rate of the same step: std, mean, max and min over
 the day. The bench also has the truth, which the paper did not: the same residual against the true range rate
 (the KBR's own noise removed), the baseline velocity error and, for the filters and smoothers, the NEES of the
-baseline position and velocity (``baseline_nees``, 6 dof, with its 95 % band): whether each filter's covariance
-tells the truth about its error.
+baseline position and velocity (``baseline_nees``, 6 dof, with the 95 % band of its effective samples:
+bench_eval.metrics.effective_samples): whether each filter's covariance tells the truth about its error.
 
 Options (``scoring`` section): ``kbr`` (the KBR sensor, default "kbr"), ``baseline`` (the six baseline labels,
 position then velocity), ``skip_s`` (the filters' start-up excluded, default 0) and ``pairs`` (name: [second
@@ -18,6 +18,7 @@ from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri
 
 from bench_engine.config import ScenarioError, Section
 from bench_eval.metric_families import Metric, Tracks
+from bench_eval.metrics import effective_samples
 from bench_eval.scoring import BagData
 
 STATS = ("std", "mean", "max", "min", "rms")
@@ -118,9 +119,11 @@ def _score_one(per_run: list[dict]) -> dict:
     out["velocity_rmse"] = float(np.mean(vel))
     out["velocity_rmse_runs"] = vel
     if all("nees" in r for r in per_run):
-        # the time-averaged baseline NEES; 6 dof, its 95 % band for this many samples (chi-square / samples)
-        samples = sum(len(r["nees"]) for r in per_run)
+        # the time-averaged baseline NEES; 6 dof, its 95 % band for the runs' effective samples (chi-square /
+        # samples): the steps of a run are far from independent (bench_eval.metrics.effective_samples)
+        samples = sum(effective_samples(r["nees"]) for r in per_run)
         out["baseline_nees"] = float(np.mean(np.concatenate([r["nees"] for r in per_run])))
+        out["baseline_nees_samples"] = float(samples)
         out["baseline_nees_bounds"] = [float(chdtri(6 * samples, 1.0 - q) / samples) for q in (0.025, 0.975)]
     return out
 

@@ -93,7 +93,7 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
     if paper:
         text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
     header = ["estimator", "runs", "std", "mean", "max", "min", "std vs truth", "mean vs truth",
-              "velocity RMSE (3D)", "baseline NEES, 6 dof [95 % band]"]
+              "velocity RMSE (3D)", "baseline NEES, 6 dof [95 % band of its effective samples]"]
     rows = [_row(n, b) for n, b in scored.items() if "rr_kbr" in b] + _paper_rows(paper or {})
     table = Table("Range-rate residual against the KBR [mm/s] (Table 1), and against the truth", header, rows)
     # the baseline against bound (b) axis by axis (the bound's groups), where the scenario scores it (variant dynamic)
