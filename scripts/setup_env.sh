@@ -78,8 +78,8 @@ if ! stamp_ok msgs "$msg_hash" || ! "$PY" -c "import bench_msgs.msg" 2>/dev/null
   rm -rf "$ROOT/ros_ws/build/bench_msgs"; mkdir -p "$ROOT/ros_ws/log"
   # MAKEFLAGS: colcon's default `make -j2 -l2` runs one job at a time while the other stages load the machine.
   MAKEFLAGS="-j$(nproc)" AMENT_PREFIX_PATH=$VENV CMAKE_PREFIX_PATH=$VENV PATH=$VENV/bin:$PATH \
-    COLCON_HOME=$ROOT/ros_ws/log/colcon_home "$VENV/bin/colcon" --log-base "$ROOT/ros_ws/log" build --base-paths ros_ws/src/bench_msgs \
-    --build-base "$ROOT/ros_ws/build" --install-base "$VENV" --merge-install \
+    COLCON_HOME=$ROOT/ros_ws/log/colcon_home "$VENV/bin/colcon" --log-base "$ROOT/ros_ws/log" build \
+    --base-paths ros_ws/src/bench_msgs --build-base "$ROOT/ros_ws/build" --install-base "$VENV" --merge-install \
     --cmake-args -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$msgs_log" 2>&1 &
   msgs_pid=$!
   msgs_start=$SECONDS
@@ -95,8 +95,8 @@ site=$("$PY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
 bytecode_pid=
 if ! stamp_ok bytecode "$req_hash"; then
   echo "[setup] compiling the wheels' bytecode (in the background)"
-  nice -n 10 "$PY" -m compileall -q -j 0 -x '/bench_msgs/|/tests?/|/site-packages/(plotly|narwhals|pip|pygments|docutils)/' \
-    "$site" > "$VENV/compileall.log" 2>&1 &
+  skip='/bench_msgs/|/tests?/|/site-packages/(plotly|narwhals|pip|pygments|docutils)/'
+  nice -n 10 "$PY" -m compileall -q -j 0 -x "$skip" "$site" > "$VENV/compileall.log" 2>&1 &
   bytecode_pid=$!
   bytecode_start=$SECONDS
 fi
@@ -117,9 +117,8 @@ if ! stamp_ok packages "$pkg_hash"; then
   stamp_set packages "$pkg_hash"
 fi
 
-# The bench's own modules compiled ahead (the wheels are compiled at install): where PYTHONDONTWRITEBYTECODE is
-# set (as on the machine this was measured on), every process would otherwise compile all it imports (0.1 s of CPU for a
-# score.py, on each of the test suite's hundreds of processes). Up-to-date files are skipped.
+# The bench's own modules compiled too, for the same reason as the wheels' (0.1 s of CPU for each score.py, on
+# each of the test suite's hundreds of processes). Up-to-date files are skipped.
 "$PY" -m compileall -q -j 0 ros_ws/src scripts > /dev/null \
   || echo "[setup] warning: some of the bench's modules do not compile (see python -m compileall ros_ws/src)" >&2
 

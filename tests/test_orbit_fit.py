@@ -47,7 +47,7 @@ def test_the_variational_partials_match_finite_differences():
     t_edges = edges(ARC[0], ARC[-1], EMPIRICAL.empirical_interval_s)
     e = 1.0e-7 * np.arange(9.0).reshape(3, 3)
     traj = propagate(X0, B_TRUE, e, EMPIRICAL, ARC, t_edges)
-    p0 = _p(X0, B_TRUE, e)
+    p0, partials = _p(X0, B_TRUE, e), _dense_partials(traj)
     steps = np.concatenate([[1.0] * 3, [1.0e-3] * 3, [1.0e-4], [1.0e-5] * 9])  # e: 16 m over 30 min
     for i, h in enumerate(steps):
         states = []
@@ -57,7 +57,7 @@ def test_the_variational_partials_match_finite_differences():
             states.append(propagate(p[:6], p[6], p[7:].reshape(3, 3), EMPIRICAL, ARC, t_edges,
                                     with_partials=False).x)
         fd = (states[0] - states[1]) / (2 * h)
-        analytic = _dense_partials(traj)[:, :, i]
+        analytic = partials[:, :, i]
         scale = np.max(np.abs(analytic), axis=0) + 1e-12
         # A holds the gradient of two-body + J2 only (module docstring): without drag's, dx/dB is off by about
         # 2e-3 of itself after 30 min, the cross-track empirical columns by 3e-4, the others by less

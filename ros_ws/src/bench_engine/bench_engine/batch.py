@@ -20,7 +20,6 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
 
-
 from bench_engine import yamlio
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError

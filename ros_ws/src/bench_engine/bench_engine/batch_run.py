@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-
 from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.views import SWITCH as VIEWS_SWITCH

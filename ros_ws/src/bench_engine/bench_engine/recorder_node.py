@@ -20,7 +20,6 @@ import time
 from functools import partial
 from pathlib import Path
 
-
 from bench_engine import phases, yamlio
 from bench_engine.bag import BagWriter, SimClock
 from bench_msgs.msg import StepAck

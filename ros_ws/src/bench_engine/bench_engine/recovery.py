@@ -98,7 +98,6 @@ def _parsed_qos(text: str) -> Any:
         return None
 
 
-
 class _Rebuild:
     """The new bag, written as the old file's records are read."""
 

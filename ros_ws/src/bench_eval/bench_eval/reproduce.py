@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-
 from bench_engine import yamlio
 from bench_engine.config import ScenarioError, Section
 

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping
 
-
 from bench_engine import plugins, yamlio
 from bench_eval.reproduce import Table, read_tables
 

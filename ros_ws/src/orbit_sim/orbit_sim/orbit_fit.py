@@ -114,10 +114,10 @@ class Trajectory:
         return out
 
 
-def _suffix_sums(per_interval: np.ndarray) -> np.ndarray:
-    """Suffix sums (J + 1, ...): row m is the sum of the rows j >= m (row J is zero)."""
-    out = np.zeros((len(per_interval) + 1, *per_interval.shape[1:]))
-    out[:-1] = np.cumsum(per_interval[::-1], axis=0)[::-1]
+def _sums_after(per_interval: np.ndarray) -> np.ndarray:
+    """(J, ...): row j is the sum of the rows after j (the last row is zero)."""
+    out = np.zeros_like(per_interval)
+    out[:-1] = np.cumsum(per_interval[:0:-1], axis=0)[::-1]
     return out
 
 
@@ -218,15 +218,14 @@ def state_covariance(traj: Trajectory, covariance: np.ndarray, drag: bool) -> np
     n_seg = len(dW)
     X = covariance[:nb].copy()                      # Cov(y_s, p)
     Y = covariance[:nb, :nb].copy()                 # Cov(y_s)
-    Ys, Zs = np.empty((n_seg, nb, nb)), np.empty((n_seg, nb, 3))
+    Ys, Zs, Cee = np.empty((n_seg, nb, nb)), np.empty((n_seg, nb, 3)), np.empty((n_seg, 3, 3))
     for j in range(n_seg):
         e_rows = slice(nb + 3 * j, nb + 3 * j + 3)
         Z = X[:, e_rows]                            # Cov(y_s, e_s)
-        Ys[j], Zs[j] = Y, Z
+        Ys[j], Zs[j], Cee[j] = Y, Z, covariance[e_rows, e_rows]
         step = dW[j] @ Z.T
-        Y = Y + step + step.T + dW[j] @ covariance[e_rows, e_rows] @ dW[j].T
+        Y = Y + step + step.T + dW[j] @ Cee[j] @ dW[j].T
         X = X + dW[j] @ covariance[e_rows]
-    Cee = np.stack([covariance[nb + 3 * j:nb + 3 * j + 3, nb + 3 * j:nb + 3 * j + 3] for j in range(n_seg)])
     seg = traj.segment
     cross = Zs[seg] @ V.transpose(0, 2, 1)
     Ch = Ys[seg] + cross + cross.transpose(0, 2, 1) + V @ Cee[seg] @ V.transpose(0, 2, 1)
@@ -253,7 +252,7 @@ def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: in
         return N, b
     dW, V = traj.steps(nb)
     n_seg = len(dW)
-    S = _suffix_sums(traj.per_interval(M))[1:]                       # S_j+1, (J, nb, nb)
+    S = _sums_after(traj.per_interval(M))                            # S_j+1, (J, nb, nb)
     Q = S @ dW + traj.per_interval(M @ V)
     N[:nb, nb:] = Q.transpose(1, 0, 2).reshape(nb, 3 * n_seg)
     j = np.arange(n_seg)
@@ -261,10 +260,9 @@ def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: in
     Nee = upper.reshape(3 * n_seg, 3 * n_seg)
     Nee = Nee + Nee.T
     diagonal = dW.transpose(0, 2, 1) @ S @ dW + traj.per_interval(V.transpose(0, 2, 1) @ M @ V)
-    for i in range(n_seg):
-        Nee[3 * i:3 * i + 3, 3 * i:3 * i + 3] = diagonal[i]
+    Nee.reshape(n_seg, 3, n_seg, 3)[j, :, j, :] = diagonal
     N[nb:, nb:], N[nb:, :nb] = Nee, N[:nb, nb:].T
-    ws = _suffix_sums(traj.per_interval(w))[1:]
+    ws = _sums_after(traj.per_interval(w))
     b[nb:] = (np.einsum("jab,ja->jb", dW, ws) + traj.per_interval(np.einsum("kab,ka->kb", V, w))).ravel()
     return N, b
 

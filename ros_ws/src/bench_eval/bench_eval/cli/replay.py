@@ -20,7 +20,7 @@ import yaml
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
-from bench_engine import yamlio
+from bench_engine import yamlio  # noqa: E402
 from bench_engine.bag import BagDamaged, BagReader  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402

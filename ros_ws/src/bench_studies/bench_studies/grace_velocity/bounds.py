@@ -19,7 +19,7 @@ from bench_engine.config import ScenarioError
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.offline import pair_force_model
 from bench_eval.scoring import BagData, Estimates
-from bench_studies.grace_velocity.metrics import BASELINE, range_rate_sd
+from bench_studies.grace_velocity.metrics import BASELINE, range_rate_bound, range_rate_sd
 from orbit_sim.orbit_fit import information
 
 TRUTH_MODEL = {"zonal_degree": 6, "drag": True}
@@ -51,9 +51,7 @@ def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2"))
 def dynamic_bound(data: BagData) -> tuple[np.ndarray, np.ndarray]:
     """Bound (b) on the range rate: (t (K,), its standard deviation's bound (K,)), at the truth's baseline."""
     series = baseline_bound(data)
-    cols = [data.truth_labels.index(c) for c in BASELINE]
-    truth = np.array([data.truth[int(k)][1][cols] for k in series.steps])
-    return series.t, range_rate_sd(truth[:, :3], truth[:, 3:], series.P)
+    return series.t, range_rate_bound(data, series)
 
 
 def _orbit_crb_check(cfg: dict, params: dict) -> None:

@@ -155,18 +155,22 @@ def _kbr_noise(data: BagData, options: dict) -> float | None:
     return float(np.std(np.array([z[-1] for z in kbr.values()]) - range_rate(truth[:, :3], truth[:, 3:])))
 
 
+def range_rate_bound(data: BagData, series) -> np.ndarray:
+    """A bound on the baseline (bench_eval.bounds.BoundSeries over BASELINE) mapped to the range rate at the
+    truth: its standard deviation's bound (K,) at the series' steps."""
+    cols = [data.truth_labels.index(c) for c in BASELINE]
+    truth = np.array([data.truth[int(k)][1][cols] for k in series.steps])
+    return range_rate_sd(truth[:, :3], truth[:, 3:], series.P)
+
+
 def range_rate_bounds(data: BagData) -> dict[str, dict[str, np.ndarray]]:
     """Each bound on the baseline that ``data`` was scored against (bench_eval.bounds: ``data.bounds``) mapped
     to the range rate at the truth: {bound: {t (s from the first truth step), sd}}."""
+    if _columns(data.truth_labels, BASELINE) is None:
+        return {}
     t0 = min(tt for tt, _ in data.truth.values())
-    cols = _columns(data.truth_labels, BASELINE)
-    out = {}
-    for name, series in (data.bounds or {}).items():
-        if cols is None or list(series.labels) != BASELINE:
-            continue
-        truth = np.array([data.truth[int(k)][1][cols] for k in series.steps])
-        out[name] = {"t": series.t - t0, "sd": range_rate_sd(truth[:, :3], truth[:, 3:], series.P)}
-    return out
+    return {name: {"t": series.t - t0, "sd": range_rate_bound(data, series)}
+            for name, series in (data.bounds or {}).items() if list(series.labels) == BASELINE}
 
 
 def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
