@@ -197,15 +197,33 @@ def test_score_formation_is_json_ready():
 
 def test_effective_samples_count_independent_samples_not_steps():
     """White noise is worth its length; an AR(1) series with phi = 0.9 about (1 - phi) / (1 + phi) of it; a smooth
-    error (two periods of a sine, as a fitted orbit's) almost nothing."""
+    error (two periods of a sine, as a fitted orbit's) almost nothing; and many runs of white noise their total."""
     from bench_eval.metrics import effective_samples
     rng = np.random.default_rng(3)
     n = 20000
-    assert 0.9 * n < effective_samples(rng.standard_normal(n)) <= n
+    assert 0.9 * n < effective_samples([rng.standard_normal(n)]) <= n
+    assert 0.9 * n < effective_samples(list(rng.standard_normal((8, n // 8)))) <= n
     ar = np.zeros(n)
     w = rng.standard_normal(n)
     for k in range(1, n):
         ar[k] = 0.9 * ar[k - 1] + w[k]
-    assert effective_samples(ar) == pytest.approx(n * 0.1 / 1.9, rel=0.25)
+    assert effective_samples([ar]) == pytest.approx(n * 0.1 / 1.9, rel=0.25)
     smooth = np.sin(np.linspace(0.0, 4.0 * np.pi, n)) ** 2 + 1e-3 * rng.standard_normal(n)
-    assert effective_samples(smooth) < n / 500
+    assert effective_samples([smooth]) < n / 500
+
+
+def test_runs_that_sit_at_their_own_levels_are_worth_about_one_sample_each():
+    """A fitted orbit's NEES oscillates within a run about a level set by that run's parameter error: each run's
+    own autocorrelation, taken about its own mean, would count about 50 samples a run here;
+    the spread of the runs' levels says the batch is worth about one sample per run. Runs at one common level
+    (a filter's) still count their steps."""
+    from bench_eval.metrics import effective_samples
+    rng = np.random.default_rng(5)
+    runs, n = 20, 8640
+    phase = np.linspace(0.0, 32.0 * np.pi, n)
+    levels = rng.chisquare(6, runs)
+    fitted = [level + 0.3 * level * np.sin(phase + rng.uniform(0, 6.3)) for level in levels]
+    assert 0.3 * runs < effective_samples(fitted) <= 1.2 * runs
+    assert effective_samples(fitted[:1]) > 10                    # one run alone cannot see its own level
+    steady = [6.0 + rng.standard_normal(n) for _ in range(runs)]
+    assert effective_samples(steady) > 0.9 * runs * n

@@ -178,21 +178,40 @@ def nees(track: Track, components: Components | None = None) -> np.ndarray:
     return np.einsum("ki,ki->k", e, np.linalg.solve(P, e[:, :, None])[:, :, 0])
 
 
-def effective_samples(x: np.ndarray) -> float:
-    """The number of independent samples a stationary series x (K,) is worth: K / (1 + 2 sum rho_k), its
-    autocorrelations rho_k summed up to the first lag where they stop being positive (Sokal's window). A filter's
-    NEES decorrelates in seconds; a fitted orbit's, a smooth function of a few parameters, hardly at all, so
-    chi-square bounds for a time average must count these samples, not the steps."""
-    x = np.asarray(x, dtype=float) - np.mean(x)
-    n = len(x)
-    if n < 3 or not np.any(x):
-        return float(n)
-    spectrum = np.fft.rfft(x, 2 * n)
-    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-    rho = acf[1:] / acf[0]
-    ends = np.flatnonzero(rho <= 0.0)
-    tau = 1.0 + 2.0 * float(np.sum(rho[:ends[0] if len(ends) else n - 1]))
-    return n / max(tau, 1.0)
+def effective_samples(runs: Sequence[np.ndarray]) -> float:
+    """The number of independent samples a batch of runs of one stationary series is worth (the multi-run
+    effective sample size of Gelman et al., "Bayesian Data Analysis", 3rd ed., section 11.5, as Stan computes
+    it): the steps over tau = 1 + 2 sum_t rho_t. The autocorrelation at lag t is pooled over the M runs,
+
+        rho_t = 1 - (W - mean_m gamma_m(t)) / var+,   var+ = (n - 1) / n W + B / n,
+
+    W the mean within-run variance, B / n the variance of the run means and gamma_m(t) run m's autocovariance
+    (the runs cut to the shortest's n steps), and summed in Geyer's (1992) initial positive, monotone sequence of
+    pairs rho_2k + rho_2k+1. A filter's NEES decorrelates within seconds. A fitted orbit's error is a smooth
+    function of a few parameters per run: within a run its NEES oscillates about a level set by that run's
+    parameter error, which a run's own autocorrelation (taken about its own mean) cannot see; the spread of the
+    runs' means does, and a batch of such runs is worth about one sample per run. A chi-square band for a time
+    average must count these samples, not the steps."""
+    x = [np.asarray(r, dtype=float) for r in runs if len(r)]
+    total = sum(len(r) for r in x)
+    n = min((len(r) for r in x), default=0)
+    if n < 4:
+        return float(total)
+    chains = np.stack([r[:n] for r in x])
+    means = chains.mean(axis=1)
+    centred = chains - means[:, None]
+    spectrum = np.fft.rfft(centred, 2 * n, axis=1)
+    acov = np.fft.irfft(spectrum * np.conj(spectrum), axis=1)[:, :n] / n
+    within = float(np.mean(acov[:, 0])) * n / (n - 1)
+    var_plus = within * (n - 1) / n + (float(np.var(means, ddof=1)) if len(x) > 1 else 0.0)
+    if var_plus <= 0.0:
+        return float(total)
+    rho = 1.0 - (within - acov.mean(axis=0)) / var_plus
+    pairs = rho[:n - n % 2].reshape(-1, 2).sum(axis=1)
+    ends = np.flatnonzero(pairs <= 0.0)
+    pairs = np.minimum.accumulate(pairs[:ends[0] if len(ends) else len(pairs)])
+    tau = -1.0 + 2.0 * float(np.sum(pairs))
+    return total / max(tau, 1.0)
 
 
 def nees_series(tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05,

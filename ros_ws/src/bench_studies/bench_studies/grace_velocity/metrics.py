@@ -121,7 +121,7 @@ def _score_one(per_run: list[dict]) -> dict:
     if all("nees" in r for r in per_run):
         # the time-averaged baseline NEES; 6 dof, its 95 % band for the runs' effective samples (chi-square /
         # samples): the steps of a run are far from independent (bench_eval.metrics.effective_samples)
-        samples = sum(effective_samples(r["nees"]) for r in per_run)
+        samples = effective_samples([r["nees"] for r in per_run])
         out["baseline_nees"] = float(np.mean(np.concatenate([r["nees"] for r in per_run])))
         out["baseline_nees_samples"] = float(samples)
         out["baseline_nees_bounds"] = [float(chdtri(6 * samples, 1.0 - q) / samples) for q in (0.025, 0.975)]
