@@ -307,6 +307,7 @@ def test_the_range_rate_residual_reports_a_known_bias_with_its_sign(bias_mm_s: f
         assert kbr["rms"] == pytest.approx(np.hypot(expect, s), rel=1e-6)
     expected_nees = np.mean((bias[10:] ** 2 + 0.05 ** 2) / sigma_v ** 2)
     assert scores["est"]["baseline_nees"] == pytest.approx(expected_nees, rel=1e-9)
+    assert scores["est"]["baseline_nees_runs"] == pytest.approx([expected_nees], rel=1e-9)
     assert "baseline_nees" not in scores["pair"]                # a pair has no joint covariance
 
 

@@ -5,7 +5,8 @@ rho_dot = b . w / |b|, minus the K-band ranging (KBR) range rate of the same ste
 the day. The bench also has the truth, which the paper did not: the same residual against the true range rate
 (the KBR's own noise removed), the baseline velocity error and, for the filters and smoothers, the NEES of the
 baseline position and velocity (``baseline_nees``, 6 dof, with the 95 % band of its effective samples:
-bench_eval.metrics.effective_samples): whether each filter's covariance tells the truth about its error.
+bench_eval.metrics.effective_samples, and each run's own time average, ``baseline_nees_runs``): whether each
+filter's covariance tells the truth about its error.
 
 Options (``scoring`` section): ``kbr`` (the KBR sensor, default "kbr"), ``baseline`` (the six baseline labels,
 position then velocity), ``skip_s`` (the filters' start-up excluded, default 0) and ``pairs`` (name: [second
@@ -123,6 +124,7 @@ def _score_one(per_run: list[dict]) -> dict:
         # samples): the steps of a run are far from independent (bench_eval.metrics.effective_samples)
         samples = effective_samples([r["nees"] for r in per_run])
         out["baseline_nees"] = float(np.mean(np.concatenate([r["nees"] for r in per_run])))
+        out["baseline_nees_runs"] = [float(np.mean(r["nees"])) for r in per_run]
         out["baseline_nees_samples"] = float(samples)
         out["baseline_nees_bounds"] = [float(chdtri(6 * samples, 1.0 - q) / samples) for q in (0.025, 0.975)]
     return out
