@@ -37,8 +37,8 @@ RTOL, ATOL = 1.0e-13, 1.0e-8
 solve_ivp's error norm is the RMS over all 102 components, and the partials, far inside their own tolerance,
 dilute the state's six. Over a day of grace_velocity (full force model, from the true state) the position drifts
 0.044 mm with the partials, 0.009 mm without, against the fit's 0.2-0.6 mm sigma; at rtol 1e-11 it drifted
-1.7 mm, and the baseline NEES (6 dof, dynamic variant, seed 1, one day) was 38.0 there, 19.4 at 2.5e-12 and 13.6
-here. The fit costs 1.7x as much as at 1e-11."""
+1.7 mm, and the baseline NEES (6 dof, dynamic variant, seed 1, one day, against the truth of the time) was 38.0
+there, 19.4 at 2.5e-12 and 13.6 here. The fit costs 1.7x as much as at 1e-11."""
 ATOL_PARTIALS = 1.0e-5
 """Absolute tolerance of the partials (their relative tolerance is RTOL): the trajectory sets the steps."""
 
