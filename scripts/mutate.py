@@ -62,6 +62,7 @@ JPDA = f"{SRC}/star_tracker/star_tracker/jpdaf.py"
 CQKF = f"{SRC}/tracker_filters/tracker_filters/cqkf.py"
 CUBATURE = f"{SRC}/tracker_filters/tracker_filters/cubature.py"
 PF = f"{SRC}/tracker_filters/tracker_filters/pf.py"
+METRICS = f"{SRC}/bench_eval/bench_eval/metrics.py"
 
 SMOOTHING_TESTS = ("tests/test_smoothing.py::test_rts_equals_the_batch_least_squares_solution",
                    "tests/test_smoothing.py::test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates",
@@ -144,6 +145,13 @@ MUTATIONS = [
     Mutation("sir_without_process_noise", PF, "noise = sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
              "noise = 0.0 * sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
              ("tests/test_pf.py",), "SIR prediction without its draw of Q"),
+    # effective samples of a NEES time average (bench_eval/metrics.py, BDA3 section 11.5)
+    Mutation("ess_without_between_runs", METRICS,
+             "var_plus = within * (n - 1) / n + (float(np.var(means, ddof=1)) if len(x) > 1 else 0.0)",
+             "var_plus = within * (n - 1) / n", ("tests/test_metrics.py",),
+             "effective samples blind to the spread of the runs' means"),
+    Mutation("ess_counts_every_step", METRICS, "return total / max(tau, 1.0)", "return float(total)",
+             ("tests/test_metrics.py",), "effective samples count every step"),
 ]
 
 
