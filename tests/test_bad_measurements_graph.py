@@ -10,7 +10,8 @@ from graph_helpers import SHORT_PASS, read_bag, script
 from rclpy.serialization import deserialize_message, serialize_message
 
 from bench_msgs.msg import RangeAzEl
-from bench_engine.bag import BagReader, BagWriter
+from bench_engine.bag_reader import BagReader
+from bench_engine.bag_writer import BagWriter
 
 NAN_STEP, INF_STEP, LATE_STEP = 50, 51, 60
 

@@ -20,7 +20,9 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 import orbit_sim
-from bench_engine.bag import BagReader, BagWriter, dump_yaml, offered_qos
+from bench_engine.bag_metadata import dump_yaml, offered_qos
+from bench_engine.bag_reader import BagReader
+from bench_engine.bag_writer import BagWriter
 from bench_engine.msg_schema import SEPARATOR, dependencies, message_class, msg_text, schema_text, type_hash
 
 T0_NS = 1_700_000_000_000_000_000
@@ -418,7 +420,7 @@ CHILD = """
 import signal, sys
 from rclpy.serialization import serialize_message
 from bench_msgs.msg import StepAck
-from bench_engine.bag import BagWriter
+from bench_engine.bag_writer import BagWriter
 
 writer = BagWriter(sys.argv[1])
 writer.add_topic("/sim/ack", "bench_msgs/msg/StepAck")

@@ -2,7 +2,7 @@
 hash to the digests recorded before the package reshape (tests/data/bag_digests.json: per topic, the SHA-256
 of every message's CDR bytes in the order the recorder wrote them, and the message count); star_tracker's since
 the nodes zero the CDR padding (bench_engine.cdr), which rclpy left as its reused buffer's bytes. Log times are
-not hashed: they became sim time (bench_engine.bag.SimClock) with the bytes and their order unchanged.
+not hashed: they became sim time (bench_engine.sim_clock) with the bytes and their order unchanged.
 
 A deliberate change of a model, a noise draw or a message changes these digests; regenerate the file then,
 and say why in the commit.

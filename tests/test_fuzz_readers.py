@@ -65,7 +65,9 @@ from mcap.stream_reader import breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from bench_engine import cdr
-from bench_engine.bag import MAX_CHUNK_BYTES, BagReader, BagWriter, RecordScan
+from bench_engine.bag_reader import BagReader
+from bench_engine.bag_writer import BagWriter
+from bench_engine.mcap_records import MAX_CHUNK_BYTES, RecordScan
 from bench_engine.bag_errors import BagDamaged, BagError, BagUnrecoverable, BagUnsupported, MessageDamaged
 from bench_engine.columns import NoColumnarLayout, table
 from bench_engine.recovery import recover
@@ -548,9 +550,9 @@ def scan_messages(scan: RecordScan):
 
 
 def test_the_reader_limits_refuse_before_reading(bags, monkeypatch):
-    """The sane bounds the reader holds every file to (bench_engine.bag: MAX_SUMMARY_BYTES, MAX_RECORD_BYTES,
+    """The sane bounds the reader holds every file to (bench_engine.mcap_records: MAX_SUMMARY_BYTES, MAX_RECORD_BYTES,
     MAX_CHUNK_BYTES), lowered below what the leo_radar bag needs: each read is refused, naming the limit."""
-    import bench_engine.bag as bag_module
+    import bench_engine.mcap_records as bag_module
     bag = bags["leo"]
     for limit, read in (("MAX_SUMMARY_BYTES", lambda r: r.topics()),
                         ("MAX_RECORD_BYTES", lambda r: r.payloads(list(bag.topics))),
@@ -558,7 +560,7 @@ def test_the_reader_limits_refuse_before_reading(bags, monkeypatch):
                         ("MAX_RECORD_BYTES", lambda r: list(RecordScan(next(bag.directory.glob("*.mcap")))))):
         with monkeypatch.context() as patch:
             patch.setattr(bag_module, limit, 1000)
-            with pytest.raises(BagDamaged, match=f"bench_engine.bag.{limit}"):
+            with pytest.raises(BagDamaged, match=f"bench_engine.mcap_records.{limit}"):
                 read(BagReader(bag.directory, recover=False))
 
 
@@ -968,7 +970,8 @@ def test_huge_claims_are_refused_before_allocating(bags, hostile, tmp_path, trac
 HOSTILE_READ = r'''
 import json, resource, sys
 from pathlib import Path
-from bench_engine.bag import BagReader, RecordScan
+from bench_engine.bag_reader import BagReader
+from bench_engine.mcap_records import RecordScan
 from bench_engine.bag_errors import BagError
 from rclpy.serialization import deserialize_message  # noqa: F401 - loaded before the cap, as the readers use it
 

@@ -3,7 +3,7 @@
 1. No import circle. The imports a module runs when it is imported (every import statement outside a function
    body, ``if TYPE_CHECKING:`` ones included: a circle of annotations is a circle of design too) close no cycle
    among the bench's modules; the failure names the cycle. A function-level import only hides a circle, so the
-   imports inside functions may close no new one either: HIDDEN_CIRCLES lists the ones still to break.
+   imports inside functions may close none either.
 2. Node-kind modules are cheap to import (ARCHITECTURE.md, "A pipeline stage"): every node reads every registered
    node kind to build the graph (bench_engine.graph.node_kinds()), so loading them, in a fresh interpreter, loads
    none of HEAVY. A kind imports what its core needs where the core is built.
@@ -23,14 +23,6 @@ ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
 PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
             "bench_eval", "bench_studies")
-
-HIDDEN_CIRCLES = [
-    # bag.BagReader recovers an incomplete bag on open (recovery.ensure_complete), recovery rebuilds it with
-    # bag.BagWriter: the writer belongs in a module below recovery, the reader (which recovers) above it.
-    {"bench_engine.bag", "bench_engine.recovery"},
-]
-"""Circles held apart by a function-level import today, each a debt (how to break it in its comment). The test
-tolerates them, not more: a new circle, or one of these grown by a module, fails."""
 
 HEAVY = {
     "scipy": "every scipy module (scipy.linalg alone: about 200 ms, it loads numpy.testing)",
@@ -180,11 +172,11 @@ def test_no_module_level_import_closes_a_circle():
         describe(c, graph) for c in found)
 
 
-def test_function_level_imports_hide_no_new_circle():
+def test_function_level_imports_hide_no_circle():
     graph = import_graph(module_level_only=False)
-    new = [c for c in circles(graph) if set(c) not in HIDDEN_CIRCLES]
-    assert not new, ("import circles held apart only by function-level imports (move what both modules need "
-                     "below them):\n" + "\n".join(describe(c, graph) for c in new))
+    found = circles(graph)
+    assert not found, ("import circles held apart only by function-level imports (move what both modules need "
+                       "below them):\n" + "\n".join(describe(c, graph) for c in found))
 
 
 def test_the_cycle_finder_names_a_cycle():

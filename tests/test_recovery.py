@@ -12,9 +12,11 @@ from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from rclpy.serialization import serialize_message
 
-from bench_engine.bag import BagReader, BagWriter
+from bench_engine.bag_reader import BagReader
+from bench_engine.bag_writer import BagWriter
 from bench_engine.msg_schema import message_class
-from bench_engine.recovery import BagUnrecoverable, needs_recovery, recover
+from bench_engine.bag_errors import BagUnrecoverable
+from bench_engine.recovery import needs_recovery, recover
 from graph_helpers import read_bag, script
 
 TRUTH = "bench_msgs/msg/TruthState"

@@ -1,5 +1,5 @@
 """Bags on the sim's time line: every recorded message's log and publish time is its sim time
-(bench_engine.bag.SimClock, the recorder's rule), so Foxglove, PlotJuggler, rosbags and ``ros2 bag play`` show a
+(bench_engine.sim_clock, the recorder's rule), so Foxglove, PlotJuggler, rosbags and ``ros2 bag play`` show a
 420 s pass as 420 s. Checked on the rule itself for any message type and hostile bytes, then on real graph runs
 read by rosbags and by mcap's reader: recorded, recovered after the recorder was killed, and replayed."""
 from __future__ import annotations
@@ -21,7 +21,8 @@ from mcap.stream_reader import breakup_chunk
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 
-from bench_engine.bag import BagReader, SimClock, StampRule, leading_stamp_ns, stamp_rule
+from bench_engine.bag_reader import BagReader
+from bench_engine.sim_clock import SimClock, StampRule, leading_stamp_ns, stamp_rule
 from bench_engine.msg_schema import message_class
 from bench_engine.recorder_node import WALL_DURATION_KEY, WALL_START_KEY
 from bench_engine.views import SUFFIXES

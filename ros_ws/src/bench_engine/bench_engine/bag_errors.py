@@ -1,4 +1,5 @@
-"""The errors of the bag readers (bench_engine.bag, bench_engine.columns, bench_engine.recovery), in one place.
+"""The errors of the bag readers (bench_engine.bag_reader, bench_engine.mcap_records, bench_engine.columns,
+bench_engine.recovery), in one place.
 
 Every reader turns whatever is wrong with a bag into one of these, with a one-line message naming the file
 (or the topic) and what is wrong; no library error (zstd, lz4, struct, mcap's, rclpy's) leaves a reader::
@@ -14,9 +15,8 @@ Every reader turns whatever is wrong with a bag into one of these, with a one-li
         └── BagUnsupported     an intact bag the bench does not read: storage other than MCAP, a message type
                                that is not installed or has no columnar layout
 
-The classes are ValueErrors, as the readers raised before they had their own. bench_engine.bag and
-bench_engine.recovery re-export the ones they raise; this module imports nothing, so the lowest reader
-(bench_engine.columns) can raise them too.
+The classes are ValueErrors, as the readers raised before they had their own. This module imports nothing, so
+the lowest reader (bench_engine.columns) can raise them too.
 """
 from __future__ import annotations
 

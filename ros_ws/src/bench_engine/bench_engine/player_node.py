@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from collections import defaultdict
 
-from bench_engine.bag import BagReader
+from bench_engine.bag_reader import BagReader
 from bench_engine.bench_node import node_main
 from bench_engine.cdr import deserialize
 from bench_engine.graph import CLOCK_TOPIC, TRUTH_TOPIC

@@ -6,7 +6,7 @@ announced on ``/sim/totals`` (without them, once the other nodes have left and n
 FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
 killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
 
-Log times are sim time (bench_engine.bag.SimClock, decided per topic from its type when it is declared): a
+Log times are sim time (bench_engine.sim_clock.SimClock, decided per topic from its type when it is declared): a
 message's log and publish times are its ``header.stamp`` if its type opens with a std_msgs/Header, a
 rosgraph_msgs/Clock's own time, and otherwise the latest /clock received (the run's start before the first),
 so Foxglove, PlotJuggler, rosbags or ``ros2 bag play`` show and play the run on the sim's time line. The wall
@@ -21,7 +21,8 @@ from functools import partial
 from pathlib import Path
 
 from bench_engine import phases, yamlio
-from bench_engine.bag import BagWriter, SimClock
+from bench_engine.bag_writer import BagWriter
+from bench_engine.sim_clock import SimClock
 from bench_msgs.msg import StepAck
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
 from bench_engine.graph import CLOCK_TOPIC, TOTALS_TOPIC

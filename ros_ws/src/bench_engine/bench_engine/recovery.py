@@ -4,7 +4,7 @@ A recorder killed without running Python code (SIGKILL, a crash of the interpret
 summary and footer, and no ``metadata.yaml``: readers refuse it. The recorder flushes a chunk at least every
 second of sim time (bench_engine.recorder_node), so the file holds every chunk up to the last flush, then
 perhaps a partial record. :func:`recover` reads the records in order up to the first incomplete or damaged one
-(bench_engine.bag.RecordScan: every length checked against the file, every chunk decompressed within its claimed
+(bench_engine.mcap_records.RecordScan: every length checked against the file, every chunk decompressed within its claimed
 size and checked against its CRC), and writes a new, complete bag (MCAP with summary, ``metadata.yaml``) with
 every message it found, keeping the damaged file as ``<name>.mcap.truncated``; it reports what it kept and what
 it could not read. Like ``ros2 bag reindex``, but for a file whose tail is missing.
@@ -13,7 +13,7 @@ It streams: each chunk's messages go to the new bag's writer as soon as the chun
 the writer whenever :data:`WAIT_BYTES` of messages are queued, so what it holds is about one chunk of the old
 file and a few of the new one, whatever the size of the bag (tests/test_recovery.py measures it).
 
-Messages keep their log and publish times (sim time, bench_engine.bag.SimClock) and their order in the file:
+Messages keep their log and publish times (sim time, bench_engine.sim_clock) and their order in the file:
 log times are not monotonic across topics, and the rebuilt bag reads like one the recorder closed. A bag
 rebuilt with ``--force`` keeps its ``metadata.yaml``'s ``custom_data`` (the recorder's wall-clock span).
 
@@ -34,8 +34,9 @@ import yaml
 from mcap.records import Channel, Schema
 
 from bench_engine import yamlio
-from bench_engine.bag import CHUNK_SIZE, BagWriter, RecordScan
-from bench_engine.bag_errors import BagDamaged, BagUnrecoverable, BagUnsupported  # noqa: F401 - re-exported
+from bench_engine.bag_errors import BagDamaged, BagUnrecoverable, BagUnsupported
+from bench_engine.bag_writer import CHUNK_SIZE, BagWriter
+from bench_engine.mcap_records import RecordScan
 
 WAIT_BYTES = 4 * CHUNK_SIZE
 """Message bytes handed to the new bag's writer before :func:`recover` waits for it to write them."""

@@ -39,7 +39,7 @@ Conventions:
   position to this one), at most one per :data:`MARKER_PERIOD_S` of sim time, each with its own id in the
   namespace of the node and no lifetime: a viewer accumulates them, and every message is the same few bytes. A
   Marker rather than a MarkerArray: it opens with its header, so the recorder logs it at its sim time
-  (bench_engine.bag.SimClock), as every other view.
+  (bench_engine.sim_clock.SimClock), as every other view.
 """
 from __future__ import annotations
 

@@ -15,7 +15,8 @@ import numpy as np
 import yaml
 
 from bench_engine import plugins, yamlio
-from bench_engine.bag import BagDamaged, BagReader
+from bench_engine.bag_errors import BagDamaged
+from bench_engine.bag_reader import BagReader
 from bench_engine.columns import Table
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner

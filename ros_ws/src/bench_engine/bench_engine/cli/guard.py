@@ -5,7 +5,7 @@ documented exit code; a traceback only for a bug, followed by one line saying it
         sys.exit(run_main(main))
 
 Expected failures: ``ScenarioError`` (a scenario, parameter or option), a bag that is not one or is damaged
-(``bench_engine.bag.BagDamaged``, ``bench_engine.recovery.BagUnrecoverable``), a ROS domain held by another run,
+(``bench_engine.bag_errors.BagError``: damaged, unrecoverable, unsupported), a ROS domain held by another run,
 and the operating system refusing a file (no such file, a file where a directory should be, read-only or no
 permission, no space left): all exit code :data:`BAD_INPUT`. A command adds its own (``expected``). Anything
 else is a bug: exit code :data:`BUG`. Argument errors are one line too (:class:`ArgumentParser`).
@@ -34,8 +34,7 @@ IN_THE_WAY = {errno.EEXIST, errno.ENOTDIR, errno.EISDIR}
 MISSING = {errno.ENOENT}
 FILE_ERRNOS = NO_SPACE | NOT_ALLOWED | IN_THE_WAY | MISSING
 
-_BAG_ERRORS = (("bench_engine.bag_errors", "BagError"), ("bench_engine.bag", "BagDamaged"),
-               ("bench_engine.recovery", "BagUnrecoverable"), ("bench_engine.domains", "DomainInUse"))
+_BAG_ERRORS = (("bench_engine.bag_errors", "BagError"), ("bench_engine.domains", "DomainInUse"))
 """Expected errors of modules a command may not have loaded (an error of a module never loaded cannot occur)."""
 
 

@@ -21,7 +21,8 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
 from bench_engine import yamlio  # noqa: E402
-from bench_engine.bag import BagDamaged, BagReader  # noqa: E402
+from bench_engine.bag_errors import BagDamaged  # noqa: E402
+from bench_engine.bag_reader import BagReader  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_engine.bag import BagReader
+from bench_engine.bag_reader import BagReader
 from bench_engine.config import Section
 from bench_eval.metric_families import Metric, Tracks
 from bench_eval.scoring import BagData
