@@ -6,10 +6,10 @@ import pytest
 from scipy.stats import chi2
 
 from bench_eval.metrics import (
-    RadarSamples, Track, fraction_within_sigma, axes_settling_time, convergence_series, mean_absolute_error,
-    nees, nees_series, nees_summary, radar_coordinate_rmse, rmse_over_runs, score_errors, score_convergence,
-    settling_time, summarise, time_grid,
+    Track, fraction_within_sigma, axes_settling_time, convergence_series, mean_absolute_error, nees, nees_series,
+    nees_summary, rmse_over_runs, score_errors, score_convergence, settling_time, summarise, time_grid,
 )
+from bench_studies.leo_radar.metrics import RadarSamples, radar_coordinate_rmse, score_radar_convergence
 
 LABELS = ["x", "y", "z", "vx", "vy", "vz"]
 
@@ -164,7 +164,7 @@ def test_score_leo_structure_and_consistency():
     tracks = {"ekf": gaussian_runs(5, 100, 1.0, seed=5), "ukf": gaussian_runs(5, 100, 2.0, seed=6)}
     z = np.array([[1000.0, 0.1, 0.2]] * 10)
     radar = {"ekf": RadarSamples(z + [1.0, 1e-4, 0.0], z + [30.0, 0.0, 2e-3], z)}
-    scored = score_convergence(tracks, radar)
+    scored = score_radar_convergence(tracks, radar)
     json.dumps(scored, allow_nan=False)
     ekf = scored["ekf"]
     t, r = rmse_over_runs(tracks["ekf"])

@@ -4,9 +4,10 @@ import re
 
 import numpy as np
 
-from bench_eval.metrics import RadarSamples, Track, convergence_series, score_convergence
+from bench_eval.metrics import Track, convergence_series
 from bench_eval.report import Section, Table, difference, fmt, write_report
 from bench_eval.study import study
+from bench_studies.leo_radar.metrics import RadarSamples, score_radar_convergence
 
 PAPER_LEO_RADAR = study("leo_radar").paper
 
@@ -34,7 +35,7 @@ def leo_inputs():
     z = np.column_stack([np.full(500, 1.5e6), rng.uniform(0, 2 * np.pi, 500), rng.uniform(0.1, 1.0, 500)])
     radar = {name: RadarSamples(z + rng.normal(size=z.shape) * [15.0, 7e-5, 7e-5],
                                 z + rng.normal(size=z.shape) * [31.6, 0.017, 0.017], z) for name in tracks}
-    return {"leo_radar": score_convergence(tracks, radar)}, {"leo_radar": convergence_series(tracks)}
+    return {"leo_radar": score_radar_convergence(tracks, radar)}, {"leo_radar": convergence_series(tracks)}
 
 
 def test_write_report_leo(tmp_path):

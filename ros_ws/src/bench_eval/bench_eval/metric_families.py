@@ -3,8 +3,7 @@ names. A family reads its options from the ``scoring`` section, scores the track
 time series its plots need.
 
 - ``convergence``: RMSE over runs summarised by peak, convergence time, band and converged level, per axis;
-  NEES. (A study extends a family with its own scores by registering another Metric, e.g. leo_radar's
-  ``radar_convergence`` adds the RMSE in the radar's coordinates.)
+  NEES. (A study extends a family with its own scores by registering another Metric built on it.)
 - ``errors``: mean absolute error per component (per run too), settling time under per-axis thresholds,
   fraction inside +-3 sigma, NEES; options ``skip_s``, ``position_threshold`` [m], ``velocity_threshold`` [m/s]
   and ``hold_after_s`` (per run: do the thresholds hold from then on).
@@ -26,11 +25,14 @@ Tracks = dict[str, list[metrics.Track]]
 @dataclass(frozen=True)
 class Metric:
     """A metric family: ``options(section) -> dict``, ``score(tracks, runs, options) -> JSON-ready dict per
-    filter``, ``series(tracks, runs, options) -> plot series per filter``."""
+    filter``, ``series(tracks, runs, options) -> plot series per filter``, and optionally ``summary(one
+    filter's scores) -> parts`` the scorer's one-line summary shows (bench_eval.scoring.print_summary) beside
+    the generic ones."""
 
     options: Callable[[Section], dict]
     score: Callable[[Tracks, list[BagData], dict], dict]
     series: Callable[[Tracks, list[BagData], dict], dict]
+    summary: Callable[[dict], list[str]] | None = None
 
 
 def error_series(tracks: Tracks, runs: list[BagData] | None = None, options: dict | None = None) -> dict:

@@ -3,9 +3,8 @@
 Two families of scores are built from them (registered in bench_eval.metric_families):
 - convergence (:func:`score_convergence`): position RMSE over N Monte Carlo runs per time step (paper 000
   eq. 35), summarised by the peak, the time to converge, the band the error "wanders in" after convergence
-  and the converged RMSE value (operational definitions in :func:`summarise`), per axis as well; NEES; and,
-  given samples in a sensor's coordinates (range, azimuth, elevation), the RMSE there of the raw measurements
-  and of the filters (leo_radar's ``radar_convergence`` family supplies them).
+  and the converged RMSE value (operational definitions in :func:`summarise`), per axis as well; NEES (a
+  study's family adds its own scores to these blocks).
 - errors (:func:`score_errors`): mean absolute error per state component (with each run's value for Monte
   Carlo error bars and paired comparisons), the time after which every position and velocity axis stays
   below a threshold, the fraction of errors inside +-3 sigma, NEES.
@@ -27,13 +26,10 @@ import numpy as np
 from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)
 
 from bench_models.states import error_labels, state_error
-from orbit_sim.angles import wrapped_residual
 
 Components = Sequence[str | int]
 POSITION = ("x", "y", "z")
 VELOCITY = ("vx", "vy", "vz")
-RADAR_UNITS = (("range_m", 1.0), ("azimuth_mrad", 1e3), ("elevation_mrad", 1e3))
-"""Radar components (range, azimuth, elevation) in measurement order, with the factor from SI to the unit."""
 DEFAULT_TOL_S = 1e-3
 
 
@@ -247,47 +243,6 @@ def nees_summary(tracks: Sequence[Track], components: Components | None = None, 
             "fraction_inside": float(np.mean((m >= lo) & (m <= hi)))}
 
 
-def _rows(z: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
-    """Stack per-run arrays (K_i, d) (or one (..., d) array) into (M, d) rows."""
-    if isinstance(z, np.ndarray):
-        return z.reshape(-1, z.shape[-1]).astype(float)
-    return np.concatenate([np.asarray(a, dtype=float) for a in z], axis=0)
-
-
-def radar_coordinate_rmse(z_est: np.ndarray | Sequence[np.ndarray], z_meas: np.ndarray | Sequence[np.ndarray],
-                          z_true: np.ndarray | Sequence[np.ndarray],
-                          angle_indices: Sequence[int] = (1, 2)) -> dict[str, np.ndarray]:
-    """RMSE per measurement component of the filter and of the raw measurements (paper 000 Table 3).
-
-    ``z_est`` is the filter estimate mapped into measurement space (h(x_est)), ``z_meas`` the raw
-    measurements and ``z_true`` h(x_true), all aligned row by row: arrays (..., d) or per-run lists of
-    (K_i, d). Angle differences are wrapped to (-pi, pi]. Rows with NaN (e.g. a missed detection in
-    ``z_meas``) are left out of that source's RMSE. Returns {"filter": (d,), "measurement": (d,)}.
-    """
-    truth = _rows(z_true)
-    out = {}
-    for name, z in (("filter", z_est), ("measurement", z_meas)):
-        e = wrapped_residual(_rows(z), truth, angle_indices)
-        out[name] = np.sqrt(np.nanmean(e ** 2, axis=0))
-    return out
-
-
-@dataclass
-class RadarSamples:
-    """Radar-coordinate arrays for :func:`radar_coordinate_rmse`: (range, azimuth, elevation) rows."""
-
-    z_est: np.ndarray | Sequence[np.ndarray]
-    z_meas: np.ndarray | Sequence[np.ndarray]
-    z_true: np.ndarray | Sequence[np.ndarray]
-    angle_indices: Sequence[int] = (1, 2)
-
-
-def radar_block(samples: RadarSamples) -> dict:
-    """Table 3 block: {"filter": {range_m, azimuth_mrad, elevation_mrad}, "measurement": {...}}."""
-    r = radar_coordinate_rmse(samples.z_est, samples.z_meas, samples.z_true, samples.angle_indices)
-    return {src: {key: float(v * scale) for (key, scale), v in zip(RADAR_UNITS, r[src])} for src in r}
-
-
 def mean_absolute_error(tracks: Sequence[Track], components: Components | None = None,
                         skip_s: float = 0.0) -> dict[str, float]:
     """Mean |error| per component over all runs and steps (paper 004 Tables 1-2).
@@ -363,17 +318,14 @@ def _curve_block(t: np.ndarray, rmse: np.ndarray, summary_kwargs: Mapping) -> di
             "convergence_time_s": s["convergence_time_s"], "band_m": s["band"], "threshold_m": s["threshold"]}
 
 
-def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
-              radar_by_filter: Mapping[str, RadarSamples] | None = None, *, position: Components = POSITION,
-              nees_skip_s: float = 0.0, alpha: float = 0.05, tol: float = DEFAULT_TOL_S, smooth_s: float = 1.0,
-              **summary_kwargs) -> dict:
+def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]], *, position: Components = POSITION,
+                      nees_skip_s: float = 0.0, alpha: float = 0.05, tol: float = DEFAULT_TOL_S,
+                      smooth_s: float = 1.0, **summary_kwargs) -> dict:
     """JSON-ready convergence scores per filter (paper 000 Tables 2 and 3 are of this form).
 
     Per filter: runs, rmse_converged_m, rmse_peak_m, peak_time_s, convergence_time_s, band_m [low, high],
     threshold_m, rmse_converged_m_runs and convergence_time_s_runs (per run), axes {x, y, z: same keys},
-    nees_mean, nees_dof, nees_bounds [lo, hi], nees_fraction_inside (full-state NEES, see :func:`nees_summary`)
-    and, when ``radar_by_filter`` has the filter, radar {filter: {range_m, azimuth_mrad, elevation_mrad},
-    measurement: {...}}.
+    nees_mean, nees_dof, nees_bounds [lo, hi], nees_fraction_inside (full-state NEES, see :func:`nees_summary`).
     ``smooth_s`` and ``summary_kwargs`` go to :func:`summarise`. The default 1 s window (10 scans at 10 Hz)
     keeps the convergence test robust when few runs are averaged (an RMSE over N runs of one Gaussian error
     component has a relative spread of about 1/sqrt(2N)) and shifts the convergence time by at most half
@@ -390,8 +342,6 @@ def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]],
         ns = nees_summary(tracks, None, alpha, nees_skip_s, tol)
         block.update(nees_mean=ns["mean"], nees_dof=ns["dof"], nees_bounds=ns["bounds"],
                      nees_fraction_inside=ns["fraction_inside"])
-        if radar_by_filter is not None and name in radar_by_filter:
-            block["radar"] = radar_block(radar_by_filter[name])
         scored[name] = block
     return json_ready(scored)
 

@@ -1,7 +1,7 @@
 """Offline scoring from bags only: bag -> offline estimators -> aligned tracks -> the scenario's metric family.
 
 A bag directory written by the recorder carries the run config (``run_config.yaml``: the resolved scenario),
-so the scorer rebuilds the same sensor models the run used to map estimates into radar coordinates.
+so the scorer rebuilds the same sensor models the run used (a metric maps estimates into a sensor's coordinates).
 Estimates are matched to truth and measurements by lock-step index (``step``), never by arrival order.
 """
 from __future__ import annotations
@@ -257,8 +257,9 @@ def score_run(out_dir: Path, as_json: bool = False) -> str:
 
 
 def print_summary(scored: dict) -> str:
-    """A short human-readable table of the main numbers."""
+    """A short human-readable table of the main numbers (the metric family's own parts: ``Metric.summary``)."""
     from bench_eval.claims import diverged
+    family_summary = plugins.load("metrics", scored["metric"]).summary if "metric" in scored else None
     lines = [f"{scored['scenario']} — {scored['runs']} run(s)"]
     for name, block in scored["filters"].items():
         if diverged(block):
@@ -273,9 +274,8 @@ def print_summary(scored: dict) -> str:
         if "band_m" in block and block["band_m"]:
             lo, hi = block["band_m"]
             parts.append(f"band=[{lo:.4g}, {hi:.4g}] m" if lo is not None else "band=n/a")
-        if "radar" in block:
-            f, m = block["radar"]["filter"], block["radar"]["measurement"]
-            parts.append("radar filter/raw: " + ", ".join(f"{k} {f[k]:.4g}/{m[k]:.4g}" for k in f))
+        if family_summary is not None:
+            parts += family_summary(block)
         if "mae" in block:
             settle = block.get("settling_time_s")
             parts.append(f"settled after {'never' if settle is None else f'{settle:.0f} s'}")

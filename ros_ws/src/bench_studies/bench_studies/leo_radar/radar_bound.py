@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_eval import metrics
 from bench_eval.scoring import BagData, scoring_options
 from orbit_sim.angles import wrapped_residual
+from tracker_filters.builders import build_filter_stack
+
+RADAR_UNITS = (("range_m", 1.0), ("azimuth_mrad", 1e3), ("elevation_mrad", 1e3))
+"""Radar components (range, azimuth, elevation) in measurement order, with the factor from SI to the unit."""
 
 
 def radar_errors_and_bound(data: BagData, filter_name: str, bound: str,
@@ -20,7 +23,6 @@ def radar_errors_and_bound(data: BagData, filter_name: str, bound: str,
     """(squared errors, bound variances), each (K, 3), of the filter's estimates in its (first) radar's
     coordinates at the scans from ``from_s`` after its first estimate (None when there are none or the bound has
     other components)."""
-    from tracker_filters.builders import build_filter_stack
     stack = build_filter_stack(data.scenario, filter_name)
     sensor_name = next(iter(stack.sensors))
     model, meas = stack.sensors[sensor_name].model, data.measurements.get(sensor_name, {})
@@ -55,4 +57,4 @@ def add_radar_bounds(scored: dict, runs: list[BagData]) -> None:
             root = np.sqrt(np.mean(np.vstack([p[1] for p in pairs]), axis=0))
             block["radar"].setdefault("bounds", {})[bound] = {
                 key: {"rmse": float(r * scale), "sqrt_bound": float(b * scale), "ratio": float(b / r) if r else None}
-                for (key, scale), r, b in zip(metrics.RADAR_UNITS, rmse, root)}
+                for (key, scale), r, b in zip(RADAR_UNITS, rmse, root)}
