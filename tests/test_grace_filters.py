@@ -15,7 +15,7 @@ from bench_models.labelled import ComponentModel
 from bench_models.white_jerk import F_AXIS, WhiteJerkDynamics, axis_noise
 from orbit_sim import gravity
 from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
-from orbit_sim.pair import pair_rate
+from bench_studies.grace_velocity.pair_truth import pair_rate
 from tracker_filters import registry
 from tracker_filters.differentiation import newton_derivative, newton_weights, savgol_derivative
 from tracker_filters.smoothing import rts_smoother

@@ -36,8 +36,7 @@ setup(
         "tracking_bench.offline": [
             "rts = bench_eval.offline:RTS",
             "newton = bench_eval.offline:NEWTON",
-            "savgol = bench_eval.offline:SAVGOL",
-            "pair_orbit_fit = bench_eval.offline:PAIR_ORBIT_FIT"],
+            "savgol = bench_eval.offline:SAVGOL"],
         "tracking_bench.bounds": [
             "pcrb = bench_eval.bounds:PCRB"]
     },

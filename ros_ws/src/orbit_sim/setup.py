@@ -27,9 +27,7 @@ setup(
             "cowell_twobody = orbit_sim.truth:single_orbit_truth",
             "formation_j2 = orbit_sim.truth:formation_truth",
             "formation_twobody = orbit_sim.truth:formation_truth",
-            "hill_cw = orbit_sim.truth:formation_truth",
-            "pair_j2 = orbit_sim.pair:pair_truth",
-            "pair_hifi = orbit_sim.pair:pair_truth"],
+            "hill_cw = orbit_sim.truth:formation_truth"],
         "tracking_bench.sections": [
             "earth = orbit_sim.truth:build_earth",
             "truth = orbit_sim.truth:build_truth"]

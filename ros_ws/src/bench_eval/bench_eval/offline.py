@@ -9,14 +9,13 @@ An offline estimator is registered in the entry-point group ``tracking_bench.off
         newton: {estimator: newton, source: baseline, params: {order: 4, labels: [bx, by, bz, bvx, bvy, bvz]}}
 
 ``source`` is an estimator of the run (rts) or one of its measurements, a sensor or a derived measurement
-(numerical differentiation: ``newton``, ``savgol``; dynamic orbit determination of a satellite pair from their
-GNSS sensors ``source`` and ``params.second``: ``pair_orbit_fit``, orbit_sim.orbit_fit).
+(numerical differentiation: ``newton``, ``savgol``). A study registers its own (e.g. an orbit fit to a sensor's
+position fixes) in the same group.
 
 The scorer runs each over every bag and scores its output like another filter's (bench_eval.scoring).
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Callable
 
@@ -63,7 +62,7 @@ def _rts_run(data: BagData, source: str, params: dict) -> Estimates:
 RTS = OfflineEstimator(run=_rts_run, check=_rts_check)
 
 
-def _measurement_series(data: BagData, source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def measurement_series(data: BagData, source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(steps, t, z (K, d)) of a recorded measurement, in step order."""
     meas = data.measurements[source]
     steps = np.array(sorted(meas))
@@ -93,7 +92,7 @@ def _differentiation_check(keys: dict[str, type | tuple[type, ...]]) -> Callable
 
 def _differentiated(data: BagData, source: str, params: dict, derivative) -> Estimates:
     """Positions as measured with their numerical derivative; no covariance (NaN): these are not filters."""
-    steps, t, z = _measurement_series(data, source)
+    steps, t, z = measurement_series(data, source)
     x = np.hstack([z, derivative(t, z)])
     if x.shape[1] != len(params["labels"]):
         raise ScenarioError(f"'scoring.offline': {len(params['labels'])} labels for {x.shape[1]} components "
@@ -127,88 +126,3 @@ def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
 
 NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check({"order": int}))
 SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window_s": (int, float), "polyorder": int}))
-
-
-PAIR_FIT_KEYS = {"second", "zonal_degree", "drag", "ballistic_guess", "empirical_interval_s", "empirical_sigma"}
-
-
-def _pair_fit_check(cfg: dict, source: str, params: dict) -> None:
-    from orbit_sim.geopotential import ZONALS
-    sensors = cfg.get("sensors") or {}
-    for name in (source, params.get("second")):
-        if not isinstance(sensors.get(name), dict) or "sigma_position" not in sensors[name]:
-            raise ScenarioError(f"'scoring.offline' pair_orbit_fit: '{name}' is not a position sensor of the scenario "
-                                "(source and params.second: the leader's and the follower's GNSS)")
-    unknown = set(params) - PAIR_FIT_KEYS
-    if unknown or "second" not in params:
-        raise ScenarioError(f"'scoring.offline' pair_orbit_fit takes params {sorted(PAIR_FIT_KEYS)} (second "
-                            f"required), got {sorted(params)}")
-    degree = params.get("zonal_degree", 2)
-    if not isinstance(degree, int) or isinstance(degree, bool) or not 0 <= degree <= max(ZONALS) or degree == 1:
-        raise ScenarioError(f"'scoring.offline' params.zonal_degree must be 0 (two-body) or 2..{max(ZONALS)}, "
-                            f"got {degree!r}")
-    if not isinstance(params.get("drag", False), bool):
-        raise ScenarioError(f"'scoring.offline' params.drag must be true or false, got {params['drag']!r}")
-    for key in ("ballistic_guess", "empirical_interval_s", "empirical_sigma"):
-        value = params.get(key)
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
-            raise ScenarioError(f"'scoring.offline' params.{key} must be a positive number, got {value!r}")
-    if ("empirical_interval_s" in params) != ("empirical_sigma" in params):
-        raise ScenarioError("'scoring.offline' params.empirical_interval_s and empirical_sigma go together")
-
-
-def pair_force_model(cfg: dict, params: dict):
-    """The fit's orbit_sim.orbit_fit.ForceModel from the scenario's earth and the params (zonal_degree, drag,
-    empirical_interval_s)."""
-    from orbit_sim.geopotential import ZONALS
-    from orbit_sim.orbit_fit import ForceModel
-    from orbit_sim.truth import build_earth
-    earth = build_earth(cfg)
-    degree = params.get("zonal_degree", 2)
-    zonals = {n: (earth.j2 if n == 2 else ZONALS[n]) for n in range(2, degree + 1)}
-    return ForceModel(earth.mu, earth.re, zonals, bool(params.get("drag", False)), earth.rotation_rate,
-                      params.get("empirical_interval_s"))
-
-
-def _fit_and_sample(t: np.ndarray, z: np.ndarray, sigma: float, model, ballistic_guess: float,
-                    empirical_sigma: float | None, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One satellite's orbit fitted to its fixes (orbit_sim.orbit_fit.fit_orbit): its states and covariance at
-    the times ``at``."""
-    from orbit_sim.orbit_fit import fit_orbit
-    return fit_orbit(t, z, sigma, model, ballistic_guess, empirical_sigma).states(at)
-
-
-def _both(jobs: list[tuple]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``_fit_and_sample`` of the two satellites, one process each where this process may start children (the
-    fits are independent and each takes a core for minutes with empirical accelerations); in turn otherwise."""
-    import multiprocessing
-    if multiprocessing.current_process().daemon or (os.cpu_count() or 1) < 2:
-        return [_fit_and_sample(*job) for job in jobs]
-    from concurrent.futures import ProcessPoolExecutor
-    with ProcessPoolExecutor(len(jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
-        return list(pool.map(_fit_and_sample, *zip(*jobs)))
-
-
-def _pair_fit_run(data: BagData, source: str, params: dict) -> Estimates:
-    """Both satellites' orbits fitted to their own GNSS fixes by batch least squares (orbit_sim.orbit_fit), each
-    fit's states and covariance at every truth step of the fixes' span; the state is the truth's 18 components
-    (leader, follower, baseline = follower - leader, their covariance mapped linearly)."""
-    from orbit_sim.pair import LABELS
-    model = pair_force_model(data.scenario, params)
-    all_steps = np.array(sorted(data.truth))
-    all_t = np.array([data.truth[int(k)][0] for k in all_steps])
-    names = (source, params["second"])
-    fixes = [_measurement_series(data, name)[1:] for name in names]
-    keep = (all_t >= max(t[0] for t, _ in fixes)) & (all_t <= min(t[-1] for t, _ in fixes))  # the fits' spans
-    (x1, P1), (x2, P2) = _both([(t, z, float(data.scenario["sensors"][name]["sigma_position"]), model,
-                                 params.get("ballistic_guess", 0.0), params.get("empirical_sigma"), all_t[keep])
-                                for name, (t, z) in zip(names, fixes)])
-    L = np.zeros((18, 12))  # [leader, follower, follower - leader] from [leader, follower]
-    L[:12] = np.eye(12)
-    L[12:, :6], L[12:, 6:] = -np.eye(6), np.eye(6)
-    P = np.zeros((len(x1), 12, 12))
-    P[:, :6, :6], P[:, 6:, 6:] = P1, P2
-    return Estimates(all_steps[keep], all_t[keep], np.hstack([x1, x2]) @ L.T, L @ P @ L.T, list(LABELS), {})
-
-
-PAIR_ORBIT_FIT = OfflineEstimator(run=_pair_fit_run, check=_pair_fit_check)

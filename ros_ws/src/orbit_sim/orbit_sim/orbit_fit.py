@@ -33,12 +33,10 @@ from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
 from orbit_sim.gravity import gravity_gradient
 
 RTOL, ATOL = 1.0e-13, 1.0e-8
-"""The truth's tolerances (orbit_sim.pair.RTOL). Even so the fit's trajectory is the less accurate of the two:
-solve_ivp's error norm is the RMS over all 102 components, and the partials, far inside their own tolerance,
-dilute the state's six. Over a day of grace_velocity (full force model, from the true state) the position drifts
-0.044 mm with the partials, 0.009 mm without, against the fit's 0.2-0.6 mm sigma; at rtol 1e-11 it drifted
-1.7 mm, and the baseline NEES (6 dof, dynamic variant, seed 1, one day, against the truth of the time) was 38.0
-there, 19.4 at 2.5e-12 and 13.6 here. The fit costs 1.7x as much as at 1e-11."""
+"""Tolerances as tight as those of a truth the fit is judged against: the integration error of the fitted
+trajectory must stay well below the fit's own sigma, or it shows as inconsistency (NEES) that is not the fit's.
+Even so the fit's trajectory is the less accurate of the two: solve_ivp's error norm is the RMS over all 102
+components, and the partials, far inside their own tolerance, dilute the state's six."""
 ATOL_PARTIALS = 1.0e-5
 """Absolute tolerance of the partials (their relative tolerance is RTOL): the trajectory sets the steps."""
 

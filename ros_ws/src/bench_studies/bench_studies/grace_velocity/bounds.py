@@ -17,9 +17,9 @@ import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_eval.bounds import Bound, BoundSeries
-from bench_eval.offline import pair_force_model
 from bench_eval.scoring import BagData, Estimates
 from bench_studies.grace_velocity.metrics import BASELINE, range_rate_bound, range_rate_sd
+from bench_studies.grace_velocity.pair_fit import pair_force_model
 from orbit_sim.orbit_fit import information
 
 TRUTH_MODEL = {"zonal_degree": 6, "drag": True}

@@ -19,8 +19,12 @@ import numpy as np
 from bench_engine.config import apply_overrides
 from bench_engine.inprocess import run_in_process
 from bench_studies.grace_velocity.metrics import range_rate
+from bench_studies.grace_velocity.pair_fit import pair_force_model
+from orbit_sim.orbit_fit import fit_orbit
 from orbit_sim.truth import build_truth
 from tracker_filters.builders import build_filter_stack
+from tracker_filters.differentiation import savgol_derivative
+from tracker_filters.smoothing import smooth_estimates
 
 BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
 
@@ -104,7 +108,6 @@ def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, skip_s: float) -> fl
 
 def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: float) -> float:
     """Range-rate RMS against the truth of the RTS smoothing of ``filter_name`` run with density q (no gate)."""
-    from tracker_filters.smoothing import smooth_estimates
     cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
     stack = build_filter_stack(cfg, filter_name)
     flt, (source, sensor), = stack.filter, *stack.sensors.items()
@@ -126,7 +129,6 @@ def savgol_score(items: dict, truth, window_s: float, polyorder: int, skip_s: fl
                  max_gap: float = 300.0) -> float:
     """Range-rate RMS against the truth of Savitzky-Golay differentiation of the ``source`` positions (the
     window in samples as bench_eval.offline's savgol makes it)."""
-    from tracker_filters.differentiation import savgol_derivative
     meas = items[f"/{source}/measurement"]
     t, z = np.array([m.t for m in meas]), np.array([m.z[:3] for m in meas])
     n = int(window_s / float(np.median(np.diff(t)))) + 1
@@ -137,10 +139,8 @@ def savgol_score(items: dict, truth, window_s: float, polyorder: int, skip_s: fl
 
 def orbit_fit_score(cfg: dict, params: dict, items: dict, truth, skip_s: float, span_s: float,
                     sensors: tuple[str, str] = ("gnss1", "gnss2")) -> float:
-    """Range-rate RMS against the truth of the pair's dynamic orbit fit (bench_eval.offline's pair_orbit_fit
-    params) over the first ``span_s`` seconds of fixes."""
-    from bench_eval.offline import pair_force_model
-    from orbit_sim.orbit_fit import fit_orbit
+    """Range-rate RMS against the truth of the pair's dynamic orbit fit (pair_fit.py's pair_orbit_fit params)
+    over the first ``span_s`` seconds of fixes."""
     model = pair_force_model(cfg, params)
     states = []
     for name in sensors:

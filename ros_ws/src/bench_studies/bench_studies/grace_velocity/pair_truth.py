@@ -1,5 +1,5 @@
-"""Truth of a leader-follower pair in ECI (paper 002's GRACE satellites), registered as truth models
-``pair_j2`` (two-body + J2) and ``pair_hifi`` (zonal field to ``zonal_degree`` and drag).
+"""grace_velocity's truth: a leader-follower pair in ECI (paper 002's GRACE satellites), registered as truth
+models ``pair_j2`` (two-body + J2) and ``pair_hifi`` (zonal field to ``zonal_degree`` and drag).
 
     truth:
       model: pair_hifi
