@@ -1,13 +1,14 @@
 """What filters and sensors need of a measurement model is declared once and checked when they are built: the
-angles among its components (bench_models.models.ANGLE_LABELS) and what an initialiser requires of it."""
+angles among its components (bench_engine.labels) and what an initialiser requires of it."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from bench_engine.config import ScenarioError, load_scenario
+from bench_engine.labels import ANGLES, AZIMUTHS
 from bench_models.isl import RangeAzElModel
-from bench_models.models import ANGLE_LABELS, AZIMUTH_LABELS, angle_components, check_angles
+from bench_models.models import angle_components, check_angles
 from bench_models.radar import GroundRadarModel
 from bench_models.states import state_error
 from radar_sensor.sensor import Sensor, build_sensor
@@ -18,7 +19,7 @@ def test_the_models_angles_are_the_components_their_labels_name() -> None:
     radar = GroundRadarModel(78.0, 16.0, 400.0, with_range_rate=True)
     assert tuple(radar.angle_indices) == angle_components(radar.labels) == (1, 2)
     assert RangeAzElModel.angle_indices == (1, 2)
-    assert {"azimuth", "elevation"} <= ANGLE_LABELS and AZIMUTH_LABELS <= ANGLE_LABELS
+    assert {"azimuth", "elevation"} <= ANGLES and AZIMUTHS <= ANGLES
 
 
 def test_a_state_error_wraps_exactly_the_declared_angles() -> None:

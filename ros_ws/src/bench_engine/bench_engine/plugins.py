@@ -1,7 +1,7 @@
 """The bench's extension points: components registered as Python entry points, looked up by name.
 
 A package adds a node kind, truth model, sensor type, message codec, estimator, dynamics model, initialiser,
-metric, offline estimator, study, scenario or scenario section by naming it in its ``setup.py``
+metric, offline estimator, bound, study, scenario, scenario section or angle label by naming it in its ``setup.py``
 ``entry_points`` under one of :data:`GROUPS` (as Stone Soup's ``plugins.py`` loads its components from
 package metadata). Nothing generic is edited: the graph, the launcher, the scorer and the report find every
 registered component here.
@@ -33,6 +33,7 @@ GROUPS = {
     "studies": "tracking_bench.studies",            # Study (bench_eval.study)
     "scenarios": "tracking_bench.scenarios",        # path of a scenario YAML file
     "sections": "tracking_bench.sections",          # top-level scenario section -> reader(cfg) (strict)
+    "angle_labels": "tracking_bench.angle_labels",  # a state or measurement label that is an angle (bench_engine.labels)
 }
 
 

@@ -52,6 +52,7 @@ import numpy as np
 
 from bench_engine import cdr
 from bench_engine.config import ScenarioError
+from bench_engine.labels import POSITION, QUATERNION, ROTATION, VELOCITY
 from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, Item
@@ -95,13 +96,6 @@ TRUTH_COLOR = (0.1, 0.8, 0.1)
 PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.1), (0.1, 0.8, 0.8),
            (0.55, 0.35, 0.9))
 """Estimators' trajectory colours, picked by a stable hash of the node name."""
-
-POSITION = ("x", "y", "z")
-VELOCITY = ("vx", "vy", "vz")
-QUATERNION = ("qw", "qx", "qy", "qz")
-ROTATION = ("rx", "ry", "rz")
-"""An attitude estimate's covariance is over its error rotation: labels with the quaternion replaced by
-rx ry rz at qw's place (bench_models.states.error_labels; bench_engine sits below bench_models)."""
 
 
 # --- the graph --------------------------------------------------------------------------------------------
@@ -170,7 +164,7 @@ def covariance_labels(labels: tuple[str, ...], n: int) -> tuple[str, ...] | None
     if n == len(labels):
         return labels
     if n == len(labels) - 1 and all(q in labels for q in QUATERNION):
-        i = labels.index("qw")
+        i = labels.index(QUATERNION[0])
         return labels[:i] + ROTATION + tuple(lab for lab in labels[i:] if lab not in QUATERNION)
     return None
 

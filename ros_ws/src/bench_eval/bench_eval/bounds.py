@@ -39,12 +39,13 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section
+from bench_engine.labels import POSITION, VELOCITY
 from bench_eval import metrics
 
 Run = Any
 """A recorded run, bench_eval.scoring.BagData (which imports this module: not imported here, no circle)."""
 
-GROUPS = {"position": metrics.POSITION, "velocity": metrics.VELOCITY}
+GROUPS = {"position": POSITION, "velocity": VELOCITY}
 
 
 @dataclass

@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from bench_engine.config import Section
+from bench_engine.labels import ORBIT
 from bench_eval import metrics
 from bench_eval.scoring import BagData
 
@@ -41,7 +42,7 @@ def error_series(tracks: Tracks, runs: list[BagData] | None = None, options: dic
     t0 = min(float(tr.t[0]) for group in tracks.values() for tr in group)
     series = {}
     for name, group in tracks.items():
-        comps = [c for c in group[0].error_labels if c in metrics.POSITION + metrics.VELOCITY]
+        comps = [c for c in group[0].error_labels if c in ORBIT]
         t, _ = metrics.rmse_over_runs(group, comps[:1])
         rmse, sigma = {}, {}
         for c in comps:

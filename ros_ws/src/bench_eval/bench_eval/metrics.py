@@ -25,11 +25,10 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)
 
+from bench_engine.labels import POSITION, VELOCITY
 from bench_models.states import error_labels, state_error
 
 Components = Sequence[str | int]
-POSITION = ("x", "y", "z")
-VELOCITY = ("vx", "vy", "vz")
 DEFAULT_TOL_S = 1e-3
 
 

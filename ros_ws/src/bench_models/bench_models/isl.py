@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_engine.labels import POSITION
 from bench_models.models import angle_components
 from orbit_sim.angles import wrapped_residual
 from orbit_sim.relative import convention_matrix
@@ -99,7 +100,7 @@ class RelativePositionModel:
     The same object serves the sensor (6-state truth) and 6- or 9-state filters: H takes its width from x.
     """
 
-    labels = ("x", "y", "z")
+    labels = POSITION
     angle_indices: tuple[int, ...] = ()
 
     def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:

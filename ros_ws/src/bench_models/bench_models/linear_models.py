@@ -5,9 +5,9 @@ from typing import Sequence
 
 import numpy as np
 
+from bench_engine.labels import POSITION, VELOCITY
 from orbit_sim.angles import wrapped_residual
 
-_AXES = ("x", "y", "z")
 
 
 def white_acceleration_q(q: float, dt: float, ndim: int) -> np.ndarray:
@@ -39,7 +39,7 @@ class ConstantVelocity:
         self.ndim = _check_ndim(ndim)
         self.sigma_accel = float(sigma_accel)
         self.frame = frame
-        self.labels: Sequence[str] = _AXES[:ndim] + tuple("v" + a for a in _AXES[:ndim])
+        self.labels: Sequence[str] = POSITION[:ndim] + VELOCITY[:ndim]
 
     def transition_matrix(self, x: np.ndarray, dt: float) -> np.ndarray:
         """F(dt), shape (2 ndim, 2 ndim); independent of x."""
@@ -63,7 +63,7 @@ class PositionMeasurement:
 
     def __init__(self, ndim: int = 3) -> None:
         self.ndim = _check_ndim(ndim)
-        self.labels: Sequence[str] = _AXES[:ndim]
+        self.labels: Sequence[str] = POSITION[:ndim]
 
     def h(self, x: np.ndarray, t: float) -> np.ndarray:
         """Positions of one state (n,) -> (ndim,) or a batch (m, n) -> (m, ndim)."""

@@ -18,24 +18,20 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-ANGLE_LABELS = frozenset({"azimuth", "elevation", "roll", "pitch", "yaw", "phase", "angle"})
-"""The one place the bench tells an angle: a state or measurement component with one of these labels is an
-angle, differenced with wrapping to (-pi, pi] (a measurement model's ``angle_indices``, checked by
-:func:`check_angles`; a state's error, bench_models.states)."""
-AZIMUTH_LABELS = frozenset({"azimuth"})
-"""Angles a sensor reports in [0, 2 pi) (bench_msgs/RangeAzEl), not (-pi, pi]."""
+from bench_engine.labels import angle_labels
 
 
 def angle_components(labels: Sequence[str]) -> tuple[int, ...]:
-    """Indices of the components of ``labels`` that are angles (ANGLE_LABELS)."""
-    return tuple(i for i, label in enumerate(labels) if label in ANGLE_LABELS)
+    """Indices of the components of ``labels`` that are angles (bench_engine.labels.angle_labels)."""
+    angles = angle_labels()
+    return tuple(i for i, label in enumerate(labels) if label in angles)
 
 
 def check_angles(model: "MeasurementModel") -> None:
     """Raise ValueError if a measurement model's ``angle_indices`` are not the angles its labels name."""
     if tuple(model.angle_indices) != angle_components(model.labels):
         raise ValueError(f"{type(model).__name__} wraps components {tuple(model.angle_indices)} of "
-                         f"{tuple(model.labels)}, but the angles among them (bench_models.models.ANGLE_LABELS) "
+                         f"{tuple(model.labels)}, but the angles among them (bench_engine.labels) "
                          f"are {angle_components(model.labels)}")
 
 

@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from bench_engine.labels import ORBIT
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.cowell import rk4, state_rate
 from orbit_sim.gravity import gravity_gradient
@@ -50,7 +51,7 @@ VARIATIONAL_ATOL = 1e-9
 class OrbitJ2Dynamics:
     """DynamicsModel: ECI state [x y z vx vy vz] under two-body + J2 gravity with white-acceleration noise."""
 
-    labels = ("x", "y", "z", "vx", "vy", "vz")
+    labels = ORBIT
     frame = "eci"
 
     def __init__(self, sigma_accel: float, mu: float = MU_EARTH, j2: float = J2_EARTH,

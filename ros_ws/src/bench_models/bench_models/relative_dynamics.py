@@ -17,11 +17,11 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.linalg import expm
 
+from bench_engine.labels import ORBIT
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.hill import cw_matrix
 from bench_models.orbit_dynamics import white_acceleration_q
 
-POSITION_VELOCITY = ("x", "y", "z", "vx", "vy", "vz")
 BIAS = ("bx", "by", "bz")
 _CACHE_SIZE = 32
 """Steps T remembered per model (the oldest is dropped beyond that)."""
@@ -112,7 +112,7 @@ class CWDynamics(LinearRelativeDynamics):
     """
 
     def __init__(self, n: float, sigma_accel: float | Sequence[float], discretisation: str = "exact") -> None:
-        super().__init__(cw_matrix(n), POSITION_VELOCITY, sigma_accel, discretisation)
+        super().__init__(cw_matrix(n), ORBIT, sigma_accel, discretisation)
         self.n = float(n)
 
 
@@ -131,7 +131,7 @@ class CWBiasDynamics(LinearRelativeDynamics):
         A = np.zeros((9, 9))
         A[0:6, 0:6] = cw_matrix(n)
         A[3:6, 6:9] = np.eye(3)
-        super().__init__(A, POSITION_VELOCITY + BIAS, sigma_accel)
+        super().__init__(A, ORBIT + BIAS, sigma_accel)
         self.n = float(n)
         self.sigma_bias = sigma_bias
         self._Qc = np.diag(np.concatenate((np.zeros(3),
@@ -203,5 +203,5 @@ class SchweighartSedwickDynamics(LinearRelativeDynamics):
         A[3, 4] = 2.0 * n * c
         A[4, 3] = -2.0 * n * c
         A[5, 2] = -q * q
-        super().__init__(A, POSITION_VELOCITY, sigma_accel)
+        super().__init__(A, ORBIT, sigma_accel)
         self.n, self.c, self.q, self.s = n, c, q, k["s"]

@@ -5,7 +5,7 @@ An estimate and the truth are compared component block by component block, each 
 * an attitude quaternion, labels ``qw qx qy qz`` in one block (scalar first, Hamilton, rotating the reference frame into
   the body frame): the error is the rotation vector of dq = q_est * conj(q_true), i.e. the small rotation
   that takes the true attitude to the estimate (angle = |error|, in rad); q and -q are the same attitude;
-* an angle (labels in bench_models.models.ANGLE_LABELS): the difference wrapped to (-pi, pi];
+* an angle (bench_engine.labels.angle_labels): the difference wrapped to (-pi, pi];
 * anything else: the plain difference x_est - x_true.
 
 :func:`state_error` returns the error vector with its labels (a quaternion block becomes ``rx ry rz``), which
@@ -17,11 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
-from bench_models.models import ANGLE_LABELS
+from bench_engine.labels import QUATERNION, ROTATION, angle_labels
 from orbit_sim.angles import wrap_angle
-
-QUATERNION = ("qw", "qx", "qy", "qz")
-ROTATION = ("rx", "ry", "rz")
 
 
 def quaternion_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -57,7 +54,7 @@ def error_labels(labels: Sequence[str]) -> list[str]:
     """The labels of :func:`state_error`'s output for a state with ``labels``."""
     labels = list(labels)
     if all(q in labels for q in QUATERNION):
-        i = labels.index("qw")
+        i = labels.index(QUATERNION[0])
         return labels[:i] + list(ROTATION) + [lab for lab in labels[i:] if lab not in QUATERNION]
     return labels
 
@@ -69,13 +66,14 @@ def state_error(labels: Sequence[str], x_est: np.ndarray, x_true: np.ndarray) ->
     x_true = np.asarray(x_true, dtype=float)
     plain = [i for i, lab in enumerate(labels) if lab not in QUATERNION]
     diff = x_est[..., plain] - x_true[..., plain]
+    angles = angle_labels()
     for j, i in enumerate(plain):
-        if labels[i] in ANGLE_LABELS:
+        if labels[i] in angles:
             diff[..., j] = wrap_angle(diff[..., j])
     if not all(q in labels for q in QUATERNION):
         return labels, diff
     idx = [labels.index(q) for q in QUATERNION]
     rot = attitude_error(x_est[..., idx], x_true[..., idx])
     out_labels = error_labels(labels)
-    split = out_labels.index("rx")
+    split = out_labels.index(ROTATION[0])
     return out_labels, np.concatenate([diff[..., :split], rot, diff[..., split:]], axis=-1)

@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section
+from bench_engine.labels import ORBIT
 from orbit_sim import cowell, gravity, relative
-from orbit_sim.truth import ORBIT_LABELS, build_earth, orbit_state
+from orbit_sim.truth import build_earth, orbit_state
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWDynamics
 
@@ -32,7 +33,7 @@ class RelativeOrbitDynamics:
     both fly on two-body + J2 (``j2`` = 0: two-body), without process noise. Time-varying: only
     ``transition_matrices`` along a trajectory and ``process_noise`` are defined."""
 
-    labels = ORBIT_LABELS
+    labels = ORBIT
     frame = "lvlh"
 
     def __init__(self, chief0: np.ndarray, mu: float, j2: float, re: float) -> None:

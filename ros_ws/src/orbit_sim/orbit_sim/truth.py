@@ -21,10 +21,10 @@ import numpy as np
 from orbit_sim import cowell, gravity, hill, kepler, relative
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section, scenario_seed
+from bench_engine.labels import ORBIT
 from bench_engine.timegrid import TimeGrid, build_time
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
-ORBIT_LABELS = ("x", "y", "z", "vx", "vy", "vz")
 
 
 @dataclass(frozen=True)
@@ -163,7 +163,7 @@ def formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> T
         deputy = cowell.propagate(deputy0, times, mu=earth.mu, j2=j2, re=earth.re)
         accel = gravity.acceleration(chief[:, :3], earth.mu, j2, earth.re)
         states = relative.eci_to_lvlh(chief, deputy, accel)
-    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT_LABELS, "lvlh")
+    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT, "lvlh")
 
 
 def single_orbit_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> Truth:
@@ -172,7 +172,7 @@ def single_orbit_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -
     j2 = earth.j2 if model == "cowell_j2" else 0.0
     times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
     states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
-    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT_LABELS, "eci")
+    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT, "eci")
 
 
 def build_truth(cfg: dict) -> Truth:

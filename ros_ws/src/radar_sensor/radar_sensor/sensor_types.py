@@ -9,7 +9,8 @@ import numpy as np
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
-from bench_models.models import AZIMUTH_LABELS, MeasurementModel, check_angles
+from bench_engine.labels import AZIMUTHS
+from bench_models.models import MeasurementModel, check_angles
 
 if TYPE_CHECKING:
     from orbit_sim.truth import Earth
@@ -35,7 +36,7 @@ class Sensor:
             check_angles(self.model)
         except ValueError as err:
             raise ScenarioError(f"sensor '{self.name}': {err}") from None
-        self._azimuths = [i for i, label in enumerate(self.model.labels) if label in AZIMUTH_LABELS]
+        self._azimuths = [i for i, label in enumerate(self.model.labels) if label in AZIMUTHS]
 
     def noise(self, t: float, rng: np.random.Generator) -> np.ndarray:
         """One draw of the measurement noise at time t: white, N(0, R)."""

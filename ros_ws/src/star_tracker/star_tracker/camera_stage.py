@@ -32,13 +32,12 @@ from functools import lru_cache
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section, scenario_seed
+from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Outputs, TruthSample, python_log
 from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame
 
 SECTION = "star_cameras"
-QUATERNION = ["qw", "qx", "qy", "qz"]
-RATE = ["wx", "wy", "wz"]
 
 
 def star_truth_topic(camera: str) -> str:
@@ -138,10 +137,10 @@ class StarCameraStage:
         from star_tracker.attitude import matrix_from_quaternion
         from star_tracker.frames import FALSE_STAR, simulate_frame
         labels = list(truth.labels)
-        if not all(lab in labels for lab in QUATERNION + RATE):
-            raise ValueError(f"star camera '{self.name}' needs a truth labelled {QUATERNION + RATE}, got {labels}")
+        if not all(lab in labels for lab in (*QUATERNION, *ANGULAR_RATE)):
+            raise ValueError(f"star camera '{self.name}' needs a truth labelled {[*QUATERNION, *ANGULAR_RATE]}, got {labels}")
         q = truth.state[[labels.index(lab) for lab in QUATERNION]]
-        rate = truth.state[[labels.index(lab) for lab in RATE]]
+        rate = truth.state[[labels.index(lab) for lab in ANGULAR_RATE]]
         A = matrix_from_quaternion(q)
         c = self.conf
         frame = simulate_frame(self.catalogue, self.camera, A, self.rng, sigma_px=c.sigma_px, p_detect=c.p_detect,

@@ -32,6 +32,7 @@ from functools import lru_cache
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section, merge
+from bench_engine.labels import QUATERNION
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from star_tracker.camera_stage import camera_config, read_cameras
@@ -40,7 +41,6 @@ from star_tracker.options import AIDS, MOTIONS, SOLVERS, TRACKERS
 
 SECTION = "star_trackers"
 DEFAULTS = "star_tracker_defaults"
-LABELS = ["qw", "qx", "qy", "qz"]
 FRAME = "icrs"
 
 
@@ -173,7 +173,7 @@ class StarTrackerStage:
         diagnostics = {"stars": float(sol.n_stars), "identified": float(np.sum(result.index >= 0)),
                        **{k: float(v) for k, v in self.counts.items()},
                        "filter_resets": float(self.pipeline.filter_resets)}
-        out.append((self.topic, Estimate(frame.step, frame.t_ns, FRAME, self.name, list(LABELS), sol.quaternion,
+        out.append((self.topic, Estimate(frame.step, frame.t_ns, FRAME, self.name, list(QUATERNION), sol.quaternion,
                                          sol.covariance, float("nan"), diagnostics)))
         return out
 

@@ -24,9 +24,10 @@ from __future__ import annotations
 import numpy as np
 
 from bench_engine.config import Section
+from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.timegrid import TimeGrid
 
-LABELS = ("qw", "qx", "qy", "qz", "wx", "wy", "wz")
+LABELS = QUATERNION + ANGULAR_RATE
 FRAME = "icrs"
 
 

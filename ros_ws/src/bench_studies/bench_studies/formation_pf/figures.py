@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_engine.labels import ORBIT
 from bench_eval import metrics
 from bench_eval.scoring import load_bags, scoring_options, track_of
 
 CONFIGS = ("default", "range_0p5m", "j2_truth", "euler_phi")
-AXES = metrics.POSITION + metrics.VELOCITY
+AXES = ORBIT
 
 
 def filter_figures(tracks: list[metrics.Track], diags: list[dict[str, np.ndarray]], scored: dict,

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench_engine.config import ScenarioError
+from bench_engine.labels import ORBIT
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData, Estimates
 from bench_studies.grace_velocity.metrics import BASELINE, range_rate_bound, range_rate_sd
@@ -40,7 +41,7 @@ def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2"))
     for sat, (name, ballistic) in enumerate(zip(sensors, truth["ballistic"])):
         fix_steps = np.array(sorted(data.measurements[name]))
         t = np.array([data.truth[int(k)][0] for k in fix_steps])
-        cols = [labels.index(f"{c}{sat + 1}") for c in ("x", "y", "z", "vx", "vy", "vz")]
+        cols = [labels.index(f"{c}{sat + 1}") for c in ORBIT]
         fit = information(model, data.truth[int(fix_steps[0])][1][cols], float(ballistic), t,
                           float(cfg["sensors"][name]["sigma_position"]))
         keep = (t_all >= t[0]) & (t_all <= t[-1])

@@ -18,11 +18,12 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from bench_engine.config import ScenarioError, Section
+from bench_engine.labels import ORBIT
 from bench_engine.timegrid import TimeGrid
 from orbit_sim.geopotential import ZONALS, drag_acceleration, zonal_acceleration
 from orbit_sim.truth import Earth, Truth, orbit_state, semi_major_axis
 
-LABELS = tuple(f"{c}{s}" for s in ("1", "2") for c in ("x", "y", "z", "vx", "vy", "vz")) + (
+LABELS = tuple(f"{c}{s}" for s in ("1", "2") for c in ORBIT) + (
     "bx", "by", "bz", "bvx", "bvy", "bvz")
 RTOL, ATOL = 1.0e-13, 1.0e-8
 """The truth must be more accurate than the most accurate estimator judged against it: grace_velocity's dynamic

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench_engine.config import Section
+from bench_engine.labels import ANGULAR_RATE, QUATERNION, ROTATION
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData
 
@@ -37,7 +38,7 @@ def _wahba_run(data: BagData, params: dict) -> BoundSeries:
     frames = data.measurements.get(params["camera"], {})
     steps = np.array(sorted(frames), dtype=np.int64)
     J = np.array([attitude_information(frames[int(k)], sigma) for k in steps]).reshape(-1, 3, 3)
-    return BoundSeries(steps, np.array([data.truth[int(k)][0] for k in steps]), ["rx", "ry", "rz"],
+    return BoundSeries(steps, np.array([data.truth[int(k)][0] for k in steps]), list(ROTATION),
                        information_to_covariance(J))
 
 
@@ -103,12 +104,12 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
     frames_by_step = data.measurements.get(conf.camera, {})
     steps = np.array(sorted(frames_by_step), dtype=np.int64)
     t = np.array([data.truth[int(k)][0] for k in steps])
-    q = [data.truth_labels.index(lab) for lab in ("qw", "qx", "qy", "qz")]
+    q = [data.truth_labels.index(lab) for lab in QUATERNION]
     attitudes = np.array([matrix_from_quaternion(data.truth[int(k)][1][q]) for k in steps]).reshape(-1, 3, 3)
     frames = [np.asarray(frames_by_step[int(k)], dtype=float).reshape(-1, 2) for k in steps]
     chains = star_chains(frames, attitudes, 6.0 * np.sqrt(2.0) * sigma_px * ifov, conf.max_misses)
     if dynamics == "tracker":
-        w = [data.truth_labels.index(lab) for lab in ("wx", "wy", "wz")]
+        w = [data.truth_labels.index(lab) for lab in ANGULAR_RATE]
         rates = np.array([data.truth[int(k)][1][w] for k in steps[:-1]]).reshape(-1, 3)
         F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(data.scenario))
         H = CENTROID
@@ -117,7 +118,7 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
         P0, H = sigma_px ** 2 * np.eye(2), np.eye(2)
     P = (tracked_attitude_covariance(frames, chains, F, Q, P0, sigma_px, ifov, H) if len(steps)
          else np.zeros((0, 3, 3)))
-    return BoundSeries(steps, t, ["rx", "ry", "rz"], P)
+    return BoundSeries(steps, t, list(ROTATION), P)
 
 
 WAHBA_TRACKED = Bound(run=_tracked_run, check=_tracked_check)
