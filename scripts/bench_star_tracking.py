@@ -2,7 +2,7 @@
 """Per-frame cost of the star_tracker node cores, in-process (no ROS): the star camera and each tracker.
 
 The scenario's truth and camera run once (bench_engine.inprocess, sensors only); then every repeat drives a
-fresh core of each node (star_tracker.camera_stage.StarCameraStage, star_tracker.tracker_stage.
+fresh core of each node (star_tracker.star_camera.StarCameraStage, star_tracker.tracker_stage.
 StarTrackerStage) through the same items, interleaved frame by frame as the lock-step graph delivers them,
 and times each ``on_input`` call. Per node it prints the mean ms per frame over the run (the first
 lost-in-space frame included), its range over the repeats and the median and p90 of the single frames.
@@ -24,7 +24,7 @@ import numpy as np
 from bench_engine.config import load_scenario, scenario_seed, select_variant
 from bench_engine.graph import TRUTH_TOPIC, measurement_topic, resolve_estimators
 from bench_engine.inprocess import run_in_process
-from star_tracker.camera_stage import StarCameraStage, read_cameras
+from star_tracker.camera_stage import STAR_CAMERA, read_cameras
 from star_tracker.tracker_stage import StarTrackerStage, read_trackers
 
 JPDAF_BUDGET_MS = 5.0
@@ -35,7 +35,7 @@ def time_cores(cfg: dict, filters: list[str], seed: int) -> dict[str, np.ndarray
     sensors = run_in_process(cfg, seed=seed, roles=("sensor",)).items
     context = {"scenario": cfg, "seed": seed}
     trackers = read_trackers(cfg)
-    stages = {name: (TRUTH_TOPIC, StarCameraStage(cfg, name, context)) for name in read_cameras(cfg)}
+    stages = {name: (TRUTH_TOPIC, STAR_CAMERA.stage(cfg, name, context)) for name in read_cameras(cfg)}
     stages.update({name: (measurement_topic(trackers[name].camera), StarTrackerStage(cfg, name, context))
                    for name in filters})
     ms: dict[str, list[float]] = {name: [] for name in stages}

@@ -25,6 +25,7 @@ import numpy as np
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
 from bench_eval.inprocess_runs import bag_data
+from bench_eval.report import BOUND_STYLE, Plot, save_plot
 from bench_eval.scoring import run_offline, scoring_options
 from bench_studies.grace_velocity.bounds import dynamic_bound, smoother_bound
 from bench_studies.grace_velocity.metrics import residuals
@@ -42,8 +43,6 @@ def draw_bounds_figure(out: Path, errors: dict[str, tuple[np.ndarray, np.ndarray
                        bounds: dict[str, tuple[np.ndarray, np.ndarray]]) -> Path:
     """OUT/FIGURE: each estimator's range-rate error against the truth and each bound's standard deviation, as
     RMS over WINDOW_S windows (t in s from the first fix, values in m/s), on a log scale."""
-    from bench_eval.report import BOUND_STYLE, Plot, save_plot
-
     def draw(fig) -> None:
         ax = fig.subplots()
         for name, (t, err) in errors.items():

@@ -160,7 +160,9 @@ def test_the_import_graph_sees_the_bench():
     assert len(graph) > 100
     assert "bench_engine.plugins" in graph["bench_engine.graph"]
     assert "orbit_sim.constants" in graph["orbit_sim.cowell"]        # a relative import
-    assert "bench_engine.executors" in graph["bench_engine.batch"]
+    assert "bench_engine.batch_run" in graph["bench_engine.batch"]
+    assert "bench_engine.executors" not in graph["bench_engine.batch"]          # imported when a scheduler is given
+    assert "bench_engine.executors" in import_graph(module_level_only=False)["bench_engine.batch"]
     assert "tracker_filters.smoothing" not in graph["tracker_filters.fixed_lag"]   # imported where it smooths
     assert "tracker_filters.smoothing" in import_graph(module_level_only=False)["tracker_filters.fixed_lag"]
 

@@ -14,6 +14,14 @@ from bench_engine.config import ScenarioError, apply_overrides, load_scenario, o
 from bench_engine.graph import build_graph, resolve_estimators
 from bench_engine.inprocess import run_in_process
 from bench_engine.launcher import validate
+from bench_eval.sweep import load_grid
+from bench_studies.star_tracker.report import paper_case
+from star_tracker.attitude import error_angle, matrix_from_quaternion
+from star_tracker.camera_stage import STAR_CAMERA, camera_config
+from star_tracker.catalogue import ARCSEC, load_catalogue
+from star_tracker.sky_motion import CircularOrbit, orbit_truth
+from star_tracker.star_camera import catalogue_of
+from star_tracker.tracker_stage import StarTrackerStage
 from graph_helpers import read_bag, script, stamp
 
 TRACKERS = ["sna_triad", "sna_wahba", "jpdaf_triad", "jpdaf_wahba"]
@@ -96,14 +104,12 @@ def test_any_override_gives_a_run_plan_or_a_clean_error(data):
 
 
 def test_every_variant_and_sweep_cell_resolves():
-    from bench_eval.sweep import load_grid
     cfg = load_scenario("star_tracker")
     for variant in cfg["variants"]:
         one = select_variant(cfg, variant)
         validate(one, resolve_estimators(one, None), "truth")
     grid = load_grid("star_tracker", "tables")
     assert len(grid.cells) == 18
-    from bench_studies.star_tracker.report import paper_case
     cases = [paper_case(c.cfg) for c in grid.cells]
     assert all(cases) and len({(c["table"], c["sigma"]) for c in cases}) == 18
     assert len(load_grid("star_tracker", "process_noise").cells) == 10
@@ -111,11 +117,9 @@ def test_every_variant_and_sweep_cell_resolves():
 
 # ------------------------------------------------------------------------------------------- node cores
 def _cores(variant: str = "short"):
-    from star_tracker.camera_stage import StarCameraStage
-    from star_tracker.tracker_stage import StarTrackerStage
     cfg = select_variant(load_scenario("star_tracker"), variant)
     run = {"seed": 3}
-    return cfg, StarCameraStage(cfg, "camera", run), {n: StarTrackerStage(cfg, n, run) for n in TRACKERS}
+    return cfg, STAR_CAMERA.stage(cfg, "camera", run), {n: StarTrackerStage(cfg, n, run) for n in TRACKERS}
 
 
 def _truth(cfg, steps):
@@ -133,8 +137,6 @@ def _feed(trackers, frame):
 def test_bad_frames_give_no_attitude_with_a_reason_then_reacquire():
     """Empty frames (every star occluded), two stars only, a burst of 200 false stars and a 20-degree jump of the
     attitude: no exception, no estimate or a correct one, and the trackers re-acquire."""
-    from star_tracker.attitude import error_angle, matrix_from_quaternion
-    from star_tracker.catalogue import ARCSEC
     cfg, camera, trackers = _cores()
     logs = []
     for stage in trackers.values():
@@ -169,11 +171,9 @@ def test_bad_frames_give_no_attitude_with_a_reason_then_reacquire():
 
 
 def test_corrupt_catalogue_cache_is_rebuilt(tmp_path):
-    from star_tracker.camera_stage import camera_config
-    from star_tracker.catalogue import load_catalogue
     cfg = apply_overrides(load_scenario("star_tracker"), [f"star_cameras.camera.cache_dir={tmp_path}",
                                                           "star_cameras.camera.magnitude_limit=4.0"])
-    first = camera_config(cfg, "camera").catalogue()
+    first = catalogue_of(camera_config(cfg, "camera"))
     cached = list(tmp_path.glob("hip_*.npz"))
     assert len(cached) == 1
     cached[0].write_bytes(b"not a catalogue")
@@ -184,7 +184,6 @@ def test_corrupt_catalogue_cache_is_rebuilt(tmp_path):
 
 
 def test_truth_is_the_attitude_of_the_frames():
-    from star_tracker.sky_motion import CircularOrbit, orbit_truth
     cfg = select_variant(load_scenario("star_tracker"), "short")
     truth = _truth(cfg, 5)          # run seed 3, which also draws the jitter (truth.jitter_seed: null)
     ref = orbit_truth(CircularOrbit(raan_deg=30.0, arg_latitude0_deg=50.0), 5, 0.1, "zenith", 0.5,

@@ -21,7 +21,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "sensor_node = radar_sensor.sensor_stage:main"],
+            "sensor_node = radar_sensor.sensor_node:main"],
         "tracking_bench.node_kinds": [
             "sensor = radar_sensor.sensor_stage:SENSOR",
             "cluttered_sensor = radar_sensor.clutter:CLUTTERED_SENSOR"],

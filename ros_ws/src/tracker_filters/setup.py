@@ -21,7 +21,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "filter_node = tracker_filters.filter_stage:main"],
+            "filter_node = tracker_filters.filter_node:main"],
         "tracking_bench.sections": [
             "trackers = tracker_filters.tracker_stage:read_trackers",
             "derived_measurements = tracker_filters.derived:read_derived",

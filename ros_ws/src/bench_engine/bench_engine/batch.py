@@ -20,10 +20,11 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
 
+from tqdm import tqdm
+
 from bench_engine import yamlio
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError
-from bench_engine.executors import run_dask
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 
@@ -62,8 +63,8 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     whose node was killed (batch_run.run_one). Runs are made without the standard views unless their spec asks
     for them (RunSpec.standard_views)."""
     if scheduler is not None:
+        from bench_engine.executors import run_dask  # dask.distributed: only with a scheduler
         return run_dask(specs, scheduler, jobs, desc, on_done, retries)
-    from tqdm import tqdm
     free = list(domains) if domains is not None else [None] * jobs
     if len(free) < jobs:
         raise ValueError(f"{jobs} jobs need {jobs} domains, got {len(free)}")

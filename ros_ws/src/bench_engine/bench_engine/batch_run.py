@@ -16,6 +16,7 @@ with the same seed it records the bag it would have recorded (tests/test_chaos.p
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 import re
 import signal
@@ -23,11 +24,15 @@ import subprocess
 import sys
 import threading
 from dataclasses import dataclass, field
+from multiprocessing import forkserver
 from pathlib import Path
 from typing import Callable
 
 from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
+from bench_engine.launcher import NO_FORK_ENV
+from bench_engine.preload import WARM_ENV
+from bench_engine.timegrid import build_time
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 CROSSTALK_RETRIES = 2
@@ -108,7 +113,6 @@ def crosstalk(bag: Path, steps: int) -> bool:
 
 def recorded_steps(bag: Path) -> int:
     """The number of steps of the run a bag recorded (from its run config)."""
-    from bench_engine.timegrid import build_time
     return build_time(yamlio.load((bag / "run_config.yaml").read_text())["scenario"]).steps
 
 
@@ -126,7 +130,7 @@ def _forked_run(argv: list[str], log: str) -> None:
     os.dup2(fd, 1)
     os.dup2(fd, 2)
     os.close(fd)
-    from bench_engine.run import main
+    from bench_engine.run import main  # sets a node's environment when imported: only in the forked run
     code = main(argv)
     print(f"{EXIT_LINE}{code}", file=sys.stderr, flush=True)
     sys.stdout.flush()
@@ -136,14 +140,10 @@ def _forked_run(argv: list[str], log: str) -> None:
 def fork_context():
     """The forkserver context whose server has imported PRELOAD (None where runs cannot be forked)."""
     global _fork_context
-    from bench_engine.launcher import NO_FORK_ENV
     if os.environ.get(NO_FORK_ENV) == "1" or sys.platform != "linux":
         return None
     with _fork_lock:
         if _fork_context is None:
-            import multiprocessing
-            from multiprocessing import forkserver
-            from bench_engine.preload import WARM_ENV
             os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
             os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything

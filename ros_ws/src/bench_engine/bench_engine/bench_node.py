@@ -37,6 +37,7 @@ from typing import Callable, Iterable
 import rclpy
 import yaml
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -313,7 +314,6 @@ class BenchNode(Node):
 def make_executor(kind: str):
     """``events`` (rclpy's EventsExecutor, fastest) or ``single`` (SingleThreadedExecutor)."""
     if kind == "events":
-        from rclpy.experimental import EventsExecutor
         return EventsExecutor()
     if kind == "single":
         return rclpy.executors.SingleThreadedExecutor()
@@ -337,6 +337,20 @@ closed (its bag and files written) before the process ends anyway, with the hang
 and exit code 1. Seen under load: Fast DDS's destroy_participant spinning for good (rmw_destroy_node ->
 DomainParticipant::set_listener). In a node process the launcher would stop it after LINGER_S; in a
 single-process run nothing outside would."""
+
+
+def spin_in_process(domain_id: int, make_nodes: Callable[[], list[BenchNode]], executor_kind: str = "events",
+                    on_exit: Callable[[], None] = lambda: None) -> int:
+    """rclpy initialised on ``domain_id`` (no signal handlers: :func:`spin_nodes` installs its own), the nodes
+    ``make_nodes`` creates spun in this process until they finish, ``on_exit`` called, then rclpy shut down;
+    an exit code."""
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    try:
+        code = spin_nodes(make_nodes(), executor_kind)
+        on_exit()
+        return code
+    finally:
+        rclpy.try_shutdown()
 
 
 def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,

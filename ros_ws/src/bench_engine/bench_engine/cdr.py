@@ -33,8 +33,8 @@ Conventions of the light messages (where they differ from rclpy's classes):
   (``DiagnosticStatus.WARN == 1``);
 * arrays of messages are lists of light messages (a fixed-size one of exactly its size).
 
-Costs, one StateEstimate of 6 states built by its codec, then serialised / deserialised (this 2-core machine,
-the medians of ``python -m bench_engine.cdr``): see README, Speed.
+``scripts/bench_cdr.py`` measures the cost of one StateEstimate built by its codec, then serialised /
+deserialised.
 
 :func:`compiled` describes a type's fields for the columnar bag decoder (bench_engine.columns), which reads
 whole topics as numpy columns without building messages.
@@ -442,24 +442,3 @@ def bench_types() -> list[str]:
     """The message types the bench's nodes send as CDR: every installed bench_msgs type and /clock's."""
     share = interface_file("bench_msgs/msg/StepAck", ".msg").parent
     return [f"bench_msgs/msg/{path.stem}" for path in sorted(share.glob("*.msg"))] + ["rosgraph_msgs/msg/Clock"]
-
-
-def _timings(repeat: int = 20000) -> None:  # pragma: no cover - `python -m bench_engine.cdr`
-    """Microseconds per StateEstimate of 6 states: built by its codec and serialised; deserialised."""
-    import timeit
-
-    from bench_engine.stage import ESTIMATE_CODEC, Estimate
-    name = "bench_msgs/msg/StateEstimate"
-    item = Estimate(3, 1_500_000_000, "eci", "ukf", ["x", "y", "z", "vx", "vy", "vz"], np.arange(6.0),
-                    np.eye(6), 1.5, {"n_eff": 3.0})
-    lite = lite_class(name)
-    data = serialize(name, ESTIMATE_CODEC.encode(item, lite))
-    for label, stmt in (("encode + serialize", lambda: serialize(name, ESTIMATE_CODEC.encode(item, lite))),
-                        ("deserialize", lambda: deserialize(name, data)),
-                        ("deserialize + decode", lambda: ESTIMATE_CODEC.decode(deserialize(name, data)))):
-        best = min(timeit.repeat(stmt, number=repeat, repeat=7)) / repeat * 1e6
-        print(f"{label:24s} {best:6.2f} us")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    _timings()

@@ -9,7 +9,8 @@ A worker lost in the middle of a run: its run process dies with it (PR_SET_PDEAT
 task to another worker (up to ``distributed.scheduler.allowed-failures`` lost workers), and the new attempt
 removes the incomplete output of the lost one before it starts. A task that raises is retried ``retries``
 times. A run whose node was killed is run again by the task itself (bench_engine.batch_run.run_one), a line
-on the worker's stderr as each retry starts. dask is imported only here, when a scheduler is given.
+on the worker's stderr as each retry starts. bench_engine.batch imports this module (and dask) only when a
+scheduler is given.
 """
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ import signal
 import sys
 from dataclasses import replace
 from typing import Callable
+
+from dask.distributed import Client, LocalCluster, as_completed
+from tqdm import tqdm
 
 from bench_engine.batch_run import RunResult, RunSpec, complete, run_one
 
@@ -50,7 +54,6 @@ def run_task(spec: RunSpec) -> RunResult:
 def connect(scheduler: str, jobs: int):
     """A dask.distributed Client: of the scheduler at ``scheduler``, or of a new LocalCluster of ``jobs``
     single-threaded worker processes on 127.0.0.1 when ``scheduler`` is ``"local"``."""
-    from dask.distributed import Client, LocalCluster
     if scheduler == "local":
         cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address=None)
@@ -73,8 +76,6 @@ def run_dask(specs: list[RunSpec], scheduler: str, jobs: int = 2, desc: str = "r
     """Run every spec as a task on the cluster (``connect``), with a progress bar; results in the order they
     end, each carrying the caller's own spec object. A run whose task failed for good (it raised more than
     ``retries`` times, or lost too many workers) is a failed RunResult naming the error."""
-    from dask.distributed import as_completed
-    from tqdm import tqdm
     client = connect(scheduler, jobs)
     results = []
     try:

@@ -10,7 +10,9 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +25,8 @@ from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import flatten, node_settings, parameters_file
 from bench_engine.process import exit_now
+from bench_engine.bag_errors import BagUnrecoverable
+from bench_engine.recovery import ensure_complete
 from bench_engine.timegrid import build_time
 
 ENGINE_KEYS = ("scenario", "description", "seed", "time", "default_filters", "variants", "sweeps")
@@ -168,7 +172,6 @@ def can_fork() -> bool:
     """Whether processes may be forked from this one: fork exists, no Python thread but this one, rclpy never
     initialised here (its DDS threads), and NO_FORK_ENV unset. (The only native threads then are LTTng-UST's
     two idle listener threads, started when rclpy's tracing library loads; a child has none of them.)"""
-    import threading
     if not hasattr(os, "fork") or os.environ.get(NO_FORK_ENV) == "1" or threading.active_count() != 1:
         return False
     rclpy = sys.modules.get("rclpy")
@@ -205,7 +208,6 @@ def fork_node(module: str, argv: list[str], env: dict[str, str], log: Path) -> F
     except SystemExit as exit_:
         code = exit_.code if isinstance(exit_.code, int) else 1
     except BaseException:  # noqa: B036 - report anything, then leave the child
-        import traceback
         traceback.print_exc()
     finally:
         exit_now(code)
@@ -339,7 +341,6 @@ def _complete(plan: RunPlan, procs: dict, ends: list[str]) -> bool:
 
 
 def _recover_bag(plan: RunPlan) -> None:
-    from bench_engine.recovery import BagUnrecoverable, ensure_complete
     if not plan.run.get("record", True):
         return
     try:
@@ -412,22 +413,19 @@ def pin_to_one_cpu(domain_id: int) -> int | None:
 
 def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", pin: bool = True) -> int:
     """All nodes in this process on one executor; on one CPU unless ``pin`` is off (``pin_to_one_cpu``)."""
-    import rclpy
-
-    from bench_engine.bench_node import spin_nodes
+    from bench_engine.bench_node import spin_in_process  # rclpy: planning runs (sweeps, Monte Carlo) loads no ROS
 
     phases.mark("spawned", "launcher", plan.out)
     if pin:
         pin_to_one_cpu(domain_id)
     os.environ.update(local_dds_env(domain_id))
-    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    try:
+
+    def make_nodes() -> list:
         phases.mark("rclpy_init", "launcher", plan.out)
         nodes = [node_class(spec.node)(spec.name, plan.run, parameters=_file_parameters(plan, spec.name))
                  for spec in plan.graph.start_order()]
         phases.mark("node_created", "launcher", plan.out)
-        code = spin_nodes(nodes, executor)
-        phases.mark("nodes_exited", "launcher", plan.out)
-        return code
-    finally:
-        rclpy.try_shutdown()
+        return nodes
+
+    return spin_in_process(domain_id, make_nodes, executor,
+                           on_exit=lambda: phases.mark("nodes_exited", "launcher", plan.out))

@@ -13,6 +13,8 @@ from __future__ import annotations
 import importlib
 import os
 
+from bench_engine import plugins
+
 WARM_ENV = "TRACKING_BENCH_FORK_SERVER"
 MODULES = ("bench_engine.run", "rclpy", "bench_engine.bench_node", "bench_engine.source_node",
            "bench_engine.stage_node", "bench_engine.recorder_node", "bench_engine.player_node")
@@ -25,7 +27,6 @@ def warm() -> None:
     """Import what a run imports: the engine, rclpy, the node shells and every registered component."""
     for module in MODULES:
         importlib.import_module(module)
-    from bench_engine import plugins
     for group in GROUPS:
         try:
             plugins.registered(group)

@@ -15,6 +15,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from bench_engine import plugins
+
 Log = Callable[[str, str], None]
 """log(level, text), level "info", "warning" or "error"."""
 
@@ -113,7 +115,6 @@ class Codec(Protocol):
 
 def codec(type_name: str) -> Codec:
     """The codec registered for a ROS message type ("pkg/msg/Type", registered as "pkg.msg.Type")."""
-    from bench_engine import plugins
     return plugins.load("codecs", type_name.replace("/", "."))
 
 

@@ -38,9 +38,14 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
+from bench_engine.graph import resolve_estimators
 from bench_engine.labels import POSITION, VELOCITY
 from bench_eval import metrics
+from bench_models.truth_dynamics import truth_dynamics
+from tracker_filters.builders import build_dynamics, build_filter_stack, measurement_source
+from tracker_filters.pcrb import pcrb_along_truth
 
 Run = Any
 """A recorded run, bench_eval.scoring.BagData (which imports this module: not imported here, no circle)."""
@@ -80,7 +85,6 @@ class BoundRun:
 
 def read_bounds(sec: Section, cfg: dict) -> dict[str, BoundRun]:
     """``scoring.bounds`` read strictly, each bound's params checked by the bound itself."""
-    from bench_engine import plugins
     bounds = {}
     for name in sec.keys():
         entry = sec.section(name)
@@ -141,7 +145,6 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
 def compute_bounds(runs: list[Run], bounds: Mapping[str, BoundRun]) -> None:
     """Compute each configured bound over each run once, into the run's ``bounds`` (name -> BoundSeries), where
     metric families may use it too (e.g. a bound in a sensor's coordinates)."""
-    from bench_engine import plugins
     for data in runs:
         for name, b in bounds.items():
             if name not in data.bounds:
@@ -181,9 +184,6 @@ def _pcrb_settings(cfg: dict, params: dict):
     model's own deterministic dynamics (bench_models.truth_dynamics), or a dynamics section as a filter's
     (a registered model and its process noise); ``prior`` (the filter whose initialiser gives J_0; default the
     first default filter); ``sensors`` (default: that filter's)."""
-    from bench_engine.graph import resolve_estimators
-    from bench_models.truth_dynamics import truth_dynamics
-    from tracker_filters.builders import build_dynamics, build_filter_stack
     sec = Section(params, "scoring.bounds.params")
     if sec.data.get("dynamics") == "truth":
         sec.mark("dynamics")
@@ -200,7 +200,6 @@ def _pcrb_settings(cfg: dict, params: dict):
 
 
 def _pcrb_check(cfg: dict, params: dict) -> None:
-    from tracker_filters.builders import measurement_source
     dynamics, _, sensors = _pcrb_settings(cfg, params)
     for name in sensors:
         measurement_source(cfg, name, dynamics.labels)
@@ -213,8 +212,6 @@ def _pcrb_run(data: Run, params: dict) -> BoundSeries:
     noise-free first scan (h of the truth): what the filters know at their first estimate (for ``first_scan``
     that scan's information is in it; a ``given`` prior does not use it), so the first scan adds nothing
     more. State components are the dynamics model's labels, taken from the truth by label."""
-    from tracker_filters.builders import build_filter_stack, measurement_source
-    from tracker_filters.pcrb import pcrb_along_truth
     cfg = data.scenario
     dynamics, prior, names = _pcrb_settings(cfg, params)
     labels = list(dynamics.labels)

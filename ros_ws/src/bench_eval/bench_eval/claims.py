@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from scipy import special
 
 from bench_engine.config import ScenarioError, Section
 
@@ -179,14 +180,13 @@ def runs_needed(effect: float, sd: float, level: float, power: float = POWER) ->
     t-test at ``level`` with probability ``power``: the smallest N >= 2 with
     sqrt(N) |effect| / sd >= t_{1-level/2, N-1} + t_{power, N-1} (for large N: N = ((z_{1-level/2} + z_power)
     sd / effect)^2). None when the effect is zero; MAX_RUNS + 1 when more than MAX_RUNS are needed."""
-    from scipy import stats
     if effect == 0.0 or not np.isfinite(effect) or not np.isfinite(sd):
         return None
-    z = (stats.norm.ppf(1.0 - level / 2.0) + stats.norm.ppf(power)) * sd / abs(effect)
+    z = (special.ndtri(1.0 - level / 2.0) + special.ndtri(power)) * sd / abs(effect)
     if z * z > MAX_RUNS:
         return MAX_RUNS + 1
     n = np.arange(max(2, int(z * z)), int(z * z) + 200)  # t quantiles exceed z's: N is at least z^2
-    enough = np.sqrt(n) * abs(effect) / sd >= stats.t.ppf(1.0 - level / 2.0, n - 1) + stats.t.ppf(power, n - 1)
+    enough = np.sqrt(n) * abs(effect) / sd >= special.stdtrit(n - 1, 1.0 - level / 2.0) + special.stdtrit(n - 1, power)
     return int(n[np.argmax(enough)]) if enough.any() else int(n[-1])
 
 
@@ -202,12 +202,11 @@ def decide_interval(value: float, runs: np.ndarray, low: float, high: float, lev
     the (1 - level) Student t confidence interval value ± t s / sqrt(n): holds when it lies inside, fails when
     it lies wholly outside; undecided otherwise, with the runs at which the interval's half-width would be
     below the distance from the value to the band's nearest edge."""
-    from scipy import stats
     n = len(runs)
     if n < 2:
         return Decision("undecided", n, why="a standard error needs ≥ 2 runs")
     sd = float(np.std(runs, ddof=1))
-    half = float(stats.t.ppf(1.0 - level / 2.0, n - 1)) * sd / np.sqrt(n)
+    half = float(special.stdtrit(n - 1, 1.0 - level / 2.0)) * sd / np.sqrt(n)
     if low <= value - half and value + half <= high:
         return Decision("holds", n)
     if value + half < low or value - half > high:
@@ -221,7 +220,6 @@ def decide_paired(better: np.ndarray, worse: np.ndarray, level: float) -> Decisi
     """Is ``better`` smaller than ``worse``, run by run (the same seeds)? A two-sided paired t-test at
     ``level``: holds when significant in the claimed direction, fails when significant the other way. The
     same difference in every run decides by its sign."""
-    from scipy import stats
     d = worse - better
     n = len(d)
     if n < 2:
@@ -231,7 +229,8 @@ def decide_paired(better: np.ndarray, worse: np.ndarray, level: float) -> Decisi
         if d[0] == 0.0:
             return Decision("undecided", n, why="no difference in any run")
         return Decision("holds" if d[0] > 0.0 else "fails", n)
-    p = float(stats.ttest_1samp(d, 0.0).pvalue)
+    t = float(d.mean()) / (sd / np.sqrt(n))
+    p = float(2.0 * special.stdtr(n - 1, -abs(t)))  # the two-sided p of a one-sample t-test on d
     if p < level:
         return Decision("holds" if d.mean() > 0.0 else "fails", n)
     needed = runs_needed(float(d.mean()), sd, level)
@@ -242,15 +241,14 @@ def decide_fraction(flags: Sequence[bool], fraction: float, level: float) -> Dec
     """Are the flags true in at least ``fraction`` of the runs? The (1 - level) Clopper-Pearson interval of the
     observed rate: holds when it lies at or above ``fraction``, fails when it lies below; undecided otherwise,
     with the smallest number of runs at which the observed rate's interval would exclude ``fraction``."""
-    from scipy import stats
     n, k = len(flags), int(sum(bool(f) for f in flags))
     if n == 0:
         return Decision("undecided", 0, why="no runs")
 
     def interval(k: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(invalid="ignore", divide="ignore"):
-            low = np.where(k > 0, stats.beta.ppf(level / 2.0, k, n - k + 1), 0.0)
-            high = np.where(k < n, stats.beta.ppf(1.0 - level / 2.0, k + 1, n - k), 1.0)
+            low = np.where(k > 0, special.betaincinv(k, n - k + 1, level / 2.0), 0.0)
+            high = np.where(k < n, special.betaincinv(k + 1, n - k, 1.0 - level / 2.0), 1.0)
         return low, high
 
     low, high = interval(np.array(k), np.array(n))

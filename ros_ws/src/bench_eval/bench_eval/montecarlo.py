@@ -14,6 +14,8 @@ from pathlib import Path
 from bench_engine import phases
 from bench_engine.batch import RunSpec, reusable_run, run_batch
 from bench_engine.launcher import prepare_run
+from bench_eval.report import write_report
+from bench_eval.scoring import load_bag, score_bags
 
 
 @dataclass
@@ -56,8 +58,6 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times."""
     mc.out.mkdir(parents=True, exist_ok=True)
     pending = mc.pending(mc.validate(), resume)
-    from bench_eval.report import write_report  # the scorer and matplotlib: after a bad input is refused
-    from bench_eval.scoring import load_bag, score_bags
     phases.mark("validated", "montecarlo", mc.out.resolve())
     if len(pending) < mc.runs:
         print(f"[montecarlo] resuming: {mc.runs - len(pending)} complete runs kept, {len(pending)} to run",

@@ -22,7 +22,11 @@ from typing import Callable
 import numpy as np
 
 from bench_engine.config import ScenarioError
+from bench_engine.graph import resolve_estimators
 from bench_eval.scoring import BagData, Estimates
+from tracker_filters.builders import build_filter_stack
+from tracker_filters.differentiation import newton_derivative, savgol_derivative
+from tracker_filters.smoothing import smooth_estimates
 
 
 @dataclass(frozen=True)
@@ -35,8 +39,6 @@ class OfflineEstimator:
 
 
 def _source_dynamics(cfg: dict, source: str):
-    from bench_engine.graph import resolve_estimators
-    from tracker_filters.builders import build_filter_stack
     if source not in (cfg.get("filters") or {}) and source not in resolve_estimators(cfg, None):
         raise ScenarioError(f"'scoring.offline': source '{source}' is not a filter of the scenario")
     return build_filter_stack(cfg, source).filter.dynamics
@@ -53,7 +55,6 @@ def _rts_check(cfg: dict, source: str, params: dict) -> None:
 def _rts_run(data: BagData, source: str, params: dict) -> Estimates:
     """Fixed-interval RTS smoothing (tracker_filters.smoothing) of ``source``'s estimates, with the source
     filter's own dynamics model between consecutive estimate times."""
-    from tracker_filters.smoothing import smooth_estimates
     est = data.estimates[source]
     x, P = smooth_estimates(_source_dynamics(data.scenario, source), np.diff(est.t), est.x, est.P)
     return Estimates(est.steps, est.t, x, P, est.labels, {})
@@ -104,7 +105,6 @@ def _differentiated(data: BagData, source: str, params: dict, derivative) -> Est
 def _newton_run(data: BagData, source: str, params: dict) -> Estimates:
     """Newton's divided-difference polynomial of degree ``order`` (paper 002's "Newton" method); windows never
     span a gap longer than ``max_gap`` seconds, and are one-sided at the ends of the day and of every gap."""
-    from tracker_filters.differentiation import newton_derivative
     gap = float(params.get("max_gap", np.inf))
     return _differentiated(data, source, params, lambda t, z: newton_derivative(t, z, params["order"], gap))
 
@@ -113,7 +113,6 @@ def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
     """Savitzky-Golay: least-squares polynomial of ``polyorder`` over a window of ``window_s`` seconds (the
     largest odd number of samples it holds at the series' median spacing, at least polyorder + 2), so the
     window keeps its length in time whatever the sampling interval."""
-    from tracker_filters.differentiation import savgol_derivative
     gap = float(params.get("max_gap", np.inf))
 
     def derivative(t: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -16,6 +16,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from bench_eval.claims import evaluate
+from bench_eval.study import study
+
 
 @dataclass
 class Table:
@@ -217,8 +220,6 @@ def write_report(out_dir: Path | str, scored: Mapping, series: Mapping, paper_ta
     scenarios); ``paper_table``: {scenario: paper numbers} replacing the studies' own (pass {} for no paper
     columns and no claims). ``extra_sections`` are appended after the scenario sections.
     """
-    from bench_eval.claims import evaluate
-    from bench_eval.study import study
     sections, claims = [], []
     for scenario, block in scored.items():
         found = study(scenario)

@@ -22,6 +22,7 @@ from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.stage import codec
 from bench_eval import metrics
+from bench_eval.claims import diverged
 from bench_eval.bounds import compute_bounds, read_bounds, score_bounds
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
 from bench_models.states import error_labels
@@ -258,7 +259,6 @@ def score_run(out_dir: Path, as_json: bool = False) -> str:
 
 def print_summary(scored: dict) -> str:
     """A short human-readable table of the main numbers (the metric family's own parts: ``Metric.summary``)."""
-    from bench_eval.claims import diverged
     family_summary = plugins.load("metrics", scored["metric"]).summary if "metric" in scored else None
     lines = [f"{scored['scenario']} — {scored['runs']} run(s)"]
     for name, block in scored["filters"].items():

@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import Callable, Mapping
 
 from bench_engine import plugins, yamlio
+from bench_engine.config import ScenarioError, Section
+from bench_eval.claims import read_claims
 from bench_eval.reproduce import Table, read_tables
 
 
@@ -44,8 +46,6 @@ def load_paper(path: Path) -> tuple[Mapping, list]:
     """(paper numbers, claims) of a study's paper.yaml: ``paper`` (free-form numbers its report section reads)
     and ``claims`` (read strictly into bench_eval.claims.Claim; a bad claim raises ScenarioError naming the file
     and key)."""
-    from bench_engine.config import ScenarioError, Section
-    from bench_eval.claims import read_claims
     path = Path(path)
     top = Section(yamlio.load(path.read_text(encoding="utf-8")) or {}, "")
     paper = top.get("paper", dict, {})

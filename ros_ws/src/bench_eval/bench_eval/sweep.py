@@ -40,8 +40,12 @@ from typing import Any, Mapping
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
 from bench_engine.graph import resolve_estimators
+from bench_engine.launcher import prepare_run
 from tracker_filters.filter_settings import filter_config
 from bench_eval.metrics import json_ready
+from bench_eval.report import Section as ReportSection
+from bench_eval.report import generic_sections, render
+from bench_eval.scoring import score_bags
 from bench_eval.study import study
 
 PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
@@ -214,7 +218,6 @@ def distinct_truths(grid: Grid) -> list[tuple[str, dict]]:
 
 def validate(grid: Grid, seed0: int) -> None:
     """Build every cell's run (truth, sensors, filters, models) once; raises ScenarioError naming the cell."""
-    from bench_engine.launcher import prepare_run
     with tempfile.TemporaryDirectory() as tmp:
         for cell in grid.cells:
             try:
@@ -278,7 +281,6 @@ class SweepRun:
         self.records = {c.id: cell_record(self.grid, c) for c in self.grid.cells}
 
     def score(self, cell: Cell) -> None:
-        from bench_eval.scoring import score_bags
         bags = [b for b in (run_dir(self.out, cell, i) / "bag" for i in range(self.runs))
                 if (b / "metadata.yaml").is_file()]
         if not bags:
@@ -348,8 +350,7 @@ def sweep_intro(sweep: Mapping, each_run: str = "") -> str:
 
 def generic_sweep_report(out: Path, sweep: dict) -> Path:
     """table.md of a study without a sweep report: every cell's scalar scores (bench_eval.report)."""
-    from bench_eval.report import Section, generic_sections, render
-    sections = [Section(f"{sweep['scenario']} — sweep '{sweep['grid']}'", sweep.get("description", ""))]
+    sections = [ReportSection(f"{sweep['scenario']} — sweep '{sweep['grid']}'", sweep.get("description", ""))]
     for cell in sweep["cells"]:
         if cell.get("score"):
             sections += generic_sections(cell["id"], cell["score"]["filters"], None, None)

@@ -118,7 +118,7 @@ class OrbitJ2Dynamics:
         """[state, Phi flattened] (k, 42) at ``times``, ordered away from t0 (all on one side of it)."""
         if times.size == 0 or times[-1] == t0:
             return np.tile(y0, (times.size, 1))
-        from scipy.integrate import solve_ivp  # here, not at import: scipy.integrate costs 0.3-0.6 s of a start-up
+        from scipy.integrate import solve_ivp  # scipy.integrate: only a filter node that re-solves its pass
         sol = solve_ivp(self._variational_derivative, (t0, times[-1]), y0, method="DOP853", t_eval=times,
                         rtol=VARIATIONAL_RTOL, atol=VARIATIONAL_ATOL)
         if not sol.success:

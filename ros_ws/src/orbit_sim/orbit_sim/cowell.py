@@ -22,7 +22,7 @@ def propagate(state0: np.ndarray, times: np.ndarray, mu: float = MU_EARTH, j2: f
     ``times`` must be monotonic (increasing or decreasing). atol applies to metres and m/s alike:
     1e-9 is far below the relative tolerance on LEO positions (~7e6 m) and velocities (~7e3 m/s).
     """
-    from scipy.integrate import solve_ivp  # here, not at import: most node processes never integrate
+    from scipy.integrate import solve_ivp  # scipy.integrate: every node reads the truth kind, one integrates
 
     times = np.asarray(times, dtype=float)
     state0 = np.asarray(state0, dtype=float)

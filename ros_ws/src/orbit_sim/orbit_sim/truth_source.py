@@ -2,19 +2,20 @@
 
 Registered as the node kind ``truth`` (role ``source``); the engine's source shell publishes each sample on
 ``/truth/state`` (bench_msgs/TruthState, labelled components, frame in header.frame_id) with /clock. The
-trajectory (and scipy) is loaded only when the source is built: every node reads the kind.
+trajectory is computed (and scipy loaded: orbit_sim.cowell) only when the source is built: every node reads the
+kind.
 """
 from __future__ import annotations
 
 from bench_engine.graph import CLOCK_TOPIC, CLOCK_TYPE, TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import Outputs, TruthSample
+from orbit_sim.truth import build_truth
 
 
 class TruthSource:
     """Publishes the precomputed truth trajectory, step by step."""
 
     def __init__(self, cfg: dict, name: str = "truth", run: dict | None = None) -> None:
-        from orbit_sim.truth import build_truth
         self.truth = build_truth(cfg)
         self.steps = self.truth.grid.steps
         self._labels = list(self.truth.labels)

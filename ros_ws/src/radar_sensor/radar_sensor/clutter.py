@@ -17,9 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import DetectionSet, Outputs, TruthSample, python_log
+from orbit_sim.truth import build_earth
+from radar_sensor.sensor import every_n_steps
 
 SECTION = "cluttered_sensors"
 DETECTION_SET_TYPE = "bench_msgs/msg/DetectionSet"
@@ -59,9 +62,6 @@ def names(cfg: dict) -> list[str]:
 
 def build_cluttered(cfg: dict, name: str) -> ClutteredSensor:
     """Build ``cluttered_sensors.NAME``: a registered sensor type's keys plus clutter_rate, clutter_halfwidth."""
-    from bench_engine import plugins
-    from orbit_sim.truth import build_earth
-    from radar_sensor.sensor import every_n_steps
     sections = Section(cfg.get(SECTION), SECTION)
     if name not in sections.keys():
         raise ScenarioError(f"unknown cluttered sensor '{name}'; the scenario has: {sorted(sections.keys())}")

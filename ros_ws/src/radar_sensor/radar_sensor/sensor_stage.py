@@ -1,6 +1,5 @@
 """The sensor node's core: each truth sample becomes a noisy measurement (or none), registered as the node
-kind ``sensor`` for every entry of the scenario's ``sensors`` section. The kind is read by every node of a
-run to build the graph, so the models are imported only when a sensor is built.
+kind ``sensor`` for every entry of the scenario's ``sensors`` section.
 
 Subscribes ``/truth/state``; publishes ``/NAME/measurement`` (the message type of the sensor's registered
 type), stamped with the truth's sim time and step, its frame in header.frame_id.
@@ -12,6 +11,7 @@ import numpy as np
 from bench_engine.config import ScenarioError, scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
+from radar_sensor.sensor import build_sensor
 from radar_sensor.sensor_types import SensorType, sensor_names, sensor_type
 
 
@@ -19,7 +19,6 @@ class SensorStage:
     """Simulated sensor (ground radar, inter-satellite radio, relative position, ...)."""
 
     def __init__(self, cfg: dict, name: str, run: dict) -> None:
-        from radar_sensor.sensor import build_sensor
         self.name = name
         self.sensor = build_sensor(cfg, name)
         seed = int(run.get("seed", scenario_seed(cfg)))
@@ -46,7 +45,6 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 
 def _check(cfg: dict, name: str) -> None:
-    from radar_sensor.sensor import build_sensor
     build_sensor(cfg, name)
 
 
@@ -65,10 +63,3 @@ def read_sensors(cfg: dict) -> dict[str, SensorType]:
 SENSOR = NodeKind("sensor", "sensor", "bench_engine.stage_node:StageNode",
                   instances=lambda cfg, requested: sensor_names(cfg), spec=_spec, check=_check, stage=SensorStage)
 
-
-def main() -> int:
-    """``sensor_node``: a bench sensor in any ROS 2 graph, fed by a truth topic and configured by its parameters
-    alone (no launcher, no lock-step; bench_engine.bench_node.standalone_main)."""
-    from bench_engine.bench_node import standalone_main
-    from bench_engine.stage_node import StageNode
-    return standalone_main(StageNode, SENSOR.name)

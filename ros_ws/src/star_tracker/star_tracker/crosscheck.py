@@ -57,7 +57,7 @@ class Tetra3Solver:
 
     def __init__(self, catalogue: StarCatalogue, camera: Camera, cache_dir: Path | str | None = None,
                  **solve_options) -> None:
-        import tetra3rs
+        import tetra3rs  # optional: a test_depend, only for the cross-check
         self.catalogue, self.camera = catalogue, camera
         directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
         digest = hashlib.sha256()

@@ -14,6 +14,11 @@ from bench_engine.stage import Item, set_stamp, stamp_ns
 STAR_CENTROIDS_TYPE = "bench_msgs/msg/StarCentroids"
 
 
+def star_truth_topic(camera: str) -> str:
+    """A star camera's per-centroid truth topic (scoring only)."""
+    return f"/{camera}/star_truth"
+
+
 @dataclass
 class StarFrame(Item):
     """One frame's centroids: tangent-plane positions ``xy`` (N, 2), magnitudes (N,) or empty, the 1σ noise

@@ -43,6 +43,7 @@ stars they are independent as long as the known rate is exact).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -50,9 +51,11 @@ import numpy as np
 from star_tracker.attitude import AttitudeSolution, error_vector, residuals, triad, wahba, wahba_matrix
 from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, StarCatalogue
+from star_tracker.kvector import PairTable
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
 from star_tracker.options import AIDS, MOTIONS, SOLVERS, TRACKERS
 from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier
+from star_tracker.star_camera import camera_of, catalogue_of
 from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, member, predict_centroids
 
 BIAS_WINDOW = 10
@@ -422,3 +425,27 @@ class JPDAFTracking:
 TRACKING = {"sna": SNATracking, "jpdaf": JPDAFTracking}
 """The tracking strategy of each ``tracker`` (TRACKERS)."""
 assert tuple(TRACKING) == TRACKERS
+
+
+@lru_cache(maxsize=4)
+def pair_table(cam) -> PairTable:
+    """The k-vector of a camera's catalogue pairs (camera_stage.CameraConfig), built once per process and shared
+    by the trackers of one camera (it is read-only)."""
+    return PairTable(catalogue_of(cam), camera_of(cam).max_separation)
+
+
+def pipeline_for(conf, cam) -> StarTrackerPipeline:
+    """The pipeline of a star tracker's settings ``conf`` (tracker_stage.TrackerConfig) on its camera's ``cam``
+    (camera_stage.CameraConfig): the camera's catalogue and geometry; σ, P_D and the clutter density as the
+    settings give them or the camera's."""
+    camera, catalogue = camera_of(cam), catalogue_of(cam)
+    sigma_px = conf.sigma_px or cam.sigma_px
+    clutter = conf.clutter_per_frame
+    if clutter is None:
+        clutter = max(cam.false_stars + cam.false_rate, 0.1)
+    identifier = PyramidIdentifier(catalogue, camera, sigma_px, pair_table=pair_table(cam))
+    return StarTrackerPipeline(catalogue, camera, sigma_px, tracker=conf.tracker, solver=conf.solver,
+                               motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
+                               clutter_density=clutter / (camera.width * camera.height), gate=conf.gate,
+                               min_stars=conf.min_stars, verify_sigmas=conf.verify_sigmas,
+                               max_misses=conf.max_misses, aid=conf.aid, identifier=identifier)

@@ -27,7 +27,6 @@ frame: per measured centroid, the star id it was given (HIP, −1: none) and the
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -111,31 +110,11 @@ def tracker_config(cfg: dict, name: str) -> TrackerConfig:
     return trackers[name]
 
 
-@lru_cache(maxsize=4)
-def _pair_table(cam):
-    """The k-vector of the camera's catalogue pairs (kvector.PairTable), built once per process and shared by
-    the trackers of one camera (it is read-only)."""
-    from star_tracker.kvector import PairTable
-    return PairTable(cam.catalogue(), cam.camera().max_separation)
-
-
 def build_pipeline(cfg: dict, name: str):
-    """The pipeline of tracker ``name`` (its camera's catalogue and geometry)."""
-    from star_tracker.pipeline import StarTrackerPipeline
-    from star_tracker.pyramid import PyramidIdentifier
+    """The pipeline of tracker ``name`` (its camera's catalogue and geometry: pipeline.pipeline_for)."""
+    from star_tracker.pipeline import pipeline_for  # catalogue, Pyramid, JPDAF: scipy, not for every node
     conf = tracker_config(cfg, name)
-    cam = camera_config(cfg, conf.camera)
-    camera, catalogue = cam.camera(), cam.catalogue()
-    sigma_px = conf.sigma_px or cam.sigma_px
-    clutter = conf.clutter_per_frame
-    if clutter is None:
-        clutter = max(cam.false_stars + cam.false_rate, 0.1)
-    identifier = PyramidIdentifier(catalogue, camera, sigma_px, pair_table=_pair_table(cam))
-    return StarTrackerPipeline(catalogue, camera, sigma_px, tracker=conf.tracker, solver=conf.solver,
-                               motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
-                               clutter_density=clutter / (camera.width * camera.height), gate=conf.gate,
-                               min_stars=conf.min_stars, verify_sigmas=conf.verify_sigmas,
-                               max_misses=conf.max_misses, aid=conf.aid, identifier=identifier)
+    return pipeline_for(conf, camera_config(cfg, conf.camera))
 
 
 class StarTrackerStage:
@@ -187,7 +166,7 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 def _check(cfg: dict, name: str) -> None:
     """Build the tracker's pipeline once at validation: a bad key stops the launch, and node processes forked
-    from the launcher inherit the camera's k-vector (``_pair_table``) instead of each building it."""
+    from the launcher inherit the camera's k-vector (pipeline.pair_table) instead of each building it."""
     build_pipeline(cfg, name)
 
 

@@ -26,6 +26,8 @@ import numpy as np
 from bench_engine.config import Section
 from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.timegrid import TimeGrid
+from orbit_sim.truth import Truth
+from star_tracker.sky_motion import BORESIGHTS, CircularOrbit, orbit_truth
 
 LABELS = QUATERNION + ANGULAR_RATE
 FRAME = "icrs"
@@ -33,7 +35,6 @@ FRAME = "icrs"
 
 def orbit_of(sec: Section):
     """The CircularOrbit of the truth section's orbit keys."""
-    from star_tracker.sky_motion import CircularOrbit
     return CircularOrbit(altitude_m=sec.get("altitude_m", float, 700e3, lambda v: 0.0 < v < 1e8, "in (0, 1e8) m"),
                          inclination_deg=sec.get("inclination_deg", float, 30.0, lambda v: 0.0 <= v <= 180.0,
                                                  "in [0, 180]"),
@@ -43,8 +44,6 @@ def orbit_of(sec: Section):
 
 def camera_truth(sec: Section, model: str, earth, grid: TimeGrid, seed: int = 0):
     """Truth (orbit_sim.truth.Truth) of the module docstring's section; ``seed`` is the run's seed."""
-    from orbit_sim.truth import Truth
-    from star_tracker.sky_motion import BORESIGHTS, orbit_truth
     boresight = sec.choice("boresight", BORESIGHTS, "zenith")
     jitter = sec.get("jitter_deg_s", float, 0.0, lambda v: 0.0 <= v <= 90.0, "in [0, 90] deg/s")
     hold = sec.get("jitter_hold", int, 10, lambda v: v >= 1, "an integer >= 1")

@@ -128,7 +128,7 @@ class DifferentiatedStage:
     """Centre position and Newton derivative over a sliding window of order + 1 samples."""
 
     def __init__(self, conf: DerivedConfig) -> None:
-        from tracker_filters.differentiation import weights_at_node
+        from tracker_filters.differentiation import weights_at_node  # scipy: only where a derivative is taken
         self.conf, self.weights = conf, weights_at_node
         self.window: deque[Measurement] = deque(maxlen=conf.order + 1)
 

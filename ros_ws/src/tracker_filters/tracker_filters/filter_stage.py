@@ -8,7 +8,7 @@ counter, so a publisher outside the bench (``step`` left at 0) feeds the filter 
 measurements (NaN/inf, a time not after the last one from the same sensor, gated by the filter's NIS gate,
 failed update) are logged and skipped;
 recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings. The filters are
-imported only when one is built (every node of a run reads the kind to build the graph).
+imported only when one is built (:func:`build_stack`: every node of a run reads the kind to build the graph).
 """
 from __future__ import annotations
 
@@ -22,13 +22,19 @@ from tracker_filters.derived import read_derived
 from tracker_filters.filter_settings import filter_config
 
 
+def build_stack(cfg: dict, name: str):
+    """The filter stack of ``filters.NAME`` (tracker_filters.builders.build_filter_stack), for this module and
+    the other estimator kinds built on a filter (fixed-lag smoother, tracker)."""
+    from tracker_filters.builders import build_filter_stack  # every filter and scipy: only where one is built
+    return build_filter_stack(cfg, name)
+
+
 class FilterStage:
     """State estimator fed by measurement items; the filter type comes from the scenario."""
 
     def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
-        from tracker_filters.builders import build_filter_stack
         self.name = name
-        self.stack = build_filter_stack(cfg, name)
+        self.stack = build_stack(cfg, name)
         self.sensor_of = {measurement_topic(s): s for s in self.stack.sensors}
         self.topic = estimate_topic(name)
         self.log = python_log(name)
@@ -102,18 +108,10 @@ def _reads(cfg: dict, name: str) -> dict:
 
 
 def _check(cfg: dict, name: str) -> None:
-    from tracker_filters.builders import build_filter_stack
-    build_filter_stack(cfg, name)
+    build_stack(cfg, name)
 
 
 FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode",
                   instances=lambda cfg, names: list(names), spec=_spec, check=_check, stage=FilterStage,
                   reads=_reads, claims=lambda cfg: list(cfg.get("filters") or {}), takes_unclaimed=True)
 
-
-def main() -> int:
-    """``filter_node``: a bench filter in any ROS 2 graph, configured by its parameters alone (no launcher, no
-    lock-step; bench_engine.bench_node.standalone_main)."""
-    from bench_engine.bench_node import standalone_main
-    from bench_engine.stage_node import StageNode
-    return standalone_main(StageNode, FILTER.name)

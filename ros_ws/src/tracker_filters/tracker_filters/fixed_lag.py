@@ -22,6 +22,7 @@ import numpy as np
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Outputs, python_log
+from tracker_filters.filter_stage import build_stack
 
 SECTION = "fixed_lag_smoothers"
 
@@ -52,9 +53,8 @@ class FixedLagSmoother:
     """The node's core: a window of the source filter's estimates, smoothed backwards on every arrival."""
 
     def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
-        from tracker_filters.builders import build_filter_stack
         self.conf = read_fixed_lag(cfg)[name]
-        self.dynamics = build_filter_stack(cfg, self.conf.source).filter.dynamics
+        self.dynamics = build_stack(cfg, self.conf.source).filter.dynamics
         self.window: deque[Estimate] = deque()
         self.topic = estimate_topic(name)
         self.log = python_log(name)
@@ -72,7 +72,7 @@ class FixedLagSmoother:
 
     def _smoothed_oldest(self) -> Estimate:
         """RTS backward pass (tracker_filters.smoothing) from the newest estimate of the window to the oldest."""
-        from tracker_filters.smoothing import smooth_estimates   # scipy: not for every node reading the kind
+        from tracker_filters.smoothing import smooth_estimates  # scipy.linalg: not for every node reading the kind
         items = list(self.window)
         dts = [(b.t_ns - a.t_ns) * 1e-9 for a, b in zip(items[:-1], items[1:])]
         x_s, P_s = smooth_estimates(self.dynamics, dts, np.array([e.x for e in items]),

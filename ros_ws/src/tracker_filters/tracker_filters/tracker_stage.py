@@ -22,6 +22,9 @@ from dataclasses import dataclass
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import DetectionSet, Estimate, Outputs, python_log
+from radar_sensor.clutter import DETECTION_SET_TYPE, build_cluttered, detections_topic
+from radar_sensor.clutter import names as cluttered_names
+from tracker_filters.filter_stage import build_stack
 
 SECTION = "trackers"
 
@@ -36,7 +39,6 @@ class TrackerConfig:
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
     """The ``trackers`` section, read strictly (registered section reader)."""
-    from radar_sensor.clutter import names as cluttered_names
     sec = Section(cfg.get(SECTION), SECTION)
     filters = Section(cfg.get("filters"), "filters").keys()
     cluttered = cluttered_names(cfg)
@@ -62,15 +64,13 @@ def tracker_config(cfg: dict, name: str) -> TrackerConfig:
 def build_tracker(cfg: dict, name: str):
     """The Tracker of ``trackers.NAME`` over fresh filters of its ``filter`` entry (ScenarioError on any bad
     key)."""
-    from radar_sensor.clutter import build_cluttered
-    from tracker_filters.builders import build_filter_stack
-    from tracker_filters.tracker import Tracker
+    from tracker_filters.tracker import Tracker  # data association and scipy: only where a tracker is built
     conf = tracker_config(cfg, name)
     sensor = build_cluttered(cfg, conf.detections).sensor
-    stack = build_filter_stack(cfg, conf.filter)
+    stack = build_stack(cfg, conf.filter)
 
     def new_filter():
-        flt = build_filter_stack(cfg, conf.filter).filter
+        flt = build_stack(cfg, conf.filter).filter
         flt.name = name
         return flt
 
@@ -111,7 +111,6 @@ class TrackerStage:
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
-    from radar_sensor.clutter import DETECTION_SET_TYPE, detections_topic
     return NodeSpec(name, "tracker", publishes={estimate_topic(name): ESTIMATE_TYPE},
                     subscribes={detections_topic(tracker_config(cfg, name).detections): DETECTION_SET_TYPE})
 

@@ -28,6 +28,8 @@ from bench_engine.batch import RunSpec, run_batch  # noqa: E402
 from bench_engine.config import load_scenario  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
 from bench_eval.errors import NothingToScore  # noqa: E402
+from bench_eval.report import write_report  # noqa: E402
+from bench_eval.scoring import print_summary, score_bags  # noqa: E402
 from bench_eval.study import study  # noqa: E402
 
 EPILOG = exit_codes(
@@ -75,8 +77,6 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
-    from bench_eval.report import write_report  # the scorer and matplotlib: after a bad input is refused
-    from bench_eval.scoring import print_summary, score_bags
     scored_all, series_all = {}, {}
     for name in chosen:
         scored, series = score_bags(bags[name], with_series=True)

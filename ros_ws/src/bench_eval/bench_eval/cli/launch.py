@@ -16,6 +16,7 @@ from bench_engine import phases
 from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
 from bench_engine.process import exit_now
 from bench_engine.run import RUN_EXIT_CODES, add_run_arguments, launch
+from bench_eval.scoring import NothingToScore, score_run
 
 EPILOG = exit_codes(**{**RUN_EXIT_CODES, "c1": RUN_EXIT_CODES["c1"] + ", or the filters published nothing to score"})
 
@@ -30,7 +31,6 @@ def main(argv: list[str] | None = None) -> int:
     code, plan = launch(args)
     if code != 0 or args.no_score:
         return code
-    from bench_eval.scoring import NothingToScore, score_run
     try:
         print(score_run(plan.out, args.json))
     except NothingToScore as err:

@@ -35,6 +35,7 @@ from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.errors import NothingToScore  # noqa: E402
 from bench_eval.montecarlo import MonteCarlo, run_montecarlo  # noqa: E402
+from bench_eval.scoring import print_summary  # noqa: E402
 
 EPILOG = exit_codes(
     c0="every run completed; scores and report written",
@@ -98,7 +99,6 @@ def main(argv: list[str] | None = None) -> int:
             raise  # an output that cannot be written: run_main tells it (exit code 2)
         print(f"error: {' '.join(str(err).split())}", file=sys.stderr)  # e.g. no Dask scheduler there
         return 1
-    from bench_eval.scoring import print_summary
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
     print(f"[montecarlo] report: {mc.out / 'report' / 'report.md'}", file=sys.stderr)
     for f in failures:

@@ -26,6 +26,7 @@ from bench_engine.bag_reader import BagReader  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
+from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
 
 EPILOG = exit_codes(
     c0="the replay completed and its bag was scored",
@@ -78,7 +79,6 @@ def main(argv: list[str] | None = None) -> int:
     code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code
-    from bench_eval.scoring import NothingToScore, score_run
     try:
         print(score_run(plan.out, args.json))
     except NothingToScore as err:

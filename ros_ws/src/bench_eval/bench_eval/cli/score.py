@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
+from bench_eval.scoring import NothingToScore, print_summary, score_bags
 
 EPILOG = exit_codes(c0="the bags were scored", c2="bad input: a directory that is not a bag, an unrecoverable or "
                     "damaged bag, bags of different scenarios, a bag whose scenario needs a component not "
@@ -34,7 +35,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.plots:
         check_output(args.plots)  # a file in the way, read-only, full: said before the bags are read
-    from bench_eval.scoring import NothingToScore, print_summary, score_bags
     try:
         scored, series = score_bags(args.bags, with_series=True) if args.plots else (score_bags(args.bags), None)
     except NothingToScore as err:
@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(json.dumps(scored, indent=1) if args.json else print_summary(scored))
     if args.plots:
-        from bench_eval.report import write_report  # matplotlib: a third of a summary's start-up, only for plots
+        from bench_eval.report import write_report  # matplotlib: most of a summary's start-up, only for plots
         with writing(args.plots):
             path = write_report(args.plots, {scored["scenario"]: scored["filters"]},
                                 {scored["scenario"]: series} if series else {})

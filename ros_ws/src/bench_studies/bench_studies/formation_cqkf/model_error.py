@@ -15,6 +15,7 @@ import numpy as np
 
 from bench_engine.config import ScenarioError, Section, apply_overrides
 from bench_engine.graph import resolve_estimators
+from tracker_filters.builders import build_dynamics
 from tracker_filters.filter_settings import filter_config
 from orbit_sim.truth import build_truth
 
@@ -35,7 +36,6 @@ def relative_truth(cfg: dict, dt: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
 
 def filter_dynamics(cfg: dict) -> dict[str, object]:
     """Each default filter's dynamics model, built exactly as the filter node builds it."""
-    from tracker_filters.builders import build_dynamics
     return {name: build_dynamics(Section(filter_config(cfg, name).get("dynamics"), f"filters.{name}.dynamics"), cfg)
             for name in resolve_estimators(cfg, None)}
 

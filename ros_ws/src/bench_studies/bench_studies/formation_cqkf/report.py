@@ -12,6 +12,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
+from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
 
 from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, render
 from bench_eval.study import load_paper
@@ -57,7 +58,6 @@ def paired_ordering(mae_runs: Mapping[str, Sequence[float]], names: Mapping[str,
                     alpha: float = 0.05) -> str:
     """Filters sorted by mean error, "<" where the paired difference over the same runs is significant
     (two-sided t-test at ``alpha``), "≈" where it is not (always "≈" with a single run)."""
-    from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
     order = sorted(mae_runs, key=lambda k: float(np.mean(mae_runs[k])))
     label = (lambda k: names.get(k, k)) if names else str
     text = label(order[0])

@@ -8,8 +8,9 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, thin
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, render, thin
 from bench_eval.study import load_paper
+from bench_eval.sweep import sweep_intro
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
 MM = 1.0e3
@@ -169,8 +170,6 @@ def _draw_sweep(sweep: Mapping):
 
 def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown: str = "") -> Path:
     """``table.md`` of a grace_velocity sweep (sweep.json content) with its plot; returns its path."""
-    from bench_eval.report import render
-    from bench_eval.sweep import sweep_intro
     text = sweep_intro(sweep, ", one day each")
     plot = Plot(f"{sweep['scenario']}_{sweep['grid']}.png", "Range-rate residual std per method against the fix "
                 "interval, one panel per GNSS noise", _draw_sweep(sweep), (12.0, 4.5))

@@ -13,14 +13,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import Section
+from bench_engine.config import ScenarioError, Section
 from bench_engine.labels import ANGULAR_RATE, QUATERNION, ROTATION
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData
+from star_tracker.attitude import matrix_from_quaternion
+from star_tracker.attitude_bound import attitude_information
+from star_tracker.camera_stage import camera_config
+from star_tracker.motion import H as CENTROID
+from star_tracker.motion import image_turn
+from star_tracker.pipeline import jpdaf_motion
+from star_tracker.star_camera import camera_of, lvlh_boresight_rate
+from star_tracker.tracked_bound import star_chains, tracked_attitude_covariance
+from star_tracker.tracker_stage import tracker_config
+from tracker_filters.pcrb import information_to_covariance
 
 
 def _wahba_check(cfg: dict, params: dict) -> None:
-    from star_tracker.camera_stage import camera_config
     sec = Section(params, "scoring.bounds.params")
     camera_config(cfg, sec.get("camera", str))
     sec.finish()
@@ -30,11 +39,8 @@ def _wahba_run(data: BagData, params: dict) -> BoundSeries:
     """Per frame of star camera ``camera``, the inverse Fisher information of the attitude error (rx ry rz,
     camera frame) from the frame's recorded centroids and the camera's centroid noise (sigma_px over the focal
     length); NaN for a frame with fewer than two stars. A bound per frame, without the trackers' motion model."""
-    from star_tracker.attitude_bound import attitude_information
-    from star_tracker.camera_stage import camera_config
-    from tracker_filters.pcrb import information_to_covariance
     conf = camera_config(data.scenario, params["camera"])
-    sigma = conf.sigma_px * conf.camera().ifov
+    sigma = conf.sigma_px * camera_of(conf).ifov
     frames = data.measurements.get(params["camera"], {})
     steps = np.array(sorted(frames), dtype=np.int64)
     J = np.array([attitude_information(frames[int(k)], sigma) for k in steps]).reshape(-1, 3, 3)
@@ -51,9 +57,6 @@ def _tracked_settings(cfg: dict, params: dict):
     under the trackers' model, its σ_a and velocity prior) or ``truth`` (the truth's: the rate is exact, so a star's centroid is its first position
     carried by the known turn, no residual velocity, Q = 0: the information of n detections is n/σ², a lower
     bound for any estimator on this truth)."""
-    from bench_engine.config import ScenarioError
-    from star_tracker.camera_stage import camera_config
-    from star_tracker.tracker_stage import tracker_config
     sec = Section(params, "scoring.bounds.params")
     conf = tracker_config(cfg, sec.get("tracker", str))
     dynamics = sec.choice("dynamics", ("tracker", "truth"), "tracker")
@@ -77,8 +80,6 @@ def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mo
     image velocities (P_0: σ² px², 1 (px/s)²), and with ``aid: jitter`` the turn of the image by −j Δt before
     each prediction (eq. 18, JPDAFTracker.turn_image: F ← F T, an offset of the positions adding no
     information)."""
-    from star_tracker.motion import image_turn
-    from star_tracker.pipeline import jpdaf_motion
     F, Q = np.zeros((len(dts), 4, 4)), np.zeros((len(dts), 4, 4))
     for i, (dt, w) in enumerate(zip(dts, rates)):
         jitter = float(w[2]) - mount_rate if conf.aid == "jitter" else 0.0
@@ -94,13 +95,9 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
     star_tracker.tracked_bound: the stars' frames chained with the truth's attitudes, each star's centroid PCRB
     under the tracker's model (_tracker_model; R = σ² with the tracker's σ), mapped to the attitude; ``dynamics: truth``
     takes the truth's (a centroid state alone, F = I, Q = 0, P_0 = σ² I: _tracked_settings)."""
-    from star_tracker.attitude import matrix_from_quaternion
-    from star_tracker.camera_stage import lvlh_boresight_rate
-    from star_tracker.motion import H as CENTROID
-    from star_tracker.tracked_bound import star_chains, tracked_attitude_covariance
     conf, cam, dynamics = _tracked_settings(data.scenario, params)
     sigma_px = conf.sigma_px if conf.sigma_px is not None else cam.sigma_px
-    ifov = cam.camera().ifov
+    ifov = camera_of(cam).ifov
     frames_by_step = data.measurements.get(conf.camera, {})
     steps = np.array(sorted(frames_by_step), dtype=np.int64)
     t = np.array([data.truth[int(k)][0] for k in steps])
@@ -111,7 +108,7 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
     if dynamics == "tracker":
         w = [data.truth_labels.index(lab) for lab in ANGULAR_RATE]
         rates = np.array([data.truth[int(k)][1][w] for k in steps[:-1]]).reshape(-1, 3)
-        F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(data.scenario))
+        F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(data.scenario.get("truth") or {}))
         H = CENTROID
     else:
         F, Q = np.broadcast_to(np.eye(2), (max(len(t) - 1, 0), 2, 2)), np.zeros((max(len(t) - 1, 0), 2, 2))

@@ -9,8 +9,9 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bound_curves, bounds_table, fmt, thin
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bound_curves, bounds_table, fmt, render, thin
 from bench_eval.study import load_paper
+from bench_eval.sweep import sweep_intro
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
 ORDER = ("sna_triad", "jpdaf_triad", "sna_wahba", "jpdaf_wahba")
@@ -171,8 +172,6 @@ def _draw_sweep(sweep: Mapping):
 
 def write_sweep_report(out_dir, sweep: Mapping, series: Mapping, extra_markdown: str = "") -> Path:
     """``table.md`` of a star_tracker sweep (sweep.json content) with its plot; returns its path."""
-    from bench_eval.report import render
-    from bench_eval.sweep import sweep_intro
     text = sweep_intro(sweep)
     plot = Plot(f"{sweep['scenario']}_{sweep['grid']}.png", "Bench against paper, RMS attitude error per cell (TRIAD)",
                 _draw_sweep(sweep), (6.5, 5.5))
