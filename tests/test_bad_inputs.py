@@ -31,6 +31,8 @@ from typing import Callable, Iterator
 import pytest
 import yaml
 
+from bench_engine.cli.guard import BAD_INPUT, BUG, os_error_line, run_main, writing
+
 from graph_helpers import script
 
 FULL_DISK_BYTES = 1000
@@ -335,7 +337,6 @@ def test_help_documents_the_exit_codes(module: str, capsys) -> None:
 
 
 def test_a_bug_is_a_traceback_then_one_line_saying_so(capsys) -> None:
-    from bench_engine.cli.guard import BUG, run_main
 
     def buggy(argv):
         return {}["no such key"]
@@ -348,7 +349,6 @@ def test_a_bug_is_a_traceback_then_one_line_saying_so(capsys) -> None:
 
 
 def test_no_space_names_the_path_and_the_way_out(capsys) -> None:
-    from bench_engine.cli.guard import BAD_INPUT, run_main, writing
 
     def full(argv):
         with writing("/data/runs/x"):
@@ -366,7 +366,6 @@ def test_no_space_names_the_path_and_the_way_out(capsys) -> None:
 
 
 def test_a_file_in_the_way_is_named(tmp_path: Path) -> None:
-    from bench_engine.cli.guard import os_error_line
     (tmp_path / "a_file").write_text("")
     for path in (tmp_path / "a_file", tmp_path / "a_file" / "run" / "bag"):  # the file, or under it
         try:
@@ -379,7 +378,6 @@ def test_a_file_in_the_way_is_named(tmp_path: Path) -> None:
 
 
 def test_interrupted_and_expected_errors_of_the_command(capsys) -> None:
-    from bench_engine.cli.guard import run_main
 
     class Mine(Exception):
         pass

@@ -12,15 +12,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from bench_engine.config import ScenarioError, load_scenario
 from bench_eval.bounds import PCRB, score_bound, BoundSeries
 from bench_eval.scoring import score_bags, scoring_options
 from bench_eval import metrics
 from bench_eval.report import bound_curves, bounds_table
-from bench_models.isl import RelativePositionModel
+from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.relative_dynamics import CWDynamics
 from bench_eval.inprocess_runs import bag_data
+from bench_models.truth_dynamics import RelativeOrbitDynamics, truth_dynamics
+from orbit_sim import cowell, gravity, relative
+from star_tracker.attitude import error_vector, rotation_matrix
+from star_tracker.attitude_bound import attitude_information, centroid_jacobians
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.pcrb import pcrb_along_truth
 
@@ -138,7 +143,6 @@ def test_leo_radar_ukf_error_is_above_the_pcrb_within_monte_carlo_tolerance_and_
     start). At 150, 250 and 400 s after the first scan, sum over runs of e^T J e (J the PCRB information) would
     be chi-square with 6N dof for an efficient, unbiased Gaussian estimator: it is above the 0.1 % quantile (no
     estimator beats the bound) and below the 99.9 % one (the UKF is consistent with efficiency 1)."""
-    from scipy.stats import chi2
     cfg = load_scenario("leo_radar", [
         "scoring.bounds={pcrb: {bound: pcrb, params: {dynamics: {model: orbit_j2, sigma_accel: 0.0}, "
         "prior: ukf}}}"])
@@ -161,8 +165,6 @@ def test_formation_truth_transition_matrices_match_finite_differences_of_the_tru
     """bench_models.truth_dynamics.RelativeOrbitDynamics (formation_j2: chief and deputy on two-body + J2): the
     product of its step matrices F_k equals central differences of the truth's relative state (both orbits
     integrated by orbit_sim.cowell, mapped to LVLH by orbit_sim.relative) with respect to the initial one."""
-    from orbit_sim import cowell, gravity, relative
-    from bench_models.truth_dynamics import RelativeOrbitDynamics, truth_dynamics
     cfg = load_scenario("formation_cqkf", ["truth.chief.e=0.005"])
     dyn = truth_dynamics(cfg)
     assert isinstance(dyn, RelativeOrbitDynamics)
@@ -190,7 +192,6 @@ def test_formation_truth_transition_matrices_match_finite_differences_of_the_tru
 def test_isl_jacobian_series_is_the_jacobian_of_each_state_and_matches_finite_differences(convention):
     """RangeAzElModel.jacobian_series (the PCRB's vectorised scan information) row by row against ``jacobian``
     and against central differences of ``h`` (azimuth away from its 0 / 2 pi cut)."""
-    from bench_models.isl import RangeAzElModel
     model = RangeAzElModel(convention)
     x = np.random.default_rng(7).normal(0.0, 500.0, (20, 9))
     x = x[np.abs(np.sin(model.h(x)[:, 1])) > 0.1]
@@ -206,8 +207,6 @@ def test_star_frame_attitude_information_matches_finite_differences_and_quest_ne
     positions of stars seen by A' = exp(-[dtheta x]) A (attitude.py's error convention, checked with
     error_vector), and J against the QUEST measurement model's sum (I - b b^T) / sigma^2 for stars near the
     boresight."""
-    from star_tracker.attitude import error_vector, rotation_matrix
-    from star_tracker.attitude_bound import attitude_information, centroid_jacobians
     rng = np.random.default_rng(11)
     A = rotation_matrix(rng.normal(size=3))
     b = np.column_stack([rng.uniform(-0.15, 0.15, (12, 2)), np.ones(12)])

@@ -7,10 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.interfaces import Nodetype
+from visualization_msgs.msg import Marker
 
 from bench_engine import cdr
 from bench_engine.columns import table
@@ -223,8 +225,6 @@ def test_lists_become_arrays_and_deserialized_arrays_are_writable():
 
 def test_nested_messages_of_another_class_and_byte_fields():
     """A light MarkerArray may hold rclpy's Markers; a DiagnosticStatus level is an int (rclpy: one byte)."""
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from visualization_msgs.msg import Marker
     ros_marker = Marker(ns="truth", id=4, type=Marker.SPHERE)
     ros_marker.points = [message_class("geometry_msgs/msg/Point")(x=1.0, y=2.0, z=3.0)]
     array = cdr.lite_class("visualization_msgs/msg/MarkerArray")(markers=[ros_marker])

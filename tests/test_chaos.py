@@ -33,6 +33,7 @@ from pathlib import Path
 
 import pytest
 
+import bench_engine.batch_run as batch_run
 from bench_engine.batch_run import NODE_RETRIES, RunSpec, killed_from_outside, run_one
 from graph_helpers import script
 from test_bag_digests import digests
@@ -200,7 +201,6 @@ def test_only_runs_killed_from_outside_are_retried(tmp_path: Path, code: int, lo
 def fake_launches(monkeypatch, tmp_path: Path, codes: list[int]) -> list[int]:
     """Replace the run process: each attempt writes OUT/bag and OUT.log and returns the next of ``codes``
     (1: the launcher named a node killed by SIGKILL)."""
-    import bench_engine.batch_run as batch_run
     calls = []
 
     def launch(cmd, log, **_popen):

@@ -5,6 +5,7 @@ import re
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
@@ -170,7 +171,6 @@ def test_no_rule_says_holds_more_often_than_its_level_when_nothing_is_there():
 def test_runs_needed_gives_the_stated_power():
     """With the estimated number of runs, a true effect of the observed size is decided in about 80 % of
     Monte Carlos (2000 simulated paired experiments)."""
-    from scipy import stats
     for effect, sd in ((0.5, 1.0), (0.2, 1.0), (2.0, 1.0)):
         n = runs_needed(effect, sd, 0.05)
         d = np.random.default_rng(3).normal(effect, sd, (2000, n))

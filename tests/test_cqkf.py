@@ -1,8 +1,12 @@
 """Cubature-quadrature rule (paper 004 set-up) and the CQKF (paper 004 eqs. 14-27)."""
 import numpy as np
 import pytest
-from scipy.special import gamma
+from scipy.special import chdtri, gamma
 
+from bench_engine.config import load_scenario
+from bench_eval.inprocess_runs import bag_data
+from bench_eval.metrics import nees_summary
+from bench_eval.scoring import track_of
 from bench_models.isl import RelativePositionModel
 from tracker_filters.cqkf import CubatureQuadratureKF, weighted_measurement_mean
 from tracker_filters.cubature import cubature_quadrature_points, radial_rule
@@ -260,11 +264,6 @@ def test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario():
     the scorer's tracks): the time-averaged NEES of position and velocity lies in the 95 % chi-square band of
     the three-run average, chi2(6 N) / N (the rule the scenario's sigma was chosen by; the sweep measured 6.6).
     A covariance 4x too large (NEES / 4) or too small (x 4) falls outside it."""
-    from scipy.special import chdtri
-    from bench_engine.config import load_scenario
-    from bench_eval.metrics import nees_summary
-    from bench_eval.scoring import track_of
-    from bench_eval.inprocess_runs import bag_data
 
     cfg = load_scenario("formation_cqkf")
     tracks = [track_of(bag_data(cfg, ["ss"], seed), "ss") for seed in (1, 2, 3)]

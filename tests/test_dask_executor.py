@@ -24,6 +24,7 @@ from bench_engine.executors import run_dask, run_task
 from bench_eval.montecarlo import MonteCarlo
 from graph_helpers import SHORT_PASS, script
 from test_bag_digests import digests
+from test_sweep import scenario_with
 
 RUNS = ["--runs", "2", "--jobs", "2", *SHORT_PASS]
 
@@ -59,7 +60,6 @@ def test_a_batch_run_records_what_the_same_seed_records_alone(local_mc, tmp_path
 
 
 def test_a_sweep_on_a_dask_cluster_is_resumed_by_the_local_executor(cluster, tmp_path):
-    from test_sweep import scenario_with
     grid = scenario_with(tmp_path, {"tiny": {"axes": {"rho": {"10km": ["size10km"]}}}})
     out = tmp_path / "sweep"
     args = ["sweep.py", str(grid), "--grid", "tiny", "--runs", "1", "--out", str(out), "--set", "time.duration=60"]

@@ -64,6 +64,7 @@ from mcap.records import Channel, Chunk, Message
 from mcap.stream_reader import breakup_chunk
 from mcap.writer import CompressionType, Writer
 
+import bench_engine.mcap_records as bag_module
 from bench_engine import cdr
 from bench_engine.bag_reader import BagReader
 from bench_engine.bag_writer import BagWriter
@@ -552,7 +553,6 @@ def scan_messages(scan: RecordScan):
 def test_the_reader_limits_refuse_before_reading(bags, monkeypatch):
     """The sane bounds the reader holds every file to (bench_engine.mcap_records: MAX_SUMMARY_BYTES, MAX_RECORD_BYTES,
     MAX_CHUNK_BYTES), lowered below what the leo_radar bag needs: each read is refused, naming the limit."""
-    import bench_engine.mcap_records as bag_module
     bag = bags["leo"]
     for limit, read in (("MAX_SUMMARY_BYTES", lambda r: r.topics()),
                         ("MAX_RECORD_BYTES", lambda r: r.payloads(list(bag.topics))),

@@ -4,20 +4,31 @@ and the higher-fidelity truth's physics (zonal gravity as a potential's gradient
 momentum conserved without drag, drag removing energy, its integration error far below the orbit fit's)."""
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
+from scipy.special import chdtri
 
-from bench_engine.config import apply_overrides, load_scenario
+from bench_engine.config import Section, apply_overrides, load_scenario
 from bench_engine.stage import Estimate, Measurement
+from bench_eval.inprocess_runs import bag_data
+from bench_eval.scoring import BagData, Estimates, score_bags
 from bench_models.labelled import ComponentModel
 from bench_models.white_jerk import F_AXIS, WhiteJerkDynamics, axis_noise
+from bench_studies.grace_velocity.metrics import RANGE_RATE, range_rate
 from orbit_sim import gravity
 from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
 from bench_studies.grace_velocity.pair_truth import pair_rate
+from bench_studies.grace_velocity.report import grace_velocity_sections
+from orbit_sim.truth import build_earth, build_truth
+from radar_sensor.sensor import build_sensor
 from tracker_filters import registry
 from tracker_filters.differentiation import newton_derivative, newton_weights, savgol_derivative
+from tracker_filters.filter_stage import FilterStage
+from tracker_filters.fixed_lag import FixedLagSmoother
 from tracker_filters.smoothing import rts_smoother
 
 LABELS = ["px", "py", "pz", "vx", "vy", "vz", "ax", "ay", "az"]
@@ -115,7 +126,6 @@ def test_a_gross_outlier_is_gated_and_leaves_the_estimate_untouched() -> None:
 
 
 def test_the_filter_node_core_rejects_duplicated_and_out_of_order_fixes() -> None:
-    from tracker_filters.filter_stage import FilterStage
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600"])
     stage = FilterStage(cfg, "kf_a")
     logs = []
@@ -132,7 +142,6 @@ def test_the_filter_node_core_rejects_duplicated_and_out_of_order_fixes() -> Non
 
 
 def test_fixed_lag_smoothing_equals_rts_over_the_data_up_to_the_lag() -> None:
-    from tracker_filters.fixed_lag import FixedLagSmoother
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600", "fixed_lag_smoothers.kf_a_lag.lag_s=50"])
     smoother = FixedLagSmoother(cfg, "kf_a_lag")
     rng = np.random.default_rng(5)
@@ -156,7 +165,6 @@ def test_fixed_lag_smoothing_equals_rts_over_the_data_up_to_the_lag() -> None:
 
 
 def test_gnss_outages_and_outliers() -> None:
-    from radar_sensor.sensor import build_sensor
     cfg = {"time": {"start": 0.0, "duration": 1000.0, "dt": 10.0},
            "sensors": {"g": {"type": "gnss", "position": ["x1", "y1", "z1"], "interval": 10.0,
                              "sigma_position": 0.02, "outages": [[300.0, 420.0]], "outlier_probability": 0.1,
@@ -214,7 +222,6 @@ def test_the_pair_truth_drifts_far_less_than_the_orbit_fits_sigma() -> None:
     from a reference integrated at solve_ivp's tightest rtol (2.3e-14) and atol 1e-10, with the scenario's own
     force model (at the old rtol 1e-11 it drifted 0.13 mm, and the fit's NEES rose to 31 at the same hour of
     every seed)."""
-    from orbit_sim.truth import build_earth, build_truth
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=10800"])
     truth, earth = build_truth(cfg), build_earth(cfg)
     zonals = {n: (earth.j2 if n == 2 else ZONALS[n]) for n in range(2, cfg["truth"]["zonal_degree"] + 1)}
@@ -249,7 +256,6 @@ def _known_bias_run(bias: np.ndarray, kbr_bias: float, sigma_v: float):
     """A run whose estimator 'est' (and the pair 'sat2' - 'sat1') has exactly the baseline of the truth except
     for a velocity error ``bias`` (K,) along the baseline, plus an error across it (which the range rate does
     not see), with covariance diag(1e-4 m^2 x 3, sigma_v^2 x 3); the KBR reads the true range rate + kbr_bias."""
-    from bench_eval.scoring import BagData, Estimates
     K = len(bias)
     t = 10.0 * np.arange(K)
     b, w, u, rho_dot = _turning_baseline(t)
@@ -271,15 +277,12 @@ def _known_bias_run(bias: np.ndarray, kbr_bias: float, sigma_v: float):
 
 
 def _range_rate_scores(runs, skip_s: float = 0.0) -> dict:
-    from bench_engine.config import Section
-    from bench_studies.grace_velocity.metrics import RANGE_RATE
     options = RANGE_RATE.options(Section({"kbr": "kbr", "baseline": list(BASELINE), "skip_s": skip_s,
                                           "pairs": {"pair": ["sat2", "sat1"]}}, "scoring"))
     return RANGE_RATE.score({"est": []}, runs, options)
 
 
 def test_range_rate_is_the_rate_of_change_of_the_baseline_length() -> None:
-    from bench_studies.grace_velocity.metrics import range_rate
     t = np.linspace(0.0, 6000.0, 301)
     b, w, _, rho_dot = _turning_baseline(t)
     np.testing.assert_allclose(range_rate(b, w), rho_dot, rtol=1e-12, atol=1e-12)
@@ -317,14 +320,11 @@ def test_the_range_rate_residual_reports_a_known_bias_with_its_sign(bias_mm_s: f
 def grace_runs():
     """Three seeded one-hour runs of grace_velocity (KF (a), (b) and the fixed-lag smoother), in process, as the
     scorer reads them; scored with the scenario's own scoring section (RTS, Newton, Savitzky-Golay offline)."""
-    from bench_eval.inprocess_runs import bag_data
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=3600"])
     return [bag_data(cfg, ["kf_a", "kf_b"], seed) for seed in (1, 2, 3)]
 
 
 def test_a_known_range_rate_bias_added_to_a_real_run_moves_the_mean_by_exactly_that_bias(grace_runs) -> None:
-    import copy
-    from bench_eval.scoring import score_bags
     base = score_bags([grace_runs[0]])["filters"]["kf_a"]
     biased = copy.deepcopy(grace_runs[0])
     est = biased.estimates["kf_a"]
@@ -344,8 +344,6 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
     grace_velocity: (a) 4.5 and its smoothers 3.8 conservative, (b) 7.1 overconfident) holds, and each filter's
     covariance is wrong by less than a factor of 2: (a) and the smoothers lie below the band but above the band
     of a covariance twice too large; (b) above the band but below that of a covariance half as large."""
-    from scipy.special import chdtri
-    from bench_eval.scoring import score_bags
     scores = score_bags(grace_runs)["filters"]
     skip = grace_runs[0].scenario["scoring"]["skip_s"]
     samples = len(grace_runs) * (grace_runs[0].scenario["time"]["duration"] - skip) / 60.0
@@ -360,7 +358,6 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
 def test_the_report_shows_the_distance_to_bound_b_where_the_run_was_scored_against_it() -> None:
     """Bound (b) is scored per baseline axis (bench_eval.bounds: the baseline's labels are in no position /
     velocity group), so the report's bounds table has a row per estimator and axis, in mm and mm/s."""
-    from bench_studies.grace_velocity.report import grace_velocity_sections
     stats = {"std": 1e-3, "mean": 0.0, "max": 3e-3, "min": -3e-3}
     block = {"runs": 1, "rr_kbr": stats, "rr_truth": stats, "velocity_rmse": 2e-3, "kbr_noise_std": 1e-6}
     axis = {"rmse": 2e-3, "sqrt_bound": 1e-3, "efficiency": 0.5, "final_rmse": 2e-3, "final_sqrt_bound": 1e-3}

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_engine.inprocess import run_in_process
 from bench_engine.views import SUFFIXES
 from graph_helpers import read_bag, script, stamp
 
@@ -74,7 +75,6 @@ def test_derived_measurements_follow_their_definitions(graph_run) -> None:
 
 
 def test_the_graph_carries_what_the_cores_give_in_process(graph_run) -> None:
-    from bench_engine.inprocess import run_in_process
     _, bag, _ = graph_run
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "satellites"), ["time.duration=7200"])
     run = run_in_process(cfg, ["kf_a", "kf_b"], seed=3)

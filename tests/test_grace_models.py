@@ -9,7 +9,9 @@ from bench_engine.config import ScenarioError
 from bench_engine.stage import Measurement
 from bench_models.labelled import ComponentModel, RangeRateModel, UnboundModel
 from bench_studies.grace_velocity.metrics import range_rate
+from radar_sensor.sensor import build_sensor
 from tracker_filters.derived import DerivedConfig, DifferenceStage, DifferentiatedStage
+from tracker_filters.differentiation import newton_weights
 
 PAIR = ("x1", "y1", "z1", "vx1", "vy1", "vz1", "x2", "y2", "z2", "vx2", "vy2", "vz2",
         "bx", "by", "bz", "bvx", "bvy", "bvz")
@@ -59,7 +61,6 @@ def _gnss_cfg(**extra) -> dict:
 
 @pytest.mark.parametrize("tau", [0.0, 300.0])
 def test_gnss_noise_has_its_std_and_correlation(tau: float) -> None:
-    from radar_sensor.sensor import build_sensor
     sensor = build_sensor(_gnss_cfg(correlation_time=tau), "g")
     sensor.bind(list(PAIR))
     rng = np.random.default_rng(7)
@@ -71,7 +72,6 @@ def test_gnss_noise_has_its_std_and_correlation(tau: float) -> None:
 
 
 def test_gnss_and_kbr_sections_are_read_strictly() -> None:
-    from radar_sensor.sensor import build_sensor
     with pytest.raises(ScenarioError, match="position"):
         build_sensor(_gnss_cfg(position=["x1", "y1"]), "g")
     with pytest.raises(ScenarioError, match="correlation_time"):
@@ -101,7 +101,6 @@ def test_difference_pairs_steps_in_any_arrival_order() -> None:
 
 
 def test_newton_velocity_is_exact_on_a_polynomial_and_lags_half_a_window() -> None:
-    from tracker_filters.differentiation import newton_weights
     labels = ("bx", "by", "bz", "bvx", "bvy", "bvz")
     stage = DifferentiatedStage(DerivedConfig("pv", "differentiated", ("b",), labels, 4, 300.0))
 

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 from scipy.integrate import trapezoid
+from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from orbit_sim.frames import ecef_to_eci, enu_rotation
@@ -11,6 +12,8 @@ from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF, second_ord
 from tracker_filters.kf import KalmanFilter
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from orbit_sim.cowell import propagate
+from tracker_filters.initialisation import initial_state_from_scan
 from tracker_filters.registry import filter_names, make_filter
 from tracker_filters.relinearisation import PassBatch
 from tracker_filters.sigma_points import ScaledSigmaPoints
@@ -277,8 +280,6 @@ def test_relinearised_filters_equal_the_kf_on_a_linear_deterministic_model(name,
 
 def radar_scans(seconds: float, seed: int):
     """The first ``seconds`` of the leo_radar pass: (model, times, truth, scans, first-scan prior)."""
-    from orbit_sim.cowell import propagate
-    from tracker_filters.initialisation import initial_state_from_scan
     model = GroundRadarModel(*STATION, theta0=np.radians(40.0))
     times = 4321.0 + 0.1 * np.arange(round(seconds / 0.1) + 1)
     truth = propagate(propagate(CHAMP, np.array([0.0, times[0]]))[-1], times)
@@ -291,7 +292,6 @@ def radar_scans(seconds: float, seed: int):
 
 
 def test_batch_solution_is_the_least_squares_minimum_and_beats_the_recursive_estimate():
-    from scipy.optimize import least_squares
     model, times, _, z, x0, P0 = radar_scans(4.0, seed=3)
     dyn = OrbitJ2Dynamics(sigma_accel=0.0)
     ekf = ExtendedKalmanFilter(dyn)

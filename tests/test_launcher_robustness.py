@@ -13,6 +13,9 @@ from pathlib import Path
 from typing import Iterable
 
 import pytest
+
+from bench_engine import launcher
+from bench_engine.domains import reserve
 from graph_helpers import ROOT, SHORT_PASS, read_bag, script
 
 
@@ -178,7 +181,6 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
 
 
 def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
-    from bench_engine.domains import reserve
     held = reserve(None)  # a free one: another test session may hold any fixed id
     try:
         res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", str(held.domain),
@@ -219,7 +221,6 @@ def test_a_node_lingering_after_a_complete_run_is_stopped_and_named(tmp_path: Pa
     """The run is complete once its source (and recorder) exited cleanly; a node still up LINGER_S later is
     stopped with a warning and the run still succeeds. Real processes stand in for the nodes: the supervisor
     only sees processes."""
-    from bench_engine import launcher
     plan = launcher.prepare_run("leo_radar", tmp_path / "linger", record=False, overrides=list(SHORT_PASS[1::2]))
     plan.logs.mkdir(exist_ok=True)
     monkeypatch.setattr(launcher, "LINGER_S", 1.0)
@@ -239,7 +240,6 @@ def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeed
     (seen under load: the recorder spinning in Fast DDS's destroy_participant after closing its bag, and the Monte
     Carlo waiting for it for good). Here the recorder and the source hang with SIGINT ignored: both are stopped,
     SIGKILL after the grace, and the run succeeds."""
-    from bench_engine import launcher
     plan = launcher.prepare_run("leo_radar", tmp_path / "hang", overrides=list(SHORT_PASS[1::2]))
     plan.logs.mkdir(exist_ok=True)
     plan.bag_dir.mkdir(parents=True, exist_ok=True)
@@ -277,7 +277,6 @@ def test_a_process_whose_ros_teardown_hangs_ends_after_the_teardown_deadline(tmp
     """A node closed, then stuck in rclpy's teardown (as Fast DDS's destroy_participant once spun for good): the
     process ends after TEARDOWN_S with the stuck thread's traceback and exit code 1, instead of hanging a
     single-process run, whose launcher process nothing outside would stop."""
-    from bench_engine.domains import reserve
     domain = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain.domain))
     res = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN], env=env, capture_output=True, text=True,

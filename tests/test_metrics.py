@@ -6,8 +6,8 @@ import pytest
 from scipy.stats import chi2
 
 from bench_eval.metrics import (
-    Track, fraction_within_sigma, axes_settling_time, convergence_series, mean_absolute_error, nees, nees_series,
-    nees_summary, rmse_over_runs, score_errors, score_convergence, settling_time, summarise, time_grid,
+    Track, fraction_within_sigma, axes_settling_time, convergence_series, effective_samples, mean_absolute_error, nees,
+    nees_series, nees_summary, rmse_over_runs, score_errors, score_convergence, settling_time, summarise, time_grid,
 )
 from bench_studies.leo_radar.metrics import RadarSamples, radar_coordinate_rmse, score_radar_convergence
 
@@ -198,7 +198,6 @@ def test_score_formation_is_json_ready():
 def test_effective_samples_count_independent_samples_not_steps():
     """White noise is worth its length; an AR(1) series with phi = 0.9 about (1 - phi) / (1 + phi) of it; a smooth
     error (two periods of a sine, as a fitted orbit's) almost nothing; and many runs of white noise their total."""
-    from bench_eval.metrics import effective_samples
     rng = np.random.default_rng(3)
     n = 20000
     assert 0.9 * n < effective_samples([rng.standard_normal(n)]) <= n
@@ -217,7 +216,6 @@ def test_runs_that_sit_at_their_own_levels_are_worth_about_one_sample_each():
     own autocorrelation, taken about its own mean, would count about 50 samples a run here;
     the spread of the runs' levels says the batch is worth about one sample per run. Runs at one common level
     (a filter's) still count their steps."""
-    from bench_eval.metrics import effective_samples
     rng = np.random.default_rng(5)
     runs, n = 20, 8640
     phase = np.linspace(0.0, 32.0 * np.pi, n)

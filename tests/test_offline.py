@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, load_scenario
+from bench_engine.config import ScenarioError, load_scenario, select_variant
 from bench_eval.scoring import BagData, Estimates, run_offline, scoring_options
 from tracker_filters.builders import build_filter_stack
 
@@ -32,7 +32,6 @@ def test_a_bad_offline_entry_is_refused_naming_it(offline, message):
 
 
 def test_the_registered_offline_estimators_and_the_study_variant():
-    from bench_engine.config import select_variant
     assert "rts" in plugins.names("offline")
     assert scoring_options(load_scenario("formation_cqkf")).offline == {}
     opts = scoring_options(select_variant(load_scenario("formation_cqkf"), "smoothed"))

@@ -1,8 +1,15 @@
 """orbit_sim.orbit_fit: the batch least-squares orbit fit behind grace_velocity's dynamic estimator."""
 import numpy as np
 import pytest
+from matplotlib.figure import Figure
 from scipy.stats import chi2
 
+from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_eval.inprocess_runs import bag_data
+from bench_eval.scoring import run_offline, scoring_options
+from bench_studies.grace_velocity.bounds import ORBIT_CRB
+from bench_studies.grace_velocity.metrics import range_rate_bounds, range_rate_sd, residuals
+from bench_studies.grace_velocity.report import _draw_residuals
 from orbit_sim import kepler
 from orbit_sim.constants import J2_EARTH, MU_EARTH
 from orbit_sim.geopotential import ZONALS
@@ -129,13 +136,6 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
     """The registered offline estimator on a short in-process grace_velocity run: its baseline range rate is
     far closer to the truth than Savitzky-Golay's, its covariance matches bound (b) at the truth, and the
     report's residual figure draws that bound (the metric's series carry it mapped to the range rate)."""
-    from matplotlib.figure import Figure
-    from bench_engine.config import apply_overrides, load_scenario, select_variant
-    from bench_eval.inprocess_runs import bag_data
-    from bench_eval.scoring import run_offline, scoring_options
-    from bench_studies.grace_velocity.bounds import ORBIT_CRB
-    from bench_studies.grace_velocity.metrics import range_rate_bounds, range_rate_sd, residuals
-    from bench_studies.grace_velocity.report import _draw_residuals
 
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "dynamic"),
                           ["time.duration=3600.0", "default_filters=[kf_a]"])

@@ -1,14 +1,20 @@
 """Particle filters: agreement with the Kalman filter on linear-Gaussian problems, degeneracy, recovery."""
 import numpy as np
 import pytest
-from scipy.special import logsumexp
+from scipy.special import chdtri, logsumexp
 
+from bench_engine.config import load_scenario
+from bench_eval.inprocess_runs import bag_data
+from bench_eval.metrics import nees_summary
+from bench_eval.scoring import track_of
 from bench_models.isl import RangeAzElModel
 from tracker_filters.kf import KalmanFilter
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from orbit_sim.angles import wrap_angle, wrapped_residual
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
 from bench_models.relative_dynamics import CWDynamics
+from orbit_sim.relative import from_convention
+from tracker_filters.builders import build_filter_stack
 
 FILTERS = (SIRParticleFilter, RegularisedParticleFilter)
 DYN = ConstantVelocity(0.5, ndim=2)
@@ -299,9 +305,6 @@ def test_azimuth_through_zero_gives_no_spike(cls, R_meas):
 def test_pf_is_consistent_on_paper_001_when_the_truth_follows_its_model():
     """formation_pf's filter (scenario config: CW, the paper's Q, P0, R), truth driven by the same Q:
     average NEES over 8 runs × 40 steps (after 20 s) close to the 6 dof (measured 6.2 at N = 2 000)."""
-    from bench_engine.config import load_scenario
-    from orbit_sim.relative import from_convention
-    from tracker_filters.builders import build_filter_stack
 
     cfg = load_scenario("formation_pf", ["filters.pf.params.n_particles=2000"])
     nees = []
@@ -341,10 +344,6 @@ def test_the_papers_sir_is_not_consistent_on_formation_pf_and_the_bench_pf_is_co
     (N_eff = 1) and its NEES is ~1e39; the bench's pf is below the band (2.4: the filter assumes the paper's
     Q, the truth has no process noise). Asserted: the SIR's NEES is above the 95 % band by more than 1e6 and
     its N_eff is 1 at the median step; the pf's is below the band's lower limit, above a quarter of it."""
-    from bench_engine.config import load_scenario
-    from bench_eval.metrics import nees_summary
-    from bench_eval.scoring import track_of
-    from bench_eval.inprocess_runs import bag_data
 
     cfg = load_scenario("formation_pf", ["time.duration=60"])
     runs = [bag_data(cfg, ["pf", "sir"], seed) for seed in range(1, 6)]
@@ -362,7 +361,6 @@ def test_the_sir_is_consistent_where_its_proposal_does_not_degenerate():
     1-2 m against a 5 m prior, the truth driven by the model's own Q), the SIR's NEES over 12 seeded runs of
     20 steps lies in the 95 % chi-square band of the 12-run average, chi2(4 N) / N, and is within 25 % of the
     Kalman filter's on the same data (the exact answer here)."""
-    from scipy.special import chdtri
     sir_nees, kf_nees = [], []
     for seed in range(12):
         rng = np.random.default_rng(seed)

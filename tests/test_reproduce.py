@@ -2,6 +2,7 @@
 command that validates, in full and in the miniature, and the cheapest one runs end to end into the record,
 which --resume then keeps."""
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -203,7 +204,6 @@ def test_readme_is_never_written_from_a_miniature_record(tmp_path, capsys):
 
 
 def test_the_commit_is_dirty_for_an_edited_source_not_for_the_record(tmp_path):
-    import subprocess
 
     def git(*a: str) -> None:
         subprocess.run(["git", "-C", str(tmp_path), "-c", "user.email=t@t", "-c", "user.name=t", *a], check=True,

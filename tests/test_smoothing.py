@@ -6,9 +6,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.linalg import block_diag
+from scipy.linalg import block_diag, expm
 
+from bench_engine.config import apply_overrides, load_scenario
+from bench_engine.stage import Estimate
+from bench_models.labelled import ComponentModel
+from bench_models.white_jerk import WhiteJerkDynamics
 from graph_helpers import script
+from tracker_filters import registry
+from tracker_filters.fixed_lag import FixedLagSmoother
 from tracker_filters.smoothing import rts_smoother, smooth_estimates
 
 
@@ -129,7 +135,6 @@ def test_the_scorer_runs_a_registered_offline_smoother_over_a_recorded_run(tmp_p
 def white_jerk_transition(q: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """F, Q of the 9-state white-jerk model (positions, velocities, accelerations; density q) over dt, by Van
     Loan's method (one matrix exponential of the continuous model), independently of bench_models.white_jerk."""
-    from scipy.linalg import expm
     A = np.kron(np.diag([1.0, 1.0], 1), np.eye(3))
     GQG = np.kron(np.diag([0.0, 0.0, q]), np.eye(3))
     M = expm(np.block([[-A, GQG], [np.zeros((9, 9)), A.T]]) * dt)
@@ -163,12 +168,6 @@ def test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_th
     smoothed estimate it publishes equals E[x_k | every fix up to the newest one it held], computed two ways
     without any RTS recursion: the batch MAP over the window's states (prior: the filter's estimate at the
     window's start) and the batch MAP over every state since the filter's initial prior."""
-    from bench_engine.config import apply_overrides, load_scenario
-    from bench_engine.stage import Estimate
-    from bench_models.labelled import ComponentModel
-    from bench_models.white_jerk import WhiteJerkDynamics
-    from tracker_filters import registry
-    from tracker_filters.fixed_lag import FixedLagSmoother
 
     labels = ["bx", "by", "bz", "bvx", "bvy", "bvz", "bax", "bay", "baz"]
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600", "fixed_lag_smoothers.kf_a_lag.lag_s=50"])

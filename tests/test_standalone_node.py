@@ -22,7 +22,9 @@ from bench_engine.config import apply_overrides, load_scenario
 from bench_engine.domains import reserve
 from bench_engine.graph import node_kinds
 from bench_engine.inprocess import run_in_process
+from bench_engine.launcher import _file_parameters, prepare_run
 from bench_engine.parameters import flatten, parameters_file
+from bench_engine.stage_node import StageNode
 from radar_sensor.messages import RANGE_AZ_EL
 
 FILTER_NODE = Path(sys.executable).parent.parent / "lib" / "tracker_filters" / "filter_node"
@@ -166,8 +168,6 @@ def test_a_standalone_node_with_a_missing_parameter_says_which_in_one_line(tmp_p
 def test_a_bench_mode_node_is_configured_by_the_parameters_file_the_launcher_wrote(tmp_path: Path) -> None:
     """The ukf of a prepared leo_radar run, created as the launcher creates it (run config + its params file)
     and spinning while it waits for the run to start, shows the scenario's settings, --set included."""
-    from bench_engine.launcher import _file_parameters, prepare_run
-    from bench_engine.stage_node import StageNode
     plan = prepare_run("leo_radar", tmp_path / "run", overrides=["filters.ukf.params.alpha=0.5"])
     assert "filters.ukf.params.alpha: 0.5" in plan.parameters_file("ukf").read_text()
     reservation = reserve(None)

@@ -3,6 +3,7 @@ corrupt or when its inputs change)."""
 from __future__ import annotations
 
 import logging
+import shutil
 
 import numpy as np
 import pytest
@@ -103,7 +104,6 @@ def test_the_cache_is_used_and_keyed_by_its_inputs(tmp_path, monkeypatch):
 
 
 def test_a_changed_source_file_changes_the_key(tmp_path):
-    import shutil
     copy = tmp_path / "hip2.dat"
     shutil.copy(cat_mod.hipparcos_path(), copy)
     key = cat_mod.cache_key(6.0, 2025.0, 140.0, 1.0, copy)

@@ -7,10 +7,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from star_tracker.attitude import error_angle, error_vector
-from star_tracker.camera import DEFAULT_CAMERA
-from star_tracker.catalogue import ARCSEC, load_catalogue
+from star_tracker.camera import DEFAULT_CAMERA, Camera
+from star_tracker.catalogue import ARCSEC, angle_between, load_catalogue
 from star_tracker.frames import FALSE_STAR, random_attitude, simulate_frame
-from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier, triangle_order
+from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier, triangle_order, triple_product
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,6 @@ def test_noisy_frames_with_false_stars_are_identified_and_the_false_stars_reject
 
 
 def test_another_camera_and_catalogue_work_the_same_way(tmp_path):
-    from star_tracker.camera import Camera
     camera = Camera(12.0, 2048, 1536)
     catalogue = load_catalogue(6.5, cache_dir=tmp_path)
     pyramid = PyramidIdentifier(catalogue, camera, sigma_px=0.3)
@@ -161,7 +160,6 @@ def _noise_free_frame(catalogue, seed: int = 0):
 
 
 def _theta(b):
-    from star_tracker.catalogue import angle_between
     return angle_between(b[:, None, :], b[None, :, :])
 
 
@@ -169,7 +167,6 @@ def test_the_triangle_step_refuses_a_mirrored_triangle_by_its_handedness(catalog
     """A mirror image has the same three angles as the catalogue triangle, so only the sign of the triple
     product tells them apart: the triangle step must return the true triangle for the real stars and refuse
     it for their mirror image (x -> -x in the camera frame), before any pyramid or attitude check."""
-    from star_tracker.pyramid import triple_product
     checked = 0
     for seed in range(3):
         _, idx, b = _noise_free_frame(catalogue, seed)
@@ -197,15 +194,13 @@ def _fake_star(catalogue, pyramid, tri, X: int, sides: str):
     X's on the named ``sides`` ("a", "b", "c" or two of them) only: moved along the circle about one triangle
     star (one side kept), or reflected through the plane of two of them (two sides kept). None when X does not
     give such a direction (the moved point must stay nearest to X, and be farther than two match radii)."""
-    from scipy.spatial.transform import Rotation as R
-    from star_tracker.catalogue import angle_between
     v = catalogue.vectors
     corners = dict(zip("abc", v[list(tri)]))
     x = v[X]
     if len(sides) == 1:
         axis = corners[sides]
         turn = 12.0 * pyramid.epsilon / np.sin(angle_between(axis, x))
-        options = [R.from_rotvec(s * turn * axis).as_matrix() @ x for s in (1.0, -1.0)]
+        options = [Rotation.from_rotvec(s * turn * axis).as_matrix() @ x for s in (1.0, -1.0)]
     else:
         n = np.cross(corners[sides[0]], corners[sides[1]])
         n /= np.linalg.norm(n)
@@ -225,7 +220,6 @@ def test_a_fourth_star_confirms_only_when_all_three_of_its_angles_match(catalogu
     """Step 2 (the pyramid): a fourth star confirms a triangle only if its nearest catalogue star is within ε
     of the observed angle on all three sides. A false star built to match one or two sides exactly (and the
     third by far more than ε) must not count as a confirmation; the real stars of the frame all do."""
-    from star_tracker.pyramid import UNIDENTIFIED as NONE
     for seed in range(6):
         A, idx, b = _noise_free_frame(catalogue, seed)
         tri = tuple(int(i) for i in idx[:3])
@@ -242,7 +236,7 @@ def test_a_fourth_star_confirms_only_when_all_three_of_its_angles_match(catalogu
         real_others = int(keep.sum()) - 3
         assert result.stats["pyramid_confirmations"] == real_others, \
             f"a false star matching side(s) {sides} only was counted as a confirmation"
-        assert result.index[-1] == NONE
+        assert result.index[-1] == UNIDENTIFIED
         # the control: the real star X in the same place is a confirmation
         control = np.vstack([b[keep], b[idx == X]])
         assert pyramid._confirm(control, _theta(control), (0, 1, 2), tri).stats["pyramid_confirmations"] \

@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from bench_engine.config import apply_overrides, load_scenario
+from orbit_sim.truth import build_truth
 from star_tracker.camera import DEFAULT_CAMERA
 from star_tracker.sky_motion import CircularOrbit, jitter_rates, lvlh_attitude, orbit_truth
 
@@ -79,8 +81,6 @@ def test_bad_arguments_are_refused():
 
 
 def test_each_run_seed_draws_its_own_jitter_unless_the_scenario_fixes_it():
-    from bench_engine.config import apply_overrides, load_scenario
-    from orbit_sim.truth import build_truth
     cfg = apply_overrides(load_scenario("star_tracker"), ["time.duration=2.0"])
     rates = {seed: build_truth({**cfg, "seed": seed}).states[:, 4:] for seed in (0, 1)}
     assert not np.allclose(rates[0], rates[1])                  # Monte Carlo runs see different jitter

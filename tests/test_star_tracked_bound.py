@@ -17,6 +17,7 @@ from bench_engine.config import Section, load_scenario, select_variant
 from bench_eval.bounds import read_bounds, score_bounds
 from bench_eval.scoring import track_of
 from bench_eval.inprocess_runs import bag_data
+from bench_studies.star_tracker.report import ARCSEC, attitude_bounds
 from star_tracker.attitude import rotation_matrix
 from star_tracker.attitude_bound import attitude_information, centroid_jacobians
 from star_tracker.motion import H, ConstantVelocity
@@ -113,7 +114,6 @@ def test_the_jpdaf_is_above_the_truths_bound_and_at_its_own_models_bound_up_to_t
 def test_the_reports_error_plot_draws_each_bound_of_the_whole_attitude():
     """The star report's error plot draws, per bound, √(sum of the three axes' bounds) in arcsec: the bound on the
     error rotation's angle, which is what the estimators' RMS per frame is."""
-    from bench_studies.star_tracker.report import ARCSEC, attitude_bounds
     axes = {"rx": np.array([3e-6, 1e-6]), "ry": np.array([4e-6, 1e-6]), "rz": np.array([12e-6, 1e-6])}
     series = {"sna": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes}}},
               "jpdaf": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes},

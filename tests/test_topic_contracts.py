@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench_engine.config import ScenarioError
-from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, NodeSpec, _check_topic_contract, topic_owner
+from bench_engine.config import ScenarioError, load_scenario
+from bench_engine.graph import (ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, NodeKind, NodeSpec, _check_topic_contract,
+                                build_graph, owners, topic_owner)
 from bench_eval.scoring import BagData, Estimates, track_of
 
 
@@ -78,13 +79,11 @@ def test_repeated_labels_are_refused_rather_than_matched_at_random() -> None:
 
 
 def _kind(name: str, claims=None, takes_unclaimed: bool = False):
-    from bench_engine.graph import NodeKind
     return NodeKind(name, "estimator", "x:Y", instances=lambda cfg, names: names,
                     spec=lambda cfg, n: NodeSpec(n, name), claims=claims, takes_unclaimed=takes_unclaimed)
 
 
 def test_each_selected_estimator_belongs_to_the_one_kind_whose_section_defines_it() -> None:
-    from bench_engine.graph import owners
     filters = _kind("filter", lambda cfg: ["ukf"], takes_unclaimed=True)
     stars = _kind("star_tracker", lambda cfg: ["sna", "jpdaf"])
     lag = _kind("fixed_lag")
@@ -97,8 +96,6 @@ def test_each_selected_estimator_belongs_to_the_one_kind_whose_section_defines_i
 
 
 def test_the_star_tracker_scenario_gives_its_trackers_to_their_kind_and_nothing_to_the_filters() -> None:
-    from bench_engine.config import load_scenario
-    from bench_engine.graph import build_graph
     cfg = load_scenario("star_tracker")
     kinds = {n.name: n.kind for n in build_graph(cfg, None, record=False).of_role("estimator")}
     assert set(kinds.values()) == {"star_tracker"} and set(kinds) == set(cfg["default_filters"])

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from bench_msgs.msg import DetectionSet as DetectionSetMsg
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario
 from bench_engine.graph import resolve_estimators
@@ -26,6 +27,7 @@ from tracker_filters.builders import build_filter_stack
 from tracker_filters.filter_stage import FilterStage
 from tracker_filters.kf import KalmanFilter
 from tracker_filters.tracker import Tracker
+from tracker_filters.tracker_stage import build_tracker
 
 DATA = Path(__file__).parent / "data"
 DEMO = str(DATA / "clutter_demo.yaml")            # hill_cw truth, KF, clutter box +-15 m around sigma 0.5 m
@@ -153,7 +155,6 @@ def test_detection_sets_are_seeded_per_run():
 
 @pytest.mark.parametrize("n", [3, 0])
 def test_detection_set_codec_round_trip(n):
-    from bench_msgs.msg import DetectionSet as DetectionSetMsg
     rng = np.random.default_rng(n)
     Z = rng.normal(size=(n, 3))
     R = np.stack([np.diag(rng.uniform(1, 2, 3)) for _ in range(n)]) if n else np.zeros((0, 3, 3))
@@ -298,7 +299,6 @@ def test_the_tracker_follows_the_target_through_clutter(scenario, runs):
             assert np.nanmean([e.diagnostics["gated"] for e in estimates]) < 1.2      # ~the target alone
     assert sum(held) >= runs - 1, held
 
-    from tracker_filters.tracker_stage import build_tracker
     naive = build_tracker(cfg, "gnn")
     naive.associator = FirstDetection()
     lured = []

@@ -3,8 +3,11 @@ label, covariance blocks placed right, frames named, no Odometry for a state wit
 poses, diagnostics read back exactly, trajectory markers cheap and cumulative; and the graph's view topics."""
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -263,9 +266,6 @@ def test_item_publishers_publish_each_item_then_its_views():
 def test_the_foxglove_layout_names_bench_topics_and_fields():
     """foxglove/bench_layout.json: every topic it shows is a view, an estimate or the truth, every Plot path a
     numeric field of that topic's message, and the layout tree holds exactly its panels."""
-    import json
-    import re
-    from pathlib import Path
     layout = json.loads((Path(__file__).resolve().parent.parent / "foxglove" / "bench_layout.json").read_text())
     panels = layout["configById"]
     types = {**{s: t for s, t in views.ESTIMATE_VIEWS.items()}, "estimate": "bench_msgs/msg/StateEstimate",
