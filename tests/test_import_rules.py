@@ -7,6 +7,12 @@
 2. Node-kind modules are cheap to import (ARCHITECTURE.md, "A pipeline stage"): every node reads every registered
    node kind to build the graph (bench_engine.graph.node_kinds()), so loading them, in a fresh interpreter, loads
    none of HEAVY. A kind imports what its core needs where the core is built.
+3. Imports sit at the top of a module. An import inside a function is allowed only where it buys something:
+   the start-up of node kinds and commands, an optional dependency, an import's side effect kept to one process.
+   Each says why on its line (a ``#`` comment), and there are at most MAX_FUNCTION_LEVEL_IMPORTS of them in the
+   whole tree (the packages, scripts/ and tests/).
+4. No module of the packages or scripts/ is longer than MAX_MODULE_LINES unless its first lines say why
+   (a line starting ``Longer than 500 lines:``).
 """
 from __future__ import annotations
 
@@ -23,6 +29,12 @@ ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
 PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
             "bench_eval", "bench_studies")
+
+TREE = [ROOT / "ros_ws" / "src", ROOT / "scripts", ROOT / "tests"]
+"""Where the rules on function-level imports apply."""
+MAX_FUNCTION_LEVEL_IMPORTS = 30
+MAX_MODULE_LINES = 500
+LONG_MODULE_REASON = "Longer than 500 lines:"
 
 HEAVY = {
     "scipy": "every scipy module (scipy.linalg alone: about 200 ms, it loads numpy.testing)",
@@ -227,3 +239,64 @@ def test_node_kinds_are_cheap_to_import(script):
 def test_every_heavy_module_is_a_real_one(module):
     """A misspelt entry would never match: each names a bench module or an installed one."""
     assert module in MODULES or importlib.util.find_spec(module) is not None
+
+
+def python_files(roots: list[Path]) -> list[Path]:
+    """The tree's Python files (a venv or a colcon build inside it left out)."""
+    return sorted(p for root in roots for p in root.rglob("*.py")
+                  if not {".venv", "build", "install", "__pycache__"} & set(p.relative_to(ROOT).parts))
+
+
+def function_level_imports(path: Path) -> list[tuple[int, str]]:
+    """(line, source line) of every import statement inside a function body (or a lambda) of a file."""
+    text = path.read_text()
+    lines = text.splitlines()
+    found = []
+
+    def visit(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.Import, ast.ImportFrom)) and in_function:
+                found.append((child.lineno, lines[child.end_lineno - 1]))
+            visit(child, in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
+
+    visit(ast.parse(text, str(path)), False)
+    return found
+
+
+def has_reason(line: str) -> bool:
+    """Whether an import's (last) line carries a comment saying why (more than a linter's ``noqa``)."""
+    if "#" not in line:
+        return False
+    comment = line.split("#", 1)[1].strip()
+    return bool(comment) and not comment.lower().startswith("noqa")
+
+
+def test_every_function_level_import_says_why_and_there_are_few():
+    found = [(path, line, text) for path in python_files(TREE) for line, text in function_level_imports(path)]
+    silent = [f"{path.relative_to(ROOT)}:{line}: {text.strip()}" for path, line, text in found if not has_reason(text)]
+    assert not silent, ("imports inside a function without their reason on the line (move them to the top of the "
+                        "module, or say what importing here buys, e.g. '# scipy: not for every node reading the "
+                        "kind'):\n" + "\n".join(silent))
+    assert len(found) <= MAX_FUNCTION_LEVEL_IMPORTS, (
+        f"{len(found)} function-level imports, more than {MAX_FUNCTION_LEVEL_IMPORTS}:\n"
+        + "\n".join(f"{path.relative_to(ROOT)}:{line}: {text.strip()}" for path, line, text in found))
+
+
+def test_the_import_checks_see_a_function_level_import(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("import os\n\ndef f():\n    import json\n    from math import (pi,\n        tau)  # only here\n"
+                   "    return lambda: __import__('re')\n\nclass C:\n    import sys\n")
+    found = function_level_imports(bad)
+    assert [line for line, _ in found] == [4, 5]
+    assert [has_reason(text) for _, text in found] == [False, True]
+    assert not has_reason("    import json  # noqa: F401")
+
+
+def test_no_module_is_long_without_a_stated_reason():
+    long = []
+    for path in python_files(TREE[:2]):
+        lines = path.read_text().splitlines()
+        if len(lines) > MAX_MODULE_LINES and not any(LONG_MODULE_REASON in line for line in lines[:5]):
+            long.append(f"{path.relative_to(ROOT)}: {len(lines)} lines")
+    assert not long, (f"modules over {MAX_MODULE_LINES} lines: split them along their seams, or say why not in "
+                      f"their first lines ('{LONG_MODULE_REASON} ...'):\n" + "\n".join(long))
