@@ -46,7 +46,7 @@ from std_msgs.msg import String, UInt64
 from bench_msgs.msg import StepAck
 from bench_engine import phases, yamlio
 from bench_engine.config import ScenarioError
-from bench_engine.cdr import deserialize, lite_class, serialize
+from bench_engine.cdr import lite_class, serialize
 from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph,
                                 node_kinds)
 from bench_engine.parameters import description, unflatten
@@ -103,10 +103,6 @@ def standalone_graph(settings: dict, name: str, kind: str) -> Graph:
         raise ScenarioError(f"the parameters describe no {kind} node named '{name}' (the node's name is its name "
                             f"in the scenario: rename it with -r __node:=NAME, or check the parameters file)")
     return graph
-
-
-def stamp_to_ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def ns_to_stamp(t_ns: int, stamp) -> None:
@@ -233,12 +229,6 @@ class BenchNode(Node):
         self.data_publisher(message_class(type_name), topic)
         encode, lite = codec(type_name).encode, lite_class(type_name)
         return lambda item: self.publish_data(topic, serialize(type_name, encode(item, lite)))
-
-    def item_subscription(self, topic: str, type_name: str, callback: Callable[[object], None]) -> None:
-        """A data subscription on ``topic`` that hands ``callback`` the light message read from the CDR bytes
-        (bench_engine.cdr)."""
-        self.data_subscription(message_class(type_name), topic,
-                               lambda data: callback(deserialize(type_name, data)), raw=True)
 
     def ack(self, step: int, count: int) -> None:
         """Acknowledge step ``step`` with the node's cumulative consumed message ``count`` and its published

@@ -79,9 +79,6 @@ class Graph:
                 return spec
         raise KeyError(f"no node '{name}' in this run; nodes: {[n.name for n in self.nodes]}")
 
-    def of_kind(self, kind: str) -> list[NodeSpec]:
-        return [n for n in self.nodes if n.kind == kind]
-
     def of_role(self, *roles: str) -> list[NodeSpec]:
         return [n for n in self.nodes if n.role in roles]
 

@@ -70,8 +70,3 @@ def load(group: str, name: str) -> object:
 def registered(group: str) -> dict[str, object]:
     """Every component of a group, loaded: {name: component}."""
     return {name: load(group, name) for name in names(group)}
-
-
-def origin(group: str, name: str) -> str:
-    """``module:attribute`` a registered name points at (for error messages and the dependency test)."""
-    return _entry_points(group)[name].value

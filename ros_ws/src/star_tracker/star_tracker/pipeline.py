@@ -140,11 +140,6 @@ class StarTrackerPipeline:
         self.reset()
 
     @property
-    def tracker_kind(self) -> str:
-        """'sna' or 'jpdaf'."""
-        return self.tracking.kind
-
-    @property
     def tracker(self) -> SNATracker | JPDAFTracker:
         """The current tracker (a new one after each reset)."""
         return self.tracking.tracker
@@ -281,8 +276,6 @@ class SNATracking:
     """The paper's SNA (tracking.SNATracker): the measured centroid of each star the gate took, at the centroid
     noise; nothing to check after verification. ``pipe``: the StarTrackerPipeline whose settings it reads."""
 
-    kind = "sna"
-
     def __init__(self, pipe: StarTrackerPipeline) -> None:
         self.pipe = pipe
         self.resets = 0
@@ -323,8 +316,6 @@ class JPDAFTracking:
     verification the agreement of its filtered and measured attitudes (step 3), which restarts the tracks at
     the measurements (``resets`` counts it) or inflates the reported covariance. ``pipe``: the
     StarTrackerPipeline whose settings it reads."""
-
-    kind = "jpdaf"
 
     def __init__(self, pipe: StarTrackerPipeline) -> None:
         self.pipe = pipe

@@ -59,10 +59,6 @@ class Identification:
     """Probability that the identified count is a chance (step 4); 1 on failure."""
     stats: dict = field(default_factory=dict)
 
-    @property
-    def n_identified(self) -> int:
-        return int(np.sum(self.index >= 0))
-
     def hip(self, catalogue: StarCatalogue) -> np.ndarray:
         """(N,) HIP number of each centroid's star (−1 where not identified)."""
         return np.where(self.index >= 0, catalogue.ids[np.maximum(self.index, 0)], -1)
