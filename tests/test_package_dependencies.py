@@ -245,3 +245,54 @@ def test_scripts_import_no_other_script_and_nothing_edits_sys_path():
                     and node.value.id == "sys":
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} uses sys.path")
     assert not offenders, "\n".join(offenders)
+
+
+STUDIES = sorted(p.parent.name for p in (SRC / "bench_studies" / "bench_studies").glob("*/__init__.py"))
+"""The studies (bench_studies' sub-packages)."""
+
+
+def docstrings(tree: ast.AST) -> set[int]:
+    """ids of the docstring nodes of a module, its classes and functions."""
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                found.add(id(first.value))
+    return found
+
+
+def study_names_in_code(path: Path, studies: list[str]) -> list[tuple[int, str]]:
+    """(line, study) of every string (docstrings aside) and identifier of a file that names a study."""
+    tree = ast.parse(path.read_text(), str(path))
+    skip = docstrings(tree)
+    pattern = re.compile(rf"\b({'|'.join(map(re.escape, studies))})\b")
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in skip:
+            text = node.value
+        elif isinstance(node, ast.Name):
+            text = node.id
+        elif isinstance(node, ast.Attribute):
+            text = node.attr
+        else:
+            continue
+        found += [(node.lineno, m.group(1)) for m in pattern.finditer(text)]
+    return found
+
+
+@pytest.mark.parametrize("package", [p for p in PRESENT if p != "bench_studies"])
+def test_generic_packages_name_no_study(package):
+    """Generic code names no study: a study's code, constants and names live in bench_studies/<study>/. (A
+    package sharing a study's name, star_tracker, is not a mention of it; documentation may give examples.)"""
+    studies = [s for s in STUDIES if s not in LAYERS]
+    named = [f"{path.relative_to(ROOT)}:{line} names {study}" for path in sorted((SRC / package / package).rglob("*.py"))
+             for line, study in study_names_in_code(path, studies)]
+    assert not named, "study code in a generic package (move it to its study):\n" + "\n".join(named)
+
+
+def test_the_study_check_sees_a_study_name(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text('"""Examples: leo_radar."""\nSCENARIO = "leo_radar"\ndef f():\n    """leo_radar"""\n    return '
+                   'grace_velocity_sections\n')
+    assert study_names_in_code(bad, ["leo_radar", "grace_velocity"]) == [(2, "leo_radar")]

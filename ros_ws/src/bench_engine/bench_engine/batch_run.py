@@ -60,7 +60,7 @@ class RunSpec:
     multiprocess: bool = False
     standard_views: bool = False
     """Publish the standard views (bench_engine.views)? Off in batches unless ``overrides`` set the switch: they
-    double a leo_radar step's messages (README, Speed) and the scorer does not read them."""
+    double the messages of a step (bench_engine.views.SWITCH) and the scorer does not read them."""
 
     def command(self, domain: int | None) -> list[str]:
         cmd = [sys.executable, "-m", "bench_engine.run", self.scenario, "--seed", str(self.seed), "--out",

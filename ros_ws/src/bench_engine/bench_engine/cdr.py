@@ -1,10 +1,10 @@
 """The bench's messages on the wire: CDR bytes to and from light message objects, through rosbags' typestore.
 
-Why: rclpy's generated classes cost ~20–30 µs a message each way (a message, its header and stamps built,
-every field assignment type- and range-checked, then converted to C). The nodes build :func:`lite_class`
-objects instead (rclpy's attribute names and defaults, no checks), publish :func:`serialize` bytes
-(``Publisher.publish(bytes)``) and take raw bytes from their subscriptions (``raw=True``) to
-:func:`deserialize`.
+Why: rclpy's generated classes are costly per message each way (a message, its header and stamps built, every
+field assignment type- and range-checked, then converted to C; scripts/bench_cdr.py measures the bench's path).
+The nodes build :func:`lite_class` objects instead (rclpy's attribute names and defaults, no checks), publish
+:func:`serialize` bytes (``Publisher.publish(bytes)``) and take raw bytes from their subscriptions
+(``raw=True``) to :func:`deserialize`.
 
 The encoding itself is rosbags' (https://gitlab.com/ternaris/rosbags, pinned in requirements.txt): its
 typestore holds ROS 2 Jazzy's message definitions (``Stores.ROS2_JAZZY``) and compiles a serialiser and a
@@ -430,8 +430,8 @@ def _layout_field(name: str, attr: str, desc: tuple) -> Field:
 
 
 def warm(type_names: Iterable[str]) -> None:
-    """Compile the light class, serialiser and deserialiser of each type now (rosbags compiles ~10 ms of code
-    per type and nested type). The launcher and the Monte Carlo fork server do it before they fork the nodes
+    """Compile the light class, serialiser and deserialiser of each type now (rosbags compiles code per type and
+    nested type). The launcher and the Monte Carlo fork server do it before they fork the nodes
     and runs (bench_engine.views at import), so these inherit the compiled code instead of compiling it each."""
     for name in type_names:
         _SERIALIZERS.setdefault(name, _serializer(name))

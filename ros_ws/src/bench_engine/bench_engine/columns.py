@@ -1,9 +1,8 @@
 """All messages of one topic decoded at once into numpy columns, straight from their CDR bytes.
 
 Why: the scorer reads every truth, measurement and estimate of a bag. Decoding them one by one through rclpy's
-generated classes builds ~5 Python objects per message (the message, its header, three ``Time``s); that was
-~60 % of a bag's load time and, over a 100-run Monte Carlo, ~19 % of the machine (README, Speed). The bench's
-messages have one byte layout per topic: the same frame, labels and vector sizes at every step. So a topic's
+generated classes builds several Python objects per message (the message, its header, three ``Time``s), most of
+a bag's load time. The bench's messages have one byte layout per topic: the same frame, labels and vector sizes at every step. So a topic's
 messages are grouped by layout, and each group's fields are read as strided numpy views of one byte array.
 
 The encoding is the one bench_engine.cdr reads and writes (plain CDR, little endian, field order and types

@@ -29,7 +29,7 @@ def available_scenarios() -> list[str]:
 
 
 def scenario_path(name_or_path: str) -> Path:
-    """Resolve a scenario name (``leo_radar``) or a path to a YAML file."""
+    """Resolve a registered scenario's name or a path to a YAML file."""
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") and path.is_file():
         return path

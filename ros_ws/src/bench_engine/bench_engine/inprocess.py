@@ -6,7 +6,7 @@ order, breadth first, in the order the lock-step graph delivers them. Studies, t
 and benchmarks use it instead of hand-written truth -> sensor -> filter loops, and a test checks that it
 produces the same items as a run through ROS 2.
 
-    run = run_in_process(load_scenario("leo_radar"), ["ekf", "ukf"], seed=3)
+    run = run_in_process(load_scenario(name), ["ekf", "ukf"], seed=3)
     run.items["/ekf/estimate"]      # [Estimate, ...] in publication order
 """
 from __future__ import annotations

@@ -229,9 +229,9 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
     fork = fork and can_fork()
     if fork:
         # Import every node module first (the shells compile the messages' CDR code on import), so the nodes
-        # are forked back to back: a participant that starts ~0.5 s before the others has sent its initial DDS
+        # are forked back to back: a participant that starts well before the others has sent its initial DDS
         # announcements by the time they start, and discovering it then waits for its next periodic one
-        # (measured: 2-3 s of start-up for a leo_radar graph against ~0.1 s).
+        # (scripts/bench_phases.py shows a run's start-up).
         _importable([spec.node.split(":")[0] for spec in plan.graph.nodes])
     previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
     try:

@@ -46,10 +46,8 @@ class RecorderNode(BenchNode):
     messages, which then wait in their subscription's queue: a poll (``_take_stranded``) takes them. The
     recorder is paced like the other consumers (the truth runs at most its window ahead of the recorder's
     acknowledgements), so it never falls far behind, and it closes the bag once every topic holds the count the
-    truth announced on /sim/totals. Measured on 2 cores, mostly with two busy loops beside the run: 12 of 12
-    grace_velocity and leo_radar runs complete, 0–3647 messages per run taken by the poll; leo_radar's graph
-    at 114–120× against 81–103× with the SingleThreadedExecutor. (Unpaced and without the poll, an
-    EventsExecutor recorder lost messages for good: 6 of 8 grace_velocity runs incomplete.)"""
+    truth announced on /sim/totals. (Unpaced and without the poll, an EventsExecutor recorder lost messages for
+    good under load.)"""
 
     def setup(self) -> None:
         self.bag = BagWriter(self.run["bag_dir"])

@@ -88,10 +88,10 @@ UNKNOWN_VARIANCE = 1.0e16
 attitude pose's position): far above any variance a bench state has in SI units (a position across the Earth,
 ~1e14 m²; a rotation, ~10 rad²)."""
 MARKER_PERIOD_S = 1.0
-"""Sim time between two trajectory markers of one node (a 10 Hz leo_radar run: 1 marker in 10 estimates)."""
+"""Sim time between two trajectory markers of one node (at 10 Hz: 1 marker in 10 estimates)."""
 MARKER_WIDTH = 2.0e-3
-"""A trajectory line's width as a fraction of the first drawn position's distance from the frame's origin
-(leo_radar, ECI: ~13 km), at least 1 m."""
+"""A trajectory line's width as a fraction of the first drawn position's distance from the frame's origin (a low
+orbit in ECI: about 13 km), at least 1 m."""
 TRUTH_COLOR = (0.1, 0.8, 0.1)
 PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.1), (0.1, 0.8, 0.8),
            (0.55, 0.35, 0.9))
@@ -117,8 +117,9 @@ def view_topics(topic: str, type_name: str) -> dict[str, str]:
 
 SWITCH = "standard_views"
 """The scenario key that turns the views on (default) or off: ``--set standard_views=false``. Monte Carlo batches
-(bench_engine.batch) turn them off: they double a leo_radar step's messages (the graph runs about half as fast,
-README Speed) and the scorer does not read them."""
+(bench_engine.batch) turn them off: they double the messages of a step with an estimate per filter
+(``scripts/bench_graph.py --set standard_views=false`` measures the difference) and the scorer does not read
+them."""
 
 
 def standard_views(cfg: dict) -> bool:
@@ -228,8 +229,8 @@ POINT_TYPE = "geometry_msgs/msg/Point"
 
 
 def warm() -> None:
-    """Compile now the CDR code of the bench's messages and of their views (bench_engine.cdr.warm; rosbags
-    generates ~0.3 s of code for them). The node shells call it when they are imported: the launcher and the
+    """Compile now the CDR code of the bench's messages and of their views (bench_engine.cdr.warm: rosbags
+    generates code for each). The node shells call it when they are imported: the launcher and the
     Monte Carlo fork server import them before they fork nodes and runs, which inherit the compiled code.
     Importing this module builds nothing (the graph and the scorer import it)."""
     cdr.warm([*cdr.bench_types(), *ESTIMATE_VIEWS.values()])

@@ -33,7 +33,7 @@ STDOUT = "stdout"
 class Table:
     """One README table and the command that produces it."""
     name: str
-    """Unique over all studies, e.g. ``leo_radar.montecarlo``."""
+    """Unique over all studies: ``STUDY.TABLE``."""
     title: str
     script: str
     """A script of the repository's scripts/ folder, e.g. ``montecarlo.py``."""

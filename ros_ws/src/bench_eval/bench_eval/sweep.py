@@ -25,7 +25,7 @@ levels' ``set`` and ``scale`` overrides, then the command line's --set. Every ce
 before the first run.
 Run i of every cell uses seed SEED0 + i (the same noise realisations in every cell) and writes
 OUT/CELL/run_NNN/bag. The study's hooks (bench_eval.study) give the paper's case of a cell, the sweep report
-and extra rows (e.g. formation_cqkf's model errors); without them a generic table is written.
+and extra rows (e.g. a model-error table); without them a generic table is written.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Two-body + J2 orbit dynamics in ECI for the leo_radar filters (paper 000, eqs. 6-7 and 17-18).
+"""Two-body + J2 orbit dynamics in ECI for orbit filters (paper 000, eqs. 6-7 and 17-18).
 
 Propagation is orbit_sim.cowell.rk4 (fixed-step RK4, sub-steps of at most ``max_step`` seconds).
 

@@ -38,7 +38,7 @@ def acceleration(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
 
 def gravity_gradient(x: float, y: float, z: float, mu: float, j2: float, re: float) -> np.ndarray:
     """d a / d r (3, 3) of the two-body + J2 acceleration (paper eq. 6) at one position, in Python floats
-    (a few us: the EKF calls it every step).
+    (the EKF calls it every step).
 
     With k = mu J2 Re^2 / 2, a_i = r_i f_i, f_x = f_y = k (15 z^2/r^7 - 3/r^5) - mu/r^3 and
     f_z = k (15 z^2/r^7 - 9/r^5) - mu/r^3:  G_ij = f_i delta_ij + r_i d f_i / d r_j. Symmetric.

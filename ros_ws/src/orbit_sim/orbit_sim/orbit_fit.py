@@ -68,7 +68,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def rtn_frame(r: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3): the
     transpose of orbit_sim.relative.lvlh_basis, written out for one state because the fit's right-hand side calls
-    it at every integrator stage (10 us against 54 us, np.cross on 3-vectors being slow)."""
+    it at every integrator stage (np.cross on 3-vectors is slow)."""
     radial = r / np.sqrt(r @ r)
     normal = _cross(r, v)
     normal /= np.sqrt(normal @ normal)

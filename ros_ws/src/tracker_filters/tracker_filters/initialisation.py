@@ -8,11 +8,10 @@ The first-order map (``method="jacobian"``, covariance J R J^T) gives the range 
 is grossly overconfident, the unscented transform is not (tests/test_radar_model.py checks both NEES).
 
 Velocity: one scan carries no velocity information, so it comes from a prior: a mean (default zero) and
-a standard deviation per axis, or a full 3x3 covariance. The scenario uses zero mean with 8 km/s per axis
-(covers the ~7.6 km/s orbital speed in any direction). ``circular_orbit_velocity_prior`` (circular-orbit
-speed, unknown direction normal to r) and the isotropic moment match (v_c^2 / 3 per axis) did no better on
-the leo_radar pass, and none of them changes the start-up inconsistency, which comes from the measurement
-geometry, not the velocity prior (relinearisation.py).
+a standard deviation per axis, or a full 3x3 covariance (e.g. zero mean with 8 km/s per axis: a low orbit's
+speed in any direction). ``circular_orbit_velocity_prior`` (circular-orbit speed, unknown direction normal to
+r) and the isotropic moment match (v_c^2 / 3 per axis) are the alternatives; none of them changes the start-up
+inconsistency, which comes from the measurement geometry, not the velocity prior (relinearisation.py).
 """
 from __future__ import annotations
 

@@ -1,15 +1,15 @@
 """Relinearising the whole pass: Gauss-Newton re-solves of every scan since the first (batch MAP).
 
-Why (leo_radar, SCENARIOS.md section 1). With 1 deg angles and sigma_r = 31.6 m at 10 Hz the range is
-~1000x more precise than the cross-range position (~25 km after the first scan), so second-order terms of
+Why. When one coordinate is measured far more precisely than the others (a ground radar's range against its
+angles: tens of metres against a degree, i.e. kilometres across the beam at orbital ranges), second-order terms of
 the cross-range errors (the range shell's sag, position x velocity products in the range rate, the ring of
 cross-range speeds that the range curvature pins down) stay comparable to the accumulated range precision
 for most of the pass. A recursive filter linearises each scan once, at the estimate of its time; those
 linearisation errors depend on the state error, which persists, so they are correlated from scan to scan
 and lock into the estimate. With the true process noise (zero: the truth is the filter's own two-body + J2
 model) nothing ever forgets them, and any Q > 0 makes the filter pessimistic once the true error keeps
-shrinking. Re-linearising every scan at the current best estimate removes the lock-in (the README's leo_radar
-results give the consistency measured with and without it).
+shrinking. Re-linearising every scan at the current best estimate removes the lock-in (scripts/montecarlo.py
+measures the consistency with and without it).
 
 The problem. With a deterministic process model (Q = 0) every state is a function of the state x0 at the
 time t0 of the first scan, x(t) = phi(x0, t). The maximum a posteriori x0 given the first-scan prior
@@ -35,11 +35,11 @@ A_j = W_j H_j Phi_j is one stacked product and Lambda, g and J are sums over the
 jacobian remains the path for any other DynamicsModel / MeasurementModel (e.g. the relative-motion models of
 the formation scenarios) and gives the same answer to the integrators' agreement (tests/test_relinearisation.py).
 
-Consistency. From about 80 s after the first scan the filters with re-solves are consistent; before that no
-Gaussian estimator is (the posterior is a curved range shell with a ring of cross-range speeds, and even the
-batch solution's Laplace covariance is overconfident). Earlier re-solves make the first seconds worse, and a
-larger g saves work at some cost in the second 50 s window. The figures are in the README (leo_radar) and
-come from scripts/montecarlo.py and scripts/leo_posterior_study.py.
+Consistency. Once the pass has constrained the cross-range position the filters with re-solves are consistent;
+before that no Gaussian estimator is (the posterior is a curved range shell with a ring of cross-range speeds,
+and even the batch solution's Laplace covariance is overconfident). Earlier re-solves make the first seconds
+worse, and a larger g saves work at some cost later in the pass. scripts/montecarlo.py and
+scripts/leo_posterior_study.py measure both.
 """
 from __future__ import annotations
 

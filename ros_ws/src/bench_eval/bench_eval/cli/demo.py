@@ -42,8 +42,7 @@ EPILOG = exit_codes(
 def run_studies(names: list[str], out: Path, runs: int | None) -> dict[str, list[Path]]:
     """Run every chosen study's seeds 1..n (n = ``runs``, else its ``demo_runs``; a single run with a process per
     node, more with each run's nodes in one process) in one batch, two at a time, the longest simulated run
-    first: a study's single long run (grace_velocity's day) then overlaps the other studies' short ones instead
-    of running alone. Returns each study's bag directories."""
+    first: a study's single long run then overlaps the other studies' short ones instead of running alone. Returns each study's bag directories."""
     specs: dict[str, list[RunSpec]] = {}
     for name in names:
         n = runs or study(name).demo_runs

@@ -8,7 +8,7 @@ has a working generator; --check only validates every command (script, flags, ov
 --readme rewrites the README's result tables (its generated blocks) from the record.
 
 Examples:
-  .venv/bin/python scripts/reproduce.py                       # every table (~40 min on 2 cores)
+  .venv/bin/python scripts/reproduce.py                       # every table (long: an idle machine helps)
   .venv/bin/python scripts/reproduce.py --resume --only leo_radar.montecarlo,star_tracker.bound
   .venv/bin/python scripts/reproduce.py --scheduler tcp://HEAD:8786 --work /shared/reproduce
   .venv/bin/python scripts/reproduce.py --mini

@@ -26,11 +26,12 @@ from orbit_sim.truth import Earth, Truth, orbit_state, semi_major_axis
 LABELS = tuple(f"{c}{s}" for s in ("1", "2") for c in ORBIT) + (
     "bx", "by", "bz", "bvx", "bvy", "bvz")
 RTOL, ATOL = 1.0e-13, 1.0e-8
-"""The truth must be more accurate than the most accurate estimator judged against it: grace_velocity's dynamic
-orbit fit knows each satellite's position to 0.2-0.6 mm (1 sigma). At rtol 1e-11 / atol 1e-6 each satellite's
-position drifted 0.6 mm in 12 h from a reference at rtol 2.3e-14 (the baseline 0.02 mm: the two satellites' errors
-are alike), and the fit's per-satellite NEES rose to 31 at the same hour in every seed. At these tolerances the
-drift is 0.005 mm in 12 h; a day of truth takes 3.6 s instead of 2.0 s."""
+"""The truth must be more accurate than the most accurate estimator judged against it: the dynamic orbit fit
+knows each satellite's position to a fraction of a millimetre. At looser tolerances (rtol 1e-11, atol 1e-6) each
+satellite's position drifts by about the fit's sigma over half a day (the baseline far less: the two satellites'
+errors are alike), which shows as the fit's per-satellite NEES rising with time in every seed; at these the drift
+stays far below it, at a higher integration cost. tests/test_grace_filters.py measures the drift against a
+reference at rtol 2.3e-14."""
 
 
 def pair_rate(t: float, y: np.ndarray, mu: float, re: float, zonals: dict[int, float], ballistic: tuple[float, float],
