@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from rosbags.highlevel import AnyReader
@@ -31,3 +32,31 @@ def read_bag(path: Path) -> dict[str, list]:
 
 def stamp(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def launch_in_background(out: Path, *extra: str) -> subprocess.Popen:
+    """A full leo_radar pass in strict lock-step (slow enough to be disturbed in the middle) on a free ROS domain
+    (the launcher takes one), its output piped."""
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    return subprocess.Popen([sys.executable, str(SCRIPTS / "launch.py"), "leo_radar", "--out", str(out),
+                             "--no-score", "--set", "time.pacing_window=0", *extra],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
+    """Return once the run of ``launch_in_background`` has stepped for a second of wall time."""
+    log = out / "logs" / "truth.log"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if log.exists() and "stepping" in log.read_text():
+            time.sleep(1.0)
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"the run never started stepping: {proc.poll()} {log.read_text() if log.exists() else ''}")
+
+
+def node_pid(out: Path, node: str) -> int:
+    """The pid of node ``node`` of the run writing to ``out`` (its command line names both)."""
+    found = subprocess.run(["pgrep", "-f", "--", f"--name {node} --config {out.resolve()}"], capture_output=True,
+                           text=True)
+    return int(found.stdout.split()[0])

@@ -16,7 +16,8 @@ import pytest
 
 from bench_engine import launcher
 from bench_engine.domains import reserve
-from graph_helpers import ROOT, SHORT_PASS, read_bag, script
+from graph_helpers import (ROOT, SHORT_PASS, launch_in_background, node_pid, read_bag, script,
+                           wait_for_stepping)
 
 
 @pytest.mark.parametrize("args, message", [
@@ -44,30 +45,11 @@ def test_unknown_scenario_lists_the_available_ones(tmp_path: Path) -> None:
     assert "leo_radar" in res.stderr
 
 
-def _launch_background(out: Path, *extra: str) -> subprocess.Popen:
-    """A launch on a free ROS domain (the launcher takes one), its output piped."""
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    return subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                             "--no-score", "--set", "time.pacing_window=0", *extra],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def _wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
-    log = out / "logs" / "truth.log"
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and proc.poll() is None:
-        if log.exists() and "stepping" in log.read_text():
-            time.sleep(1.0)
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"the run never started stepping: {proc.poll()} {log.read_text() if log.exists() else ''}")
-
-
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_leaves_a_complete_readable_bag(tmp_path: Path, sig: int) -> None:
     out = tmp_path / "sig"
-    proc = _launch_background(out)
-    _wait_for_stepping(out, proc)
+    proc = launch_in_background(out)
+    wait_for_stepping(out, proc)
     proc.send_signal(sig)
     proc.wait(timeout=60)
     assert proc.returncode == 128 + sig
@@ -79,10 +61,9 @@ def test_signal_leaves_a_complete_readable_bag(tmp_path: Path, sig: int) -> None
 
 def test_dead_node_is_named_and_bag_closed(tmp_path: Path) -> None:
     out = tmp_path / "dead"
-    proc = _launch_background(out)
-    _wait_for_stepping(out, proc)
-    found = subprocess.run(["pgrep", "-f", "--", f"--name ekf --config {out.resolve()}"], capture_output=True, text=True)
-    os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
+    proc = launch_in_background(out)
+    wait_for_stepping(out, proc)
+    os.kill(node_pid(out, "ekf"), signal.SIGKILL)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 1
     assert "node 'ekf' died first (killed by SIGKILL)" in err
@@ -93,11 +74,9 @@ def test_a_killed_recorder_is_named_and_its_bag_recovered(tmp_path: Path) -> Non
     """SIGKILL leaves the recorder no chance to close the bag; the launcher names it and rebuilds the bag from
     the chunks it flushed (every second of sim time), which the independent reader then opens."""
     out = tmp_path / "killed"
-    proc = _launch_background(out)
-    _wait_for_stepping(out, proc)
-    found = subprocess.run(["pgrep", "-f", "--", f"--name recorder --config {out.resolve()}"], capture_output=True,
-                           text=True)
-    os.kill(int(found.stdout.split()[0]), signal.SIGKILL)
+    proc = launch_in_background(out)
+    wait_for_stepping(out, proc)
+    os.kill(node_pid(out, "recorder"), signal.SIGKILL)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 1
     assert "node 'recorder' died first (killed by SIGKILL)" in err
@@ -193,8 +172,8 @@ def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
 
 def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path) -> None:
     out = tmp_path / "orphan"
-    proc = _launch_background(out)
-    _wait_for_stepping(out, proc)
+    proc = launch_in_background(out)
+    wait_for_stepping(out, proc)
     proc.kill()
     proc.wait()
     pattern = f"--config {out.resolve()}/run_config.yaml"

@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -27,7 +25,7 @@ from bench_engine.msg_schema import message_class
 from bench_engine.recorder_node import WALL_DURATION_KEY, WALL_START_KEY
 from bench_engine.views import SUFFIXES
 from bench_eval.scoring import load_bag
-from graph_helpers import ROOT, script
+from graph_helpers import launch_in_background, node_pid, script, wait_for_stepping
 
 START_NS = 4_320_800_000_000  # leo_radar's time.start
 DT_NS = 100_000_000
@@ -200,33 +198,12 @@ def test_the_scorer_reads_the_run_by_step(run: Path) -> None:
     assert set(data.estimates) == {"ekf", "ukf"}
 
 
-def _launch_background(out: Path) -> subprocess.Popen:
-    """A full leo_radar pass in strict lock-step (slow enough to be killed in the middle)."""
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    return subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                             "--no-score", "--set", "time.pacing_window=0"],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def _recorder_pid(out: Path, proc: subprocess.Popen, timeout_s: float = 60.0) -> int:
-    """The recorder's pid, once the run has stepped for a second of wall time."""
-    log = out / "logs" / "truth.log"
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline and proc.poll() is None:
-        if log.exists() and "stepping" in log.read_text():
-            time.sleep(1.0)
-            found = subprocess.run(["pgrep", "-f", "--", f"--name recorder --config {out.resolve()}"],
-                                   capture_output=True, text=True)
-            return int(found.stdout.split()[0])
-        time.sleep(0.1)
-    raise AssertionError(f"the run never started stepping: {proc.poll()}")
-
-
 def test_a_bag_recovered_after_the_recorder_is_killed_has_sim_log_times(tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    proc = _launch_background(out)
+    proc = launch_in_background(out)
     try:
-        os.kill(_recorder_pid(out, proc), signal.SIGKILL)
+        wait_for_stepping(out, proc)
+        os.kill(node_pid(out, "recorder"), signal.SIGKILL)
         _, err = proc.communicate(timeout=120)
     finally:
         proc.kill()

@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 import rclpy
-import yaml
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node

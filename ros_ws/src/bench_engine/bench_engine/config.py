@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Mapping
 
 import yaml
 
@@ -72,6 +72,19 @@ def apply_overrides(cfg: dict, overrides: Iterable[str]) -> dict:
             node = child
         node[path[-1]] = value
     return cfg
+
+
+def lookup(data: Mapping, path: str | None) -> Any:
+    """The value at a dotted key path (``a.b.c``, as overrides name it) of nested mappings; None when the path is
+    None or absent."""
+    if path is None:
+        return None
+    node: Any = data
+    for part in path.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            return None
+        node = node[part]
+    return node
 
 
 def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:

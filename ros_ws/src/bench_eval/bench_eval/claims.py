@@ -36,12 +36,12 @@ its claims.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from scipy import special
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError, Section, lookup
 
 RULES = ("close_to", "at_most", "ordering", "fraction_of_runs")
 DIVERGED_NEES = 1e6
@@ -125,18 +125,6 @@ class ClaimRow:
     bench: str
     verdict: str
     section: str
-
-
-def lookup(block: Mapping, path: str | None) -> Any:
-    """The value at a dotted path of a score block (None when absent)."""
-    if path is None:
-        return None
-    node: Any = block
-    for part in path.split("."):
-        if not isinstance(node, Mapping) or part not in node:
-            return None
-        node = node[part]
-    return node
 
 
 def diverged(block: Mapping) -> bool:
@@ -331,7 +319,11 @@ def _band(spec: Claim, target: float) -> tuple[float, float]:
     return -np.inf, target  # at_most
 
 
-def _per_filter(scored: Mapping, spec: Claim) -> tuple[str, str]:
+def _each_filter(scored: Mapping, spec: Claim, decide: Callable[[Mapping, float], tuple[str, Decision]]
+                 ) -> tuple[str, str]:
+    """(bench text, verdict) of a claim decided filter by filter: a filter not run is named, one that diverged
+    fails (no per-run figure of a filter that lost its target means anything), and ``decide(block, target)``
+    gives each other one's text and decision."""
     results, texts = [], []
     for name, target in spec.values.items():
         block = scored.get(name)
@@ -339,21 +331,26 @@ def _per_filter(scored: Mapping, spec: Claim) -> tuple[str, str]:
             texts.append(f"{name}: not run")
             continue
         if diverged(block):
-            results.append((name, Decision("fails", int(block.get("runs") or 1))))
             texts.append(f"{name}: diverged")
+            results.append((name, Decision("fails", int(block.get("runs") or 1))))
             continue
-        value, se = _value(block, spec)
-        texts.append(f"{name}: {figure(value, se, spec.unit)}")
-        if value is None or not np.isfinite(value):
-            results.append((name, Decision("undecided", int(block.get("runs") or 1), why="no bench value")))
-            continue
-        runs = _per_run(lookup(block, spec.runs))
-        if runs is None:
-            results.append((name, Decision("undecided", int(block.get("runs") or 1),
-                                           why="no per-run values: no standard error")))
-            continue
-        results.append((name, decide_interval(value, runs, *_band(spec, target), spec.level)))
+        text, decision = decide(block, target)
+        texts.append(f"{name}: {text}")
+        results.append((name, decision))
     return "; ".join(texts), verdict_text(results, spec)
+
+
+def _per_filter(scored: Mapping, spec: Claim) -> tuple[str, str]:
+    def decide(block: Mapping, target: float) -> tuple[str, Decision]:
+        value, se = _value(block, spec)
+        text, runs = figure(value, se, spec.unit), int(block.get("runs") or 1)
+        if value is None or not np.isfinite(value):
+            return text, Decision("undecided", runs, why="no bench value")
+        per_run = _per_run(lookup(block, spec.runs))
+        if per_run is None:
+            return text, Decision("undecided", runs, why="no per-run values: no standard error")
+        return text, decide_interval(value, per_run, *_band(spec, target), spec.level)
+    return _each_filter(scored, spec, decide)
 
 
 def _paired_runs(a: Any, b: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -393,20 +390,10 @@ def _ordering(scored: Mapping, spec: Claim) -> tuple[str, str]:
 
 
 def _fraction(scored: Mapping, spec: Claim) -> tuple[str, str]:
-    results, texts = [], []
-    for name, target in spec.values.items():
-        block = scored.get(name)
-        if block is None:
-            texts.append(f"{name}: not run")
-            continue
-        if diverged(block):  # a filter that lost the target: no per-run figure means anything
-            texts.append(f"{name}: diverged")
-            results.append((name, Decision("fails", int(block.get("runs") or 1))))
-            continue
+    def decide(block: Mapping, target: float) -> tuple[str, Decision]:
         flags = lookup(block, spec.runs) or []
-        texts.append(f"{name}: {sum(bool(f) for f in flags)}/{len(flags)} runs")
-        results.append((name, decide_fraction(flags, target, spec.level)))
-    return "; ".join(texts), verdict_text(results, spec)
+        return f"{sum(bool(f) for f in flags)}/{len(flags)} runs", decide_fraction(flags, target, spec.level)
+    return _each_filter(scored, spec, decide)
 
 
 def evaluate(study: str, scored: Mapping, claims: Sequence[Claim], section: str) -> list[ClaimRow]:

@@ -65,6 +65,11 @@ def fmt(v) -> str:
     return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.4g}"
 
 
+def paper_note(paper: Mapping) -> str:
+    """A study's paper in Markdown: its ``source`` and ``notes`` (paper.yaml)."""
+    return f"Paper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+
+
 def difference(bench, paper) -> str:
     """bench − paper with the relative difference, element-wise for bands; "—" when either is missing."""
     if isinstance(paper, (list, tuple)):

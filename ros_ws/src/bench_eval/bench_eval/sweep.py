@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
-from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, override_strings, select_variant
+from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, lookup, override_strings,
+                                 select_variant)
 from bench_engine.graph import resolve_estimators
 from bench_engine.launcher import prepare_run
 from tracker_filters.filter_settings import filter_config
@@ -130,15 +131,6 @@ def _axis(name: str, spec: Any, path: str) -> Axis:
     return Axis(name, {str(label): _level(level, f"{path}.{label}") for label, level in spec.items()})
 
 
-def _lookup(cfg: dict, key: str) -> Any:
-    node: Any = cfg
-    for part in key.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
-
-
 def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli: list[str],
           common: Mapping[str, Any]) -> Cell:
     """Resolve one cell: placeholders, variants (validated), the grid's and its levels' set and scale overrides,
@@ -161,7 +153,7 @@ def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli:
         sets.update(level.sets)
         scales.update(level.scales)
     cfg = apply_overrides(select_variant(base, ",".join(variants)), override_strings(sets))
-    scaled = {k: _lookup(cfg, k) * f for k, f in scales.items() if isinstance(_lookup(cfg, k), (int, float))}
+    scaled = {k: lookup(cfg, k) * f for k, f in scales.items() if isinstance(lookup(cfg, k), (int, float))}
     overrides = override_strings(sets) + override_strings(scaled)
     values = {a.name: a.levels[lab].value for a, lab in zip(axes, labels)}
     cell = Cell(by_axis, values, variants, overrides + list(cli), apply_overrides(cfg, override_strings(scaled) + cli))
@@ -193,7 +185,7 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
              for labels in itertools.product(*[list(a.levels) for a in axes])]
     scaled_keys = {k for a in axes for lev in a.levels.values() for k in lev.scales}
     for key in sorted(scaled_keys):
-        if all(_lookup(c.cfg, key) is None for c in cells):
+        if all(lookup(c.cfg, key) is None for c in cells):
             raise ScenarioError(f"'{path}': no cell has the key to scale '{key}'")
     return Grid(base["scenario"], name, description, columns, axes, cells, scenario)
 

@@ -10,8 +10,6 @@ DDS stays on this host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST); each run uses 
 """
 from __future__ import annotations
 
-import sys
-
 from bench_engine import phases
 from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
 from bench_engine.process import exit_now
@@ -31,11 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     code, plan = launch(args)
     if code != 0 or args.no_score:
         return code
-    try:
-        print(score_run(plan.out, args.json))
-    except NothingToScore as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    print(score_run(plan.out, args.json))  # NothingToScore: exit code 1 (command)
     phases.mark("scored", "launcher", plan.out)
     return 0
 
@@ -43,4 +37,4 @@ def main(argv: list[str] | None = None) -> int:
 def command() -> None:
     """Console script ``bench_launch``: ``main`` on the command line (its failures told in one line:
     bench_engine.cli.guard), then exit without the interpreter's teardown (bench_engine.process.exit_now)."""
-    exit_now(run_main(main))
+    exit_now(run_main(main, expected={NothingToScore: 1}))

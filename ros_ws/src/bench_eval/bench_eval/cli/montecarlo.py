@@ -29,6 +29,7 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine import phases  # noqa: E402
+from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
 from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
                                     run_main, writing)
 from bench_engine.config import ScenarioError  # noqa: E402
@@ -50,7 +51,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("scenario", help="scenario name or YAML path")
     p.add_argument("--runs", type=int, required=True, help="number of Monte Carlo runs")
-    p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
     p.add_argument("--filters", help="comma-separated filter names (default: the scenario's)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/mc-SCENARIO)")
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 (run i uses seed0 + i)")
@@ -58,25 +58,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="scenario override, repeatable")
     p.add_argument("--variant", help="the scenario's named variants (comma-separated, in order)")
     p.add_argument("--multiprocess", action="store_true", help="one process per node in every run")
-    p.add_argument("--domain-base", type=int, default=None,
-                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run takes a free domain)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
-                        "'local' for a local cluster of --jobs worker processes")
-    p.add_argument("--retries", type=int, default=2,
-                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
-    p.add_argument("--resume", action="store_true",
-                   help="keep the complete runs already in OUT (same configuration and seed), run the others")
+    add_batch_arguments(p)
     p.add_argument("--json", action="store_true", help="print the aggregated scores as JSON")
     args = p.parse_args(argv)
-    if args.runs < 1 or args.jobs < 1:
-        p.error("--runs and --jobs must be >= 1")
-    if args.scheduler is not None and args.domain_base is not None:
-        p.error("--domain-base is for local runs: with --scheduler each run takes a free domain on its worker's host")
-    if args.retries < 0:
-        p.error("--retries must be >= 0")
-    if args.domain_base is not None and (args.domain_base < 0 or args.domain_base + args.jobs - 1 > 101):
-        p.error("--domain-base + --jobs - 1 must be in [0, 101] (ROS_DOMAIN_ID range)")
+    check_batch_arguments(p, args)
     return args
 
 

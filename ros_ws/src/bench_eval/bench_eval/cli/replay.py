@@ -79,14 +79,10 @@ def main(argv: list[str] | None = None) -> int:
     code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code
-    try:
-        print(score_run(plan.out, args.json))
-    except NothingToScore as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    print(score_run(plan.out, args.json))  # NothingToScore: exit code 1 (command)
     return 0
 
 
 def command() -> None:
     """Console script ``bench_replay``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
-    sys.exit(run_main(main))
+    sys.exit(run_main(main, expected={NothingToScore: 1}))

@@ -26,6 +26,7 @@ from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
+from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
 from bench_engine.cli.guard import (ArgumentParser, check_output, check_writable, exit_codes,  # noqa: E402
                                     is_file_error, run_main, writing)
 from bench_engine.config import ScenarioError  # noqa: E402
@@ -46,30 +47,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("scenario", help="scenario name or YAML path (with a 'sweeps' section)")
     p.add_argument("--grid", required=True, help="name of the grid in the scenario's 'sweeps' section")
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per cell (default 1)")
-    p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/sweep-SCENARIO-GRID)")
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 of every cell (run i uses seed0 + i)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario override applied to every cell after its own, repeatable")
-    p.add_argument("--domain-base", type=int, default=None,
-                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run reserves a free domain)")
-    p.add_argument("--resume", action="store_true",
-                   help="keep the complete runs already in OUT (same configuration and seed), run the others")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
-                        "'local' for a local cluster of --jobs worker processes")
-    p.add_argument("--retries", type=int, default=2,
-                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
+    add_batch_arguments(p)
     p.add_argument("--json", action="store_true", help="print sweep.json instead of the summary")
     args = p.parse_args(argv)
-    if args.runs < 1 or args.jobs < 1:
-        p.error("--runs and --jobs must be >= 1")
-    if args.scheduler is not None and args.domain_base is not None:
-        p.error("--domain-base is for local runs: with --scheduler each run takes a free domain on its worker's host")
-    if args.retries < 0:
-        p.error("--retries must be >= 0")
-    if args.domain_base is not None and (args.domain_base < 0 or args.domain_base + args.jobs - 1 > 101):
-        p.error("--domain-base + --jobs - 1 must be in [0, 101] (ROS_DOMAIN_ID range)")
+    check_batch_arguments(p, args)
     return args
 
 

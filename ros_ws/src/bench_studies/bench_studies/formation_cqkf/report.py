@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
 
-from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, render
+from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, paper_note, render
 from bench_eval.study import load_paper
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
@@ -116,7 +116,7 @@ def formation_cqkf_sections(scenario: str, scored: Mapping, series: Mapping | No
             "which is the scenario's default case: the paper column does not apply to runs with variants "
             "(scripts/sweep.py compares every case of the paper's grid).")
     if paper:
-        text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+        text += "\n\n" + paper_note(paper)
     tables = [formation_mae_table("Mean absolute error (bench vs paper Table 1, 1 km)", scored, case,
                                   _filter_models(scored)),
               formation_consistency_table("Consistency", [("scenario as run", n, b, "—") for n, b in scored.items()])]

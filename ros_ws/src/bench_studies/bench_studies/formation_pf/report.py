@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from bench_eval.claims import diverged
-from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt
+from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, paper_note
 
 AXES = (("x", "m"), ("y", "m"), ("z", "m"), ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"))
 COMPONENTS = tuple((axis, axis, unit, 1.0) for axis, unit in AXES)
@@ -31,7 +31,7 @@ def formation_pf_sections(scenario: str, scored: Mapping, series: Mapping | None
             "about 80 s. 'claim met' counts the runs in which the thresholds hold from 80 s on; a filter whose "
             "normalised error is astronomically large has lost the target and is marked diverged.")
     if paper:
-        text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+        text += "\n\n" + paper_note(paper)
     header = ["filter", "runs", "claim met", "settled (RMSE over runs)", "mean NEES (95 % band)"] + \
         [f"MAE {axis} [{unit}]" for axis, unit in AXES]
     table = Table("Claim and errors per filter (axes: LVLH x radial, y along-track, z normal)", header,

@@ -8,7 +8,7 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, render, thin
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, paper_note, render, thin
 from bench_eval.study import load_paper
 from bench_eval.sweep import sweep_intro
 
@@ -92,7 +92,7 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
             "jerk (n³|b| ≈ 3e-4 m/s³) forces a large white-jerk q, which passes GNSS noise into the velocity along "
             "the baseline, the only component the range rate sees.")
     if paper:
-        text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+        text += "\n\n" + paper_note(paper)
     header = ["estimator", "runs", "std", "mean", "max", "min", "std vs truth", "mean vs truth",
               "velocity RMSE (3D)", "baseline NEES, 6 dof [95 % band of its effective samples]"]
     rows = [_row(n, b) for n, b in scored.items() if "rr_kbr" in b] + _paper_rows(paper or {})

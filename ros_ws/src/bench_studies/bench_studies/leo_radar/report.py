@@ -6,7 +6,7 @@ from typing import Callable, Mapping
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogFormatter
 
-from bench_eval.report import Plot, Section, Table, bounds_table, difference, draw_bounds, fmt
+from bench_eval.report import Plot, Section, Table, bounds_table, difference, draw_bounds, fmt, paper_note
 
 
 def _paper_filter(paper: Mapping | None, name: str) -> Mapping:
@@ -132,7 +132,7 @@ def leo_sections(scenario: str, scored: Mapping, series: Mapping | None, paper: 
     """Sections for ``leo_radar``: Tables 2 and 3 side by side with the paper, NEES table, three figures."""
     text = ""
     if paper:
-        text = f"Paper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+        text = paper_note(paper)
     tables = [leo_table2(scored, paper), nees_table(scored)]
     if any("radar" in b for b in scored.values()):
         tables.insert(1, leo_table3(scored, paper))

@@ -9,7 +9,8 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bound_curves, bounds_table, fmt, render, thin
+from bench_eval.report import (BOUND_STYLE, Plot, Section, Table, bound_curves, bounds_table, fmt, paper_note, render,
+                               thin)
 from bench_eval.study import load_paper
 from bench_eval.sweep import sweep_intro
 
@@ -98,7 +99,7 @@ def star_tracker_sections(scenario: str, scored: Mapping, series: Mapping | None
             "two-star solution) and the all-star SVD solution of Wahba's problem. Identification and per-star "
             "centroid errors are scored against the camera's own truth topic (/camera/star_truth).")
     if paper:
-        text += f"\n\nPaper: {paper.get('source', '')}.\n\n" + "\n".join(f"- {n}" for n in paper.get("notes", []))
+        text += "\n\n" + paper_note(paper)
     header = ["estimator", "runs", "RMS [arcsec]", "cross-boresight", "roll", "NEES (3)", "solved", "first fix [s]",
               "ID rate", "false IDs / frame", "centroid error [arcsec]", "LIS / re-acq.", "gain vs SNA"]
     rows = []
