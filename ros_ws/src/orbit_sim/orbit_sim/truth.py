@@ -12,13 +12,14 @@ Models (``truth.model``, registered in the entry-point group ``tracking_bench.tr
 """
 from __future__ import annotations
 
+import datetime
 import json
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-from orbit_sim import cowell, gravity, hill, kepler, relative
+from orbit_sim import cowell, frames, gravity, hill, kepler, relative
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section, scenario_seed
 from bench_engine.labels import ORBIT
@@ -47,10 +48,25 @@ class Truth:
 
 
 def build_earth(cfg: dict) -> Earth:
+    """The ``earth`` section. The Earth rotation angle at t = 0 is ``theta0_deg`` or, when the scenario has a
+    calendar epoch (``time.epoch``), the Greenwich mean sidereal time of the epoch (frames.gmst82, of UT1 = UTC +
+    ``ut1_minus_utc_s``, default 0; |UT1 - UTC| < 0.9 s): ``eci`` is then TEME and ECEF PEF (orbit_sim.frames).
+    Giving both is an error: they would disagree."""
     sec = Section(cfg.get("earth"), "earth")
+    epoch = build_time(cfg).epoch if isinstance(cfg.get("time"), dict) and "epoch" in cfg["time"] else None
+    dut1 = sec.get("ut1_minus_utc_s", float, 0.0, lambda v: abs(v) < 1.0, "in (-1, 1) s (IERS keeps |UT1 - UTC| < 0.9 s)")
+    if epoch is None:
+        if "ut1_minus_utc_s" in sec.data:
+            raise ScenarioError("'earth.ut1_minus_utc_s' needs a calendar epoch, 'time.epoch'")
+        theta0 = np.radians(sec.get("theta0_deg", float, 0.0))
+    elif sec.get("theta0_deg", float, None) is not None:
+        raise ScenarioError("'earth.theta0_deg' and 'time.epoch' both fix the Earth's orientation at t = 0: with an "
+                            "epoch, theta0 is the sidereal time of the epoch; remove theta0_deg (or set it to null)")
+    else:
+        theta0 = frames.gmst82(*frames.julian_date(epoch + datetime.timedelta(seconds=dut1)))
     earth = Earth(mu=sec.positive("mu", MU_EARTH), j2=sec.get("j2", float, J2_EARTH),
                   re=sec.positive("re", R_EARTH), rotation_rate=sec.get("rotation_rate", float, OMEGA_EARTH),
-                  theta0=np.radians(sec.get("theta0_deg", float, 0.0)))
+                  theta0=float(theta0))
     sec.finish()
     return earth
 
