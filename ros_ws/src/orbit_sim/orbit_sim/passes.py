@@ -5,7 +5,7 @@ with the radar azimuth convention atan2(east, north), clockwise from north, in [
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.optimize import brentq
@@ -79,6 +79,19 @@ def visibility_windows(times: np.ndarray, elevations: np.ndarray,
     return windows
 
 
+def _first_window(up: np.ndarray) -> tuple[int, int] | None:
+    """Sample indices (k0, k1) bracketing the first rise (k0 below, k0 + 1 above the mask) and the set after it
+    (k1 above, k1 + 1 below); None when no pass starts and ends within the samples."""
+    rise_idx = np.flatnonzero(~up[:-1] & up[1:])
+    if rise_idx.size == 0:
+        return None
+    k0 = int(rise_idx[0])
+    set_after = np.flatnonzero(up[k0 + 1:-1] & ~up[k0 + 2:])
+    if set_after.size == 0:
+        return None
+    return k0, k0 + 1 + int(set_after[0])
+
+
 def find_pass(state0: np.ndarray, station_lat: float, station_lon: float, station_h: float,
               theta0: float, min_elevation: float, search_duration: float, step: float = 10.0,
               mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH) -> Pass | None:
@@ -91,15 +104,10 @@ def find_pass(state0: np.ndarray, station_lat: float, station_lon: float, statio
     times = np.arange(0.0, search_duration + step, step)
     states = propagate(state0, times, mu, j2, re)
     el = elevation_series(times, states, station_lat, station_lon, station_h, theta0)
-    up = el >= min_elevation
-    rise_idx = np.flatnonzero(~up[:-1] & up[1:])
-    if rise_idx.size == 0:
+    window = _first_window(el >= min_elevation)
+    if window is None:
         return None
-    k0 = int(rise_idx[0])
-    set_after = np.flatnonzero(up[k0 + 1:-1] & ~up[k0 + 2:])
-    if set_after.size == 0:
-        return None
-    k1 = k0 + 1 + int(set_after[0])
+    k0, k1 = window
 
     def excess(t: float, k: int) -> float:
         s = propagate(states[k], np.array([times[k], t]), mu, j2, re)[-1:]
@@ -111,4 +119,32 @@ def find_pass(state0: np.ndarray, station_lat: float, station_lon: float, statio
     fine_t = np.arange(times[k0], times[k1 + 1], 0.1)
     fine_el = elevation_series(fine_t, propagate(states[k0], fine_t, mu, j2, re), station_lat,
                                station_lon, station_h, theta0)
+    return Pass(float(t_rise), float(t_set), float(np.max(fine_el)))
+
+
+def first_pass(trajectory: Callable[[np.ndarray], np.ndarray], station_lat: float, station_lon: float,
+               station_h: float, theta0: float, min_elevation: float, search_duration: float,
+               step: float = 10.0) -> Pass | None:
+    """First pass over the station within search_duration of a trajectory given as a function of time:
+    ``trajectory(times)`` -> ECI states (K, 6) at times [s] (e.g. orbit_sim.tle.ElementSet.states, SGP4).
+
+    As :func:`find_pass`: sampled every ``step`` seconds to bracket the pass, rise and set refined by Brent's
+    method to 1 µs, the peak from a 0.1 s resampling; None if no pass starts and ends within the search.
+    """
+    times = np.arange(0.0, search_duration + step, step)
+    el = elevation_series(times, trajectory(times), station_lat, station_lon, station_h, theta0)
+    window = _first_window(el >= min_elevation)
+    if window is None:
+        return None
+    k0, k1 = window
+
+    def excess(t: float) -> float:
+        at = np.array([t])
+        return float(elevation_series(at, trajectory(at), station_lat, station_lon, station_h, theta0)[0]) \
+            - min_elevation
+
+    t_rise = brentq(excess, times[k0], times[k0 + 1], xtol=1e-6)
+    t_set = brentq(excess, times[k1], times[k1 + 1], xtol=1e-6)
+    fine_t = np.arange(times[k0], times[k1 + 1], 0.1)
+    fine_el = elevation_series(fine_t, trajectory(fine_t), station_lat, station_lon, station_h, theta0)
     return Pass(float(t_rise), float(t_set), float(np.max(fine_el)))
