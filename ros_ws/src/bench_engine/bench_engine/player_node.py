@@ -4,7 +4,8 @@ The recorded serialized messages are published unchanged (``publish(bytes)``), s
 and noise are exactly those of the original run: any filter can be re-run on identical data. Topics:
 ``/truth/state``, ``/clock`` and every ``/SENSOR/measurement`` of the original bag. The bag is read in log-time
 (sim-time) order and each message replayed with the step it recorded (its ``step`` field), whatever its place
-in the file.
+in the file. /clock follows the truth's stamps; a step without truth (a bag made from tracking data without a
+reference, bench_ccsds.ingest) takes its measurements' earliest stamp.
 """
 from __future__ import annotations
 
@@ -27,13 +28,18 @@ class PlayerNode(SourceNode):
         types = reader.topics()
         self.by_step: dict[int, list[tuple[str, bytes]]] = defaultdict(list)
         self.clock_ns: dict[int, int] = {}
+        truth_steps = set()
         for topic, type_name, _t, data in reader.messages():
             if topic == CLOCK_TOPIC or topic not in self.spec.publishes:
                 continue  # /clock is re-generated from the truth stamps; estimates are not replayed
             msg = deserialize(type_name, data)
             self.by_step[msg.step].append((topic, data))
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             if topic == TRUTH_TOPIC:
-                self.clock_ns[msg.step] = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                self.clock_ns[msg.step] = stamp
+                truth_steps.add(msg.step)
+            elif msg.step not in truth_steps:
+                self.clock_ns[msg.step] = min(stamp, self.clock_ns.get(msg.step, stamp))
         if not self.by_step:
             raise ValueError(f"{self.run['replay_bag']}: no truth or measurement messages to replay")
         self.steps = max(self.by_step) + 1

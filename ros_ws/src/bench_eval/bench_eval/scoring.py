@@ -80,6 +80,7 @@ class Estimates:
     P: np.ndarray  # (K, n, n)
     labels: list[str]
     diagnostics: dict[str, np.ndarray]  # name -> (K,), NaN where an estimate does not carry it
+    nis: np.ndarray | None = None  # (K,) the NIS of each update (NaN where none); None: not recorded
 
     @classmethod
     def from_table(cls, tab: Table, rows: np.ndarray) -> "Estimates":
@@ -92,7 +93,8 @@ class Estimates:
         diag = {k: np.array([v[list(m).index(k)] if k in m else np.nan for m, v in zip(names, values)])
                 for k in sorted(set().union(*names))}
         return cls(tab["step"][rows].astype(np.int64), tab.seconds()[rows], _stack(tab["state"], rows),
-                   _stack(tab["covariance"], rows).reshape(len(rows), n, n), labels, diag)
+                   _stack(tab["covariance"], rows).reshape(len(rows), n, n), labels, diag,
+                   np.asarray(tab["nis"], dtype=float)[rows])
 
 
 def _stack(column, rows: np.ndarray) -> np.ndarray:
@@ -166,8 +168,14 @@ def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
     """Estimates of one filter aligned with the truth of the same steps: the estimate's components that the
     truth has, matched by label wherever they sit in either state (e.g. a bias block first), with the
-    covariance of their errors (bench_models.states.error_labels)."""
+    covariance of their errors (bench_models.states.error_labels). Steps without a truth sample (an imported
+    TDM whose reference covers part of it: bench_ccsds.ingest) are left out."""
     est = data.estimates[filter_name]
+    covered = np.array([int(k) in data.truth for k in est.steps], dtype=bool)
+    if not covered.all():
+        est = Estimates(est.steps[covered], est.t[covered], est.x[covered], est.P[covered], est.labels,
+                        {k: v[covered] for k, v in est.diagnostics.items()},
+                        None if est.nis is None else est.nis[covered])
     for labels, whose in ((est.labels, f"estimator '{filter_name}'"), (data.truth_labels, "the truth")):
         if len(set(labels)) != len(labels):
             raise ValueError(f"{whose} repeats state labels {labels}: components are matched by label")
@@ -217,7 +225,8 @@ def collect(bag_dirs: list[Path | str | BagData]) -> tuple[str, dict[str, list[m
     tracks: dict[str, list[metrics.Track]] = {}
     for data in runs:
         for name in scored_estimators(data, run_offline(data, opts)):
-            tracks.setdefault(name, []).append(track_of(data, name))
+            if data.truth and any(int(k) in data.truth for k in data.estimates[name].steps):
+                tracks.setdefault(name, []).append(track_of(data, name))
     return scenario, tracks, runs
 
 
@@ -229,6 +238,8 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     ``with_series``).
     """
     scenario, tracks, runs = collect(bag_dirs)
+    if not any(data.truth for data in runs) and any(data.estimates for data in runs):
+        return _score_without_truth(scenario, runs, with_series)
     if not tracks:
         names = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
         raise NothingToScore(f"no estimates in {', '.join(names)}: the run's filters published nothing "
@@ -241,6 +252,10 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)
     for name, block in bound_scores.items():
         result["filters"].setdefault(name, {})["bounds"] = block
+    if any("ccsds_import" in data.run for data in runs):  # real data scored against a reference: what needs none too
+        from bench_eval.consistency import innovation_scores  # tracker_filters' builders: only imports need them
+        for name, block in innovation_scores(runs).items():
+            result["filters"].setdefault(name, {}).update(block)
     if not with_series:
         return result
     series = family.series(tracks, runs, opts.options)
@@ -248,6 +263,15 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
         if name in series:
             series[name]["bounds"] = block
     return result, series
+
+
+def _score_without_truth(scenario: str, runs: list[BagData], with_series: bool):
+    """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
+    innovations, post-fit residuals and the estimators' own convergence (bench_eval.consistency)."""
+    from bench_eval.consistency import innovation_scores  # tracker_filters' builders: only such runs need them
+    result = {"scenario": scenario, "runs": len(runs), "metric": "innovations (no truth)",
+              "filters": innovation_scores(runs)}
+    return (result, {}) if with_series else result
 
 
 def score_run(out_dir: Path, as_json: bool = False) -> str:
@@ -283,10 +307,30 @@ def print_summary(scored: dict) -> str:
             inside = block.get("within_3sigma") or {}
             if inside:
                 parts.append(f"within 3 sigma {min(inside.values()):.0%}..{max(inside.values()):.0%}")
+        if "innovations" in block:
+            parts.append(_innovations_line(block["innovations"]))
         if not parts:  # a family without the keys above: its first scalar scores
             parts = [f"{k}={v:.4g}" for k, v in _scalars(block)[:6]]
         lines.append(f"  {name}: " + "; ".join(parts))
     return "\n".join(lines)
+
+
+def _innovations_line(block: dict) -> str:
+    """The truthless scores (bench_eval.consistency) in one line."""
+    parts = []
+    if block.get("nis_mean") is not None:
+        lo, hi = block["nis_band"]
+        parts.append(f"NIS {block['nis_mean']:.3g} ({block['nis_dof']:g} dof, 95 % band [{lo:.3g}, {hi:.3g}], "
+                     f"{block['updates']} updates)")
+    for sensor, res in block.get("residuals", {}).items():
+        parts.append(f"post-fit residual RMS/sigma {sensor}: "
+                     + ", ".join(f"{k} {v:.3g}" for k, v in res["rms_normalised"].items() if v is not None))
+    sigma = block.get("sigma_position")
+    if sigma:
+        when = sigma["convergence_time_s"]
+        parts.append(f"position sigma {sigma['converged_m']:.4g} m after {when:.0f} s" if when is not None
+                     else "position sigma never settled")
+    return "; ".join(parts)
 
 
 def _scalars(block: dict, prefix: str = "") -> list[tuple[str, float]]:
