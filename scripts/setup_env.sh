@@ -103,7 +103,7 @@ fi
 
 # The project's ament_python packages are installed editable (sources used in place), so that their entry
 # points (the components they register with bench_engine.plugins) are in the venv's package metadata.
-pkgs=(bench_engine orbit_sim bench_models radar_sensor tracker_filters star_tracker bench_eval bench_studies)
+pkgs=(bench_engine orbit_sim bench_models radar_sensor tracker_filters star_tracker bench_eval bench_ccsds bench_studies)
 present=()
 for pkg in "${pkgs[@]}"; do [ -f "ros_ws/src/$pkg/setup.py" ] && present+=("ros_ws/src/$pkg"); done
 pkg_hash=$( (printf '%s\n' "${present[@]}"; cat "${present[@]/%//setup.py}") | sha256sum | cut -c1-16)

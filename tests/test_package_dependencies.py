@@ -27,7 +27,7 @@ import yaml
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
 LAYERS = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-          "bench_eval", "bench_studies")
+          "bench_eval", "bench_ccsds", "bench_studies")
 """Lowest first. bench_msgs (generated messages) is below all of them."""
 PRESENT = [p for p in LAYERS if (SRC / p / p).is_dir()]
 WORKSPACE_PACKAGES = {p.parent.name for p in SRC.glob("*/package.xml")}
