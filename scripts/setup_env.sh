@@ -44,6 +44,24 @@ install() {
   pip_install "$@"
 }
 
+# Orekit (orekit-jpype, a test dependency: tests/test_ccsds_orekit.py parses the CCSDS messages the bench writes)
+# runs on a Java runtime: Debian's, from apt, only when there is no java on the PATH (a look-up when there is).
+if ! command -v java > /dev/null 2>&1; then
+  stage "installing a Java runtime for Orekit (apt: default-jre-headless)"
+  if [ "$(id -u)" = 0 ] && command -v apt-get > /dev/null 2>&1; then
+    mkdir -p "$ROOT/ros_ws/log"
+    { DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends default-jre-headless \
+        || { apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+               default-jre-headless; }; } > "$ROOT/ros_ws/log/apt-java.log" 2>&1 \
+      || echo "[setup] warning: could not install a Java runtime (see ros_ws/log/apt-java.log): the Orekit tests" \
+              "will fail until java is on the PATH" >&2
+  else
+    echo "[setup] warning: no java on the PATH and no root apt-get to install one: install a JDK or JRE (17 or" \
+         "later) for the Orekit tests" >&2
+  fi
+  command -v java > /dev/null 2>&1 && echo "[setup]   done in $((SECONDS - stage_start)) s"
+fi
+
 req_hash=$(hash_of requirements.txt)
 if ! stamp_ok wheels "$req_hash"; then
   stage "installing wheels"
