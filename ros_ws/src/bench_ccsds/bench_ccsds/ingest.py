@@ -208,21 +208,28 @@ def _run_config(cfg: dict, grid, last_step: int, bag_dir: Path, tdm: Path, refer
 
 
 def _write_bag(bag_dir: Path, run: dict, measured: dict, radars: dict, truth: list[TruthSample], start_ns: int) -> None:
-    if bag_dir.exists():
-        raise ScenarioError(f"{bag_dir} already exists: choose another output directory or remove it")
-    clock = SimClock(start_ns)
     streams = [(measurement_topic(name), "bench_msgs/msg/RangeAzEl", sorted(by_step.values(), key=lambda m: m.t_ns))
                for name, by_step in measured.items()]
     if truth:
         streams.append((TRUTH_TOPIC, TRUTH_TYPE, truth))
+    write_bag(bag_dir, run, streams, start_ns)
+
+
+def write_bag(bag_dir: Path, run: dict, streams: list[tuple[str, str, list]], start_ns: int = 0) -> None:
+    """A bag of items: each stream (topic, message type, items) encoded by its registered codec, written in
+    sim-time order with sim-time log times (bench_engine.bag.SimClock), and ``run`` as its run_config.yaml."""
+    if Path(bag_dir).exists():
+        raise ScenarioError(f"{bag_dir} already exists: choose another output directory or remove it")
+    clock = SimClock(start_ns)
     with BagWriter(bag_dir) as bag:
         for topic, type_name, _items in streams:
             bag.add_topic(topic, type_name)
             clock.add_topic(topic, type_name)
         encode = {type_name: (codec(type_name).encode, lite_class(type_name)) for _t, type_name, _i in streams}
-        rows = sorted(((item.t_ns, topic, type_name, item) for topic, type_name, items in streams for item in items),
-                      key=lambda r: (r[0], r[1] != TRUTH_TOPIC))
-        for _t, topic, type_name, item in rows:
+        rows = sorted(((item.t_ns, topic != TRUTH_TOPIC, n, topic, type_name, item)
+                       for topic, type_name, items in streams for n, item in enumerate(items)),
+                      key=lambda r: r[:3])
+        for *_key, topic, type_name, item in rows:
             enc, cls = encode[type_name]
             data = serialize(type_name, enc(item, cls))
             log = clock.log_time_ns(topic, data)

@@ -118,12 +118,14 @@ def read_lines(path: str | Path) -> list[Line]:
     except OSError as err:
         raise CcsdsError(f"{path}: cannot be read ({err.strerror or err})") from None
     if len(raw) > MAX_BYTES:
-        raise CcsdsError(f"{path}: larger than {MAX_BYTES >> 20} MiB, the most this reader takes")
+        raise CcsdsError(f"{path}: larger than {MAX_BYTES} bytes, the most this reader takes")
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError as err:
         raise CcsdsError(f"{path}: byte {err.start} is not ASCII: a KVN message is ASCII text "
                          "(an XML message or a binary file?)") from None
+    if text.lstrip().startswith("<"):
+        raise CcsdsError(f"{path}: an XML message: this reader takes the KVN form (CCSDS_..._VERS = ... lines)")
     lines = []
     for n, line in enumerate(text.split("\n"), start=1):
         line = line.rstrip("\r").strip()

@@ -43,8 +43,8 @@ class TdmSegment:
 
 def write_tdm(path: str | Path, segments: list[TdmSegment], originator: str, created_ns: int,
               comments: list[str] = ()) -> Path:
-    """Write ``segments`` as one TDM (KVN); each segment's observations in time order, keyword order kept per
-    epoch."""
+    """Write ``segments`` as one TDM (KVN); each segment's observations (converted from SI) and ``other`` keywords
+    (as they are) in time order, keyword order kept per epoch."""
     w = Writer()
     w.key("CCSDS_TDM_VERS", VERSION)
     for text in comments:
@@ -61,10 +61,11 @@ def write_tdm(path: str | Path, segments: list[TdmSegment], originator: str, cre
         w.raw("META_STOP")
         w.raw()
         w.raw("DATA_START")
-        rows = sorted(((epoch, order, key, value) for order, (key, values) in enumerate(seg.observations.items())
+        streams = [*seg.observations.items(), *seg.other.items()]
+        rows = sorted(((epoch, order, key, value) for order, (key, values) in enumerate(streams)
                        for epoch, value in values), key=lambda r: (r[0], r[1]))
         for epoch, _order, key, value in rows:
-            w.key(key, f"{epoch_text(epoch)} {number(value / SCALE[key])}")
+            w.key(key, f"{epoch_text(epoch)} {number(value / SCALE.get(key, 1.0))}")
         w.raw("DATA_STOP")
     Path(path).write_text(w.text(), encoding="ascii")
     return Path(path)
