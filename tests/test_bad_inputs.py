@@ -324,7 +324,8 @@ def test_a_bag_of_a_scenario_not_registered_here_still_scores(inputs: Inputs) ->
 # ------------------------------------------------------------------------------ the guard, in-process
 
 COMMANDS = ["bench_eval.cli.launch", "bench_eval.cli.score", "bench_eval.cli.montecarlo", "bench_eval.cli.sweep",
-            "bench_eval.cli.replay", "bench_eval.cli.demo", "bench_engine.cli.recover_bag", "bench_engine.run"]
+            "bench_eval.cli.replay", "bench_eval.cli.demo", "bench_engine.cli.recover_bag", "bench_engine.run",
+            "bench_ccsds.cli.export", "bench_ccsds.cli.import_tdm"]
 
 
 @pytest.mark.parametrize("module", COMMANDS)
