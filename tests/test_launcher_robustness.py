@@ -27,7 +27,7 @@ from graph_helpers import (ROOT, SHORT_PASS, launch_in_background, node_pid, rea
     (["--set", "sensors.radar.p_detect=1.5"], "'sensors.radar.p_detect' must be in [0, 1], got 1.5"),
     (["--set", "colour=blue"], "unknown key(s) 'colour' in the scenario's top level"),
     (["--set", "filters.ukf.params.alpha=-1"], "alpha"),
-    (["--variant", "nope"], "unknown variant 'nope'; allowed: table3_angles"),
+    (["--variant", "nope"], "unknown variant 'nope'; allowed: iss, table3_angles"),
     (["--set", "filters.ukf.params.alpha=abc"], "'filters.ukf.params': ukf: parameter alpha must be a number, got 'abc'"),
     (["--set", "time.duration=1e12"], "gives 10000000000001 steps; a run may have at most 10000000"),
 ])
