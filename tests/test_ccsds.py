@@ -20,6 +20,7 @@ from bench_ccsds.oem import Segment, read_oem, write_oem
 from bench_ccsds.tdm import TdmSegment, read_tdm, write_tdm
 from bench_engine.config import ScenarioError, load_scenario, select_variant
 from bench_engine.stage import Estimate, Measurement, TruthSample
+from bench_eval.scoring import load_bag
 from orbit_sim.frames import GMST_RATE, gmst82
 from orbit_sim.kepler import kepler_to_cartesian
 from orbit_sim.cowell import propagate
@@ -188,7 +189,6 @@ def test_import_maps_epochs_to_measurements_on_the_grid(tmp_path):
     imported = import_tdm(tdm, cfg, tmp_path / "bag")
     assert imported.measurements == {"radar": 2} and imported.reference == 0
     assert any("lack one of" in n for n in imported.notes) and any("RECEIVE_FREQ" in n for n in imported.notes)
-    from bench_eval.scoring import load_bag
     data = load_bag(tmp_path / "bag")
     assert sorted(data.measurements["radar"]) == [0, 1]
     np.testing.assert_allclose(data.measurements["radar"][1], [1.6e6, 4.0, 0.15], rtol=1e-15)

@@ -23,10 +23,13 @@ from pathlib import Path
 
 import jpype
 import numpy as np
+import orekit_jpype
 import pytest
+from jpype import JImplements, JOverride
 
 from bench_ccsds.epochs import run_time
-from bench_ccsds.export import export_bag, recorded_config
+from bench_ccsds.export import export_bag
+from bench_eval.cli.replay import recorded_run
 from bench_ccsds.kvn import epoch_text
 from graph_helpers import read_bag, script, stamp
 from orbit_sim.frames import gmst82, julian_date
@@ -35,77 +38,83 @@ DATA = Path(__file__).parent / "data" / "orekit"
 RTOL = 1e-15
 VM_ARGS = "-Xrs,-XX:TieredStopAtLevel=1"
 """-Xrs: the JVM leaves SIGINT, SIGTERM and SIGHUP to Python (pytest's Ctrl-C, the graph's signals).
-TieredStopAtLevel=1 (the quick C1 compiler only): the module took 6.0-6.2 s of CPU (user) against 7.5 s with
-the JVM's default, two runs each, for parsing a few thousand lines once."""
+TieredStopAtLevel=1 (the quick C1 compiler only): less CPU than the optimising compiler for parsing a few
+thousand lines once (``/usr/bin/time -f '%U' .venv/bin/python -m pytest tests/test_ccsds_orekit.py``)."""
+
+
+def java(name: str):
+    """A Java class by its full name (on the started JVM: JPype's imports of Java packages need it running, so
+    the module cannot import them at its top)."""
+    return jpype.JClass(name)
+
+
+@JImplements("org.orekit.bodies.CelestialBody", deferred=True)
+class StandInEarth:
+    """The Earth as the CCSDS parsers store it for CENTER_NAME EARTH: a name and GM, no ephemeris."""
+
+    @JOverride
+    def getName(self):
+        return "Earth"
+
+    @JOverride
+    def getGM(self):
+        return 3.986004418e14
+
+    @JOverride
+    def getInertiallyOrientedFrame(self):
+        return java("org.orekit.frames.FramesFactory").getGCRF()
+
+    @JOverride
+    def getBodyOrientedFrame(self):
+        return java("org.orekit.frames.FramesFactory").getGCRF()
+
+    @JOverride
+    def getPVCoordinates(self, date, frame):
+        pv = java("org.orekit.utils.PVCoordinates")
+        return java("org.orekit.utils.TimeStampedPVCoordinates")(date, pv.ZERO)
+
+    @JOverride
+    def getPosition(self, date, frame):
+        return java("org.orekit.utils.PVCoordinates").ZERO.getPosition()
+
+
+@JImplements("org.orekit.bodies.CelestialBodyLoader", deferred=True)
+class StandInLoader:
+    @JOverride
+    def loadCelestialBody(self, name):
+        return StandInEarth()
 
 
 @pytest.fixture(scope="module")
 def orekit():
     """The Orekit classes the tests use, on a JVM started once, with the leap seconds and a stand-in Earth."""
-    import orekit_jpype
     if not jpype.isJVMStarted():
         orekit_jpype.initVM(vmargs=VM_ARGS)
-    from java.io import File
-    from jpype import JImplements, JOverride
-    from org.orekit.bodies import CelestialBodyFactory
-    from org.orekit.data import DataContext, DataSource, DirectoryCrawler
-    from org.orekit.files.ccsds.ndm import ParserBuilder
-    from org.orekit.frames import FramesFactory
-    from org.orekit.time import AbsoluteDate, TimeScalesFactory
-    from org.orekit.utils import IERSConventions, PVCoordinates, TimeStampedPVCoordinates
-
-    @JImplements("org.orekit.bodies.CelestialBody")
-    class StandInEarth:
-        @JOverride
-        def getName(self):
-            return "Earth"
-
-        @JOverride
-        def getGM(self):
-            return 3.986004418e14
-
-        @JOverride
-        def getInertiallyOrientedFrame(self):
-            return FramesFactory.getGCRF()
-
-        @JOverride
-        def getBodyOrientedFrame(self):
-            return FramesFactory.getGCRF()
-
-        @JOverride
-        def getPVCoordinates(self, date, frame):
-            return TimeStampedPVCoordinates(date, PVCoordinates.ZERO)
-
-        @JOverride
-        def getPosition(self, date, frame):
-            return PVCoordinates.ZERO.getPosition()
-
-    @JImplements("org.orekit.bodies.CelestialBodyLoader")
-    class Loader:
-        @JOverride
-        def loadCelestialBody(self, name):
-            return StandInEarth()
-
-    context = DataContext.getDefault()
-    context.getDataProvidersManager().addProvider(DirectoryCrawler(File(str(DATA))))
-    context.getCelestialBodies().addCelestialBodyLoader(CelestialBodyFactory.EARTH, Loader())
-    utc = TimeScalesFactory.getUTC()
+    file, frames = java("java.io.File"), java("org.orekit.frames.FramesFactory")
+    context = java("org.orekit.data.DataContext").getDefault()
+    context.getDataProvidersManager().addProvider(java("org.orekit.data.DirectoryCrawler")(file(str(DATA))))
+    context.getCelestialBodies().addCelestialBodyLoader(java("org.orekit.bodies.CelestialBodyFactory").EARTH,
+                                                        StandInLoader())
+    utc = java("org.orekit.time.TimeScalesFactory").getUTC()
+    parsers, source = java("org.orekit.files.ccsds.ndm.ParserBuilder"), java("org.orekit.data.DataSource")
 
     class Orekit:
         @staticmethod
         def oem(path: Path):
-            return ParserBuilder().buildOemParser().parseMessage(DataSource(File(str(path))))
+            return parsers().buildOemParser().parseMessage(source(file(str(path))))
 
         @staticmethod
         def tdm(path: Path):
-            return ParserBuilder().buildTdmParser().parseMessage(DataSource(File(str(path))))
+            return parsers().buildTdmParser().parseMessage(source(file(str(path))))
 
         @staticmethod
         def date(utc_ns: int):
-            return AbsoluteDate(epoch_text(utc_ns), utc)
+            return java("org.orekit.time.AbsoluteDate")(epoch_text(utc_ns), utc)
 
-        teme = FramesFactory.getTEME()
-        gtod = FramesFactory.getGTOD(IERSConventions.IERS_1996, True)
+        teme = frames.getTEME()
+        gtod = frames.getGTOD(java("org.orekit.utils.IERSConventions").IERS_1996, True)
+        x_axis = java("org.hipparchus.geometry.euclidean.threed.Vector3D").PLUS_I
+        z_axis = java("org.hipparchus.geometry.euclidean.threed.Vector3D").PLUS_K
 
     return Orekit
 
@@ -121,7 +130,7 @@ def exported(tmp_path_factory):
         assert result.returncode == 0, result.stderr[-2000:]
         export = export_bag(run / "bag", run / "ccsds")
         assert sorted(p.name for p in export.written) == ["ekf.oem", "radar.tdm", "truth.oem", "ukf.oem"]
-        out[name] = (run / "bag", run / "ccsds", run_time(recorded_config(run / "bag")["scenario"]))
+        out[name] = (run / "bag", run / "ccsds", run_time(recorded_run(run / "bag")["scenario"]))
     return out
 
 
@@ -187,17 +196,16 @@ def test_orekit_reads_every_tdm_observation_as_the_bag_has_it(orekit, exported, 
 
 def test_orekit_teme_to_gtod_is_the_bench_gmst_rotation(orekit):
     """Orekit's TEME -> GTOD (IERS 1996 conventions, no EOP data: UT1 = UTC) against R3(GMST82) of the bench
-    from 1992 to 2031: the angle about z within 1e-7 rad and the pole within 1e-7 rad (measured 7.1e-8 and
-    8.7e-8, constant over the years: details of Orekit's frames, 0.6 m at 7000 km; a GMST error of 1 ms of UT1
-    would be 7e-8 rad a millisecond and a wrong formula far more)."""
-    from org.hipparchus.geometry.euclidean.threed import Vector3D
+    from 1992 to 2031: the angle about z and the pole within 1e-7 rad each (Orekit's frames differ by a small
+    offset that does not change over the years, under a metre at 7000 km; a GMST error of 1 ms of UT1 is
+    7e-8 rad, a wrong formula far more)."""
     for epoch in (dt_.datetime(1992, 8, 20, 12, 14), dt_.datetime(2000, 6, 28, 0, 50, 19, 733568),
                   dt_.datetime(2019, 12, 9, 16, 38, 29, 363424), dt_.datetime(2031, 3, 1, 5)):
         epoch = epoch.replace(tzinfo=dt_.timezone.utc)
         jd, fraction = julian_date(epoch)
         ns = round((jd - 2440587.5) * 86400e9) + round(fraction * 86400e9)
         transform = orekit.teme.getTransformTo(orekit.gtod, orekit.date(ns))
-        x, z = transform.transformVector(Vector3D.PLUS_I), transform.transformVector(Vector3D.PLUS_K)
+        x, z = transform.transformVector(orekit.x_axis), transform.transformVector(orekit.z_axis)
         angle = -np.arctan2(x.getY(), x.getX())
         assert abs(np.angle(np.exp(1j * (angle - gmst82(jd, fraction))))) < 1e-7
         assert np.hypot(z.getX(), z.getY()) < 1e-7
@@ -206,8 +214,7 @@ def test_orekit_teme_to_gtod_is_the_bench_gmst_rotation(orekit):
 def test_the_nominal_epoch_puts_theta0_at_greenwich(orekit, exported):
     """A run without a calendar epoch is exported at the first instant from 2000-01-01T12:00 UTC whose GMST is
     its theta0 (leo_radar: 40 deg), so its TEME and Orekit's agree with the bench's ECEF at t = 0."""
-    from org.hipparchus.geometry.euclidean.threed import Vector3D
     _bag, _ccsds, clock = exported["nominal"]
     assert clock.nominal and epoch_text(clock.epoch_ns).startswith("2000-01-0")
-    x = orekit.teme.getTransformTo(orekit.gtod, orekit.date(clock.epoch_ns)).transformVector(Vector3D.PLUS_I)
+    x = orekit.teme.getTransformTo(orekit.gtod, orekit.date(clock.epoch_ns)).transformVector(orekit.x_axis)
     assert abs(np.degrees(-np.arctan2(x.getY(), x.getX())) - 40.0) < 1e-5

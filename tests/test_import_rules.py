@@ -28,7 +28,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
 PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-            "bench_eval", "bench_studies")
+            "bench_eval", "bench_ccsds", "bench_studies")
 
 TREE = [ROOT / "ros_ws" / "src", ROOT / "scripts", ROOT / "tests"]
 """Where the rules on function-level imports apply."""

@@ -50,12 +50,8 @@ ROSDEP_KEYS = {
     "tetra3rs": ("python3-tetra3rs-pip",),
     "stonesoup": ("python3-stonesoup-pip",),
     "sgp4": ("python3-sgp4-pip",),
-    # Orekit through JPype (tests/test_ccsds_orekit.py): its Java packages import like modules (java.io, org.orekit)
-    # and come with orekit-jpype's jars and the Java runtime it runs on.
-    "orekit_jpype": ("python3-orekit-jpype-pip",),
-    "jpype": ("python3-orekit-jpype-pip",),
-    "java": ("python3-orekit-jpype-pip",),
-    "org": ("python3-orekit-jpype-pip",),
+    "orekit_jpype": ("python3-orekit-jpype-pip",),  # Orekit, the CCSDS check (tests/test_ccsds_orekit.py)
+    "jpype": ("python3-orekit-jpype-pip",),  # its Java bridge, a dependency of orekit-jpype
     "pytest": ("python3-pytest",),
     "hypothesis": ("python3-hypothesis",),
     "rosbags": ("python3-rosbags-pip",),

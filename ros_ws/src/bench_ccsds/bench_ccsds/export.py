@@ -26,23 +26,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from bench_engine import yamlio
-from bench_engine.bag import BagDamaged, BagReader
+from bench_engine.bag_reader import BagReader
 from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
+from bench_engine.labels import ORBIT
 from bench_engine.stage import codec
+from bench_eval.cli.replay import recorded_run
 from bench_ccsds.epochs import TIME_SYSTEM, RunTime, ccsds_frame, run_time
 from bench_ccsds.kvn import epoch_text
 from bench_ccsds.oem import Segment, write_oem
 from bench_ccsds.tdm import TdmSegment, write_tdm
 
 ORIGINATOR = "TRACKING-BENCH"
-ORBIT = ("x", "y", "z", "vx", "vy", "vz")
 ACCELERATION = ("ax", "ay", "az")
-RANGE_AZ_EL = "bench_msgs/msg/RangeAzEl"
-VECTOR = "bench_msgs/msg/VectorMeasurement"
 TDM_COMPONENTS = {"range": "RANGE", "range_rate": "DOPPLER_INSTANTANEOUS"}
 """VectorMeasurement components with a TDM keyword."""
 
@@ -60,25 +57,12 @@ class Export:
         return "\n".join(lines)
 
 
-def recorded_config(bag_dir: Path) -> dict:
-    """The bag's run_config.yaml (BagDamaged when it is missing or not one)."""
-    config = Path(bag_dir) / "run_config.yaml"
-    if not config.is_file():
-        raise BagDamaged(f"{bag_dir} is not a bag recorded by this bench (no run_config.yaml)")
-    try:
-        run = yamlio.load(config.read_text())
-        run["scenario"]["scenario"]
-    except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
-        raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err
-    return run
-
-
 def export_bag(bag_dir: str | Path, out_dir: str | Path, estimators: list[str] | None = None,
                truth: bool = True) -> Export:
     """Write ``out_dir/NAME.oem`` for the truth and every estimator (or those named) and ``out_dir/SENSOR.tdm``
     for every sensor of the bag whose content CCSDS can hold; returns what was written and what was not."""
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
-    run = recorded_config(bag_dir)
+    run = recorded_run(bag_dir)
     cfg = run["scenario"]
     clock = run_time(cfg)
     reader = BagReader(bag_dir)

@@ -28,10 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from bench_engine import yamlio
-from bench_engine.bag import BagWriter, SimClock
+from bench_engine.bag_writer import BagWriter
 from bench_engine.cdr import lite_class, serialize
 from bench_engine.config import ScenarioError, scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, measurement_topic
+from bench_engine.labels import ORBIT
+from bench_engine.sim_clock import SimClock
 from bench_engine.stage import Measurement, TruthSample, codec
 from bench_engine.timegrid import build_time
 from radar_sensor.sensor import build_sensor
@@ -41,7 +43,6 @@ from bench_ccsds.kvn import CcsdsError, epoch_text
 from bench_ccsds.oem import read_oem
 from bench_ccsds.tdm import TdmSegment, read_tdm
 
-ORBIT_LABELS = ["x", "y", "z", "vx", "vy", "vz"]
 RADAR_KEYWORDS = ("RANGE", "ANGLE_1", "ANGLE_2")
 RANGE_RATE = "DOPPLER_INSTANTANEOUS"
 
@@ -171,7 +172,7 @@ def _reference_samples(path: Path, clock, grid, measured: dict, result: Imported
     for k, t_ns in sorted(steps.items()):
         state = _state_at(epochs, states, clock.utc(t_ns))
         if state is not None:
-            samples.append(TruthSample(k, t_ns, "eci", list(ORBIT_LABELS), state))
+            samples.append(TruthSample(k, t_ns, "eci", list(ORBIT), state))
     if not samples:
         result.notes.append(f"{path}: the reference covers none of the measurements' epochs")
     elif len(samples) < len(steps):
@@ -217,7 +218,7 @@ def _write_bag(bag_dir: Path, run: dict, measured: dict, radars: dict, truth: li
 
 def write_bag(bag_dir: Path, run: dict, streams: list[tuple[str, str, list]], start_ns: int = 0) -> None:
     """A bag of items: each stream (topic, message type, items) encoded by its registered codec, written in
-    sim-time order with sim-time log times (bench_engine.bag.SimClock), and ``run`` as its run_config.yaml."""
+    sim-time order with sim-time log times (bench_engine.sim_clock.SimClock), and ``run`` as its run_config.yaml."""
     if Path(bag_dir).exists():
         raise ScenarioError(f"{bag_dir} already exists: choose another output directory or remove it")
     clock = SimClock(start_ns)

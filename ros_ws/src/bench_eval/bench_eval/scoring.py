@@ -23,6 +23,7 @@ from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC
 from bench_engine.stage import codec
 from bench_eval import metrics
 from bench_eval.claims import diverged
+from bench_eval.consistency import innovation_scores
 from bench_eval.bounds import compute_bounds, read_bounds, score_bounds
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
 from bench_models.states import error_labels
@@ -253,7 +254,6 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     for name, block in bound_scores.items():
         result["filters"].setdefault(name, {})["bounds"] = block
     if any("ccsds_import" in data.run for data in runs):  # real data scored against a reference: what needs none too
-        from bench_eval.consistency import innovation_scores  # tracker_filters' builders: only imports need them
         for name, block in innovation_scores(runs).items():
             result["filters"].setdefault(name, {}).update(block)
     if not with_series:
@@ -268,7 +268,6 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
 def _score_without_truth(scenario: str, runs: list[BagData], with_series: bool):
     """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
     innovations, post-fit residuals and the estimators' own convergence (bench_eval.consistency)."""
-    from bench_eval.consistency import innovation_scores  # tracker_filters' builders: only such runs need them
     result = {"scenario": scenario, "runs": len(runs), "metric": "innovations (no truth)",
               "filters": innovation_scores(runs)}
     return (result, {}) if with_series else result

@@ -5,8 +5,8 @@ The truth models fly without process noise, so every model here has Q = 0.
 - ``cowell_j2`` / ``cowell_twobody``: the ECI orbit, bench_models.orbit_dynamics.OrbitJ2Dynamics with the
   truth's J2 (or none).
 - ``sgp4`` (a real satellite's element set, orbit_sim.tle): SGP4 has no partials here, so its motion is
-  linearised as two-body + J2 (the Earth's J2) along the SGP4 trajectory. From one state the two part by
-  about 4 m over a 5-minute pass and 0.1 km over an orbit (tests/test_tle.py): the bound is the J2 model's.
+  linearised as two-body + J2 (the Earth's J2) along the SGP4 trajectory: the bound is the J2 model's. From one
+  state the two part by metres over a pass (tests/test_tle.py bounds it), far below a radar's range noise.
 - ``hill_cw``: the exact Hill/Clohessy-Wiltshire relative motion, bench_models.relative_dynamics.CWDynamics
   with the chief's mean motion as the truth computes it (from |r| at the epoch).
 - ``formation_j2`` / ``formation_twobody``: both spacecraft on two-body (+ J2), the state the deputy relative to

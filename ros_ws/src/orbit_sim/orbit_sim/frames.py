@@ -13,8 +13,7 @@ ECEF the pseudo-Earth-fixed frame PEF, the standard TEME -> PEF rotation R3(GMST
 - TEME of date against TEME of the epoch: SGP4's output is read as one inertial frame over a run, in which the
   Earth turns at OMEGA_EARTH (7.292115e-5 rad/s, WGS84); TEME of date turns with the equinox's precession, and
   GMST runs at d(GMST)/dt = 7.2921158553e-5 rad/s, 8.55e-12 rad/s more. R3(theta0 + OMEGA_EARTH t) and
-  TEME -> PEF = R3(GMST(t)) part by that rate times t: 1.9 cm at 7000 km 310 s after the epoch, 5.2 m a day
-  (tests/test_tle.py);
+  TEME -> PEF = R3(GMST(t)) part by that rate times t, 7.4e-7 rad a day (tests/test_tle.py);
 - polar motion (PEF against ITRF, at most ~0.5", ~15 m at the surface): a station's WGS84 coordinates are
   taken in PEF.
 Without an epoch, theta0 is ``earth.theta0_deg`` and the frames are these same ones at an unnamed date.

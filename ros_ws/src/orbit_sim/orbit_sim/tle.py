@@ -25,9 +25,10 @@ import numpy as np
 from sgp4.api import WGS72, Satrec
 
 from bench_engine.config import ScenarioError, Section
+from bench_engine.labels import ORBIT
 from bench_engine.timegrid import TimeGrid
 from orbit_sim.frames import julian_date
-from orbit_sim.truth import ORBIT_LABELS, Truth
+from orbit_sim.truth import Truth
 
 LINE_LENGTH = 69
 MAX_FILE_BYTES = 64 * 1024
@@ -179,4 +180,4 @@ def tle_truth(sec: Section, model: str, earth, grid: TimeGrid) -> Truth:
         states = tle.states(grid.epoch, grid.times())
     except TleError as err:
         raise ScenarioError(str(err)) from None
-    return Truth(grid, states, ORBIT_LABELS, "eci")
+    return Truth(grid, states, ORBIT, "eci")

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
+from bench_ccsds.export import export_bag
 from bench_ccsds.kvn import CcsdsError
 
 EPILOG = exit_codes(c0="the messages were written (the summary lists each file, and what was not exported)",
@@ -30,7 +31,6 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     out = args.out or args.bag.resolve().parent / "ccsds"
     check_output(out)
-    from bench_ccsds.export import export_bag
     with writing(out):
         result = export_bag(args.bag, out, args.estimators.split(",") if args.estimators else None,
                             truth=not args.no_truth)

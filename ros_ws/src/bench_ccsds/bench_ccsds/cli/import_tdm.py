@@ -23,6 +23,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see be
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import apply_overrides, load_scenario, select_variant  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
+from bench_eval.cli.replay import recorded_run  # noqa: E402
+from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
 from bench_ccsds.ingest import import_tdm  # noqa: E402
 from bench_ccsds.kvn import CcsdsError  # noqa: E402
 
@@ -58,8 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     with writing(out):
         imported = import_tdm(args.tdm, cfg, out / "input" / "bag", args.reference, args.sensor)
         print(imported.summary(), file=sys.stderr)
-        from bench_ccsds.export import recorded_config
-        run = recorded_config(imported.bag_dir)
+        run = recorded_run(imported.bag_dir)
         estimators = args.estimators.split(",") if args.estimators else None
         plan = prepare_run(run["scenario"]["scenario"], out, estimators, run.get("seed"), source="player",
                            extra={"replay_bag": str(imported.bag_dir), "ccsds_import": run["ccsds_import"]},
@@ -68,15 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     code = run_graph(plan, args.domain_id, args.single_process, tag="import")
     if code != 0:
         return code
-    from bench_eval.scoring import NothingToScore, score_run
-    try:
-        print(score_run(plan.out, args.json))
-    except NothingToScore as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    print(score_run(plan.out, args.json))  # NothingToScore: exit code 1 (command)
     return 0
 
 
 def command() -> None:
     """Console script ``bench_import_tdm``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
-    sys.exit(run_main(main, expected={CcsdsError: 2}))
+    sys.exit(run_main(main, expected={CcsdsError: 2, NothingToScore: 1}))
