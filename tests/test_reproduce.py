@@ -1,6 +1,6 @@
-"""scripts/reproduce.py (bench_eval.reproduce, bench_eval.cli.reproduce): every table the studies declare has a
-command that validates, in full and in the miniature, and the cheapest one runs end to end into the record,
-which --resume then keeps."""
+"""scripts/reproduce.py (bench_eval.reproduce, bench_eval.cli.reproduce): every table the studies and docs/tables
+declare has a command that validates, in full and in the miniature, and the cheapest one runs end to end into the
+record, which --resume then keeps; every page's generated blocks are the record's."""
 import json
 import subprocess
 from pathlib import Path
@@ -16,9 +16,9 @@ CHEAPEST = "formation_cqkf.model_error"  # ~1 s in the miniature
 
 
 def test_every_declared_table_validates_in_full_and_in_the_miniature():
-    tables = cli.declared_tables()
-    studies = {t.name.split(".")[0] for t in tables}
-    assert {"leo_radar", "formation_pf", "formation_cqkf", "grace_velocity", "star_tracker"} <= studies
+    tables = cli.declared_tables(ROOT)
+    groups = {t.name.split(".")[0] for t in tables}
+    assert {"leo_radar", "formation_pf", "formation_cqkf", "grace_velocity", "star_tracker", "demo", "speed"} <= groups
     helps: dict[str, str] = {}
     problems = [msg for mini in (False, True) for t in tables for msg in cli.validate(t, ROOT, mini, helps)]
     assert problems == []
@@ -51,9 +51,10 @@ def test_tables_yaml_is_read_strictly(tmp_path):
     with pytest.raises(ScenarioError, match="tables.yaml"):
         rp.read_tables(path, "s")
     path.write_text("tables:\n- {name: a, title: A, script: launch.py, args: [s, --runs, 3], "
-                    "mini: {args: {--runs: 1}}}\n")
+                    "mini: {args: {--runs: 1}}, captions: [Table A]}\n")
     (table,) = rp.read_tables(path, "s")
     assert table.name == "s.a" and table.args == ("s", "--runs", "3") and table.mini_args == {"--runs": "1"}
+    assert table.captions == ("Table A",)
 
 
 def test_complete_needs_success_same_commit_and_same_arguments():
@@ -143,36 +144,51 @@ def test_excerpt_takes_each_captions_table_or_code_block_and_nothing_else():
         rp.excerpt(MARKDOWN, ("Table Z",))
 
 
-def test_fill_readme_rewrites_only_the_generated_blocks_and_names_what_it_cannot_fill():
-    table = rp.Table("s.t", "T", "x.py", ("s",), readme=("Table A",), figures=("report/a.png",))
+def test_fill_page_rewrites_only_the_generated_blocks_and_names_what_it_cannot_fill():
+    table = rp.Table("s.t", "T", "x.py", ("s",), captions=("Table A",), figures=("report/a.png",))
     entry = {"status": "ok", "commit": "0123456789abcdef", "identity": ["x.py", "s"], "wall_s": 12.0,
-             "load_average": [1.5, 1, 1], "markdown": MARKDOWN}
-    readme = "intro\n<!-- results: s.t -->\nstale | 9 |\n<!-- /results -->\noutro\n"
-    filled = rp.fill_readme(readme, {"tables": {"s.t": entry}}, {"s.t": table})
-    assert filled.startswith("intro\n<!-- results: s.t -->\n**Table A: errors**") and filled.endswith(
-        "<!-- /results -->\noutro\n")
+             "load_average": [1.5, 1, 1], "machine": {"cpus": 2, "cpu_model": "CPU X"},
+             "markdown": MARKDOWN.replace("errors**", "errors of [s](#s)**")}
+    page = "intro\n<!-- results: s.t -->\nstale | 9 |\n<!-- /results -->\noutro\n"
+    filled = rp.fill_page(page, {"tables": {"s.t": entry}}, {"s.t": table}, "../../")
+    assert filled.startswith("intro\n<!-- results: s.t -->\n**Table A: errors of s**") and filled.endswith(
+        "<!-- /results -->\noutro\n")  # the link into the command's own report is reduced to its text
     assert "stale" not in filled and "| 1 | 2 |" in filled and "`x.py s`, commit `0123456789ab`, 12 s" in filled
-    assert "![s.t: a.png](results/figures/s.t/a.png)" in filled
-    assert rp.fill_readme(filled, {"tables": {"s.t": entry}}, {"s.t": table}) == filled  # idempotent
-    assert rp.readme_names(filled) == ["s.t"]
+    assert "2 CPUs (CPU X)" in filled
+    assert "![s.t: a.png](../../results/figures/s.t/a.png)" in filled
+    assert rp.fill_page(filled, {"tables": {"s.t": entry}}, {"s.t": table}, "../../") == filled  # idempotent
+    assert rp.block_names(filled) == ["s.t"]
     with pytest.raises(rp.ExcerptError, match="no declared table: s.u"):
-        rp.fill_readme(readme.replace("s.t", "s.u"), {"tables": {"s.t": entry}}, {"s.t": table})
+        rp.fill_page(page.replace("s.t", "s.u"), {"tables": {"s.t": entry}}, {"s.t": table})
     with pytest.raises(rp.ExcerptError, match="no complete run"):
-        rp.fill_readme(readme, {"tables": {"s.t": {**entry, "status": "failed (exit 1)"}}}, {"s.t": table})
+        rp.fill_page(page, {"tables": {"s.t": {**entry, "status": "failed (exit 1)"}}}, {"s.t": table})
 
 
-def test_the_readmes_result_tables_are_the_records():
-    """README.md's generated blocks are what scripts/reproduce.py --readme writes from results/results.json: one
-    block per declared table, none edited by hand."""
+def test_the_pages_result_tables_are_the_records():
+    """The generated blocks of README.md and the docs/ pages are what scripts/reproduce.py --docs writes from
+    results/results.json: every declared table on exactly one page, none edited by hand."""
     record = rp.read_results(ROOT / "results" / "results.json")
     assert record.get("tables") and not record.get("mini"), "results/results.json: run scripts/reproduce.py"
-    tables = {t.name: t for t in cli.declared_tables()}
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert sorted(rp.readme_names(text)) == sorted(tables)
-    assert rp.fill_readme(text, record, tables) == text, "README.md is stale: run scripts/reproduce.py --readme"
+    tables = {t.name: t for t in cli.declared_tables(ROOT)}
+    shown = []
+    for page in rp.pages(ROOT):
+        text = page.read_text(encoding="utf-8")
+        shown += rp.block_names(text)
+        assert rp.fill_page(text, record, tables, rp.to_root(ROOT, page)) == text, \
+            f"{page.relative_to(ROOT)} is stale: run scripts/reproduce.py --docs"
+    assert sorted(shown) == sorted(tables)
     missing = [rp.figure_path(t, f) for t in tables.values() for f in t.figures
                if not (ROOT / rp.figure_path(t, f)).is_file()]
     assert not missing, missing
+
+
+def test_a_page_is_reached_from_the_repository_by_its_depth(tmp_path):
+    assert rp.to_root(tmp_path, tmp_path / "README.md") == ""
+    assert rp.to_root(tmp_path, tmp_path / "docs" / "studies" / "x.md") == "../../"
+    (tmp_path / "docs" / "_build" / "x").mkdir(parents=True)
+    (tmp_path / "docs" / "_build" / "x" / "page.md").write_text("built")
+    (tmp_path / "docs" / "index.md").write_text("source")
+    assert rp.pages(tmp_path) == [tmp_path / "README.md", tmp_path / "docs" / "index.md"]
 
 
 def test_figures_are_copied_only_from_the_recorded_run(tmp_path):
@@ -194,11 +210,11 @@ def test_figures_are_copied_only_from_the_recorded_run(tmp_path):
         cli.copy_figures(table, root, work, {**entry, "commit": "c2"})
 
 
-def test_readme_is_never_written_from_a_miniature_record(tmp_path, capsys):
+def test_pages_are_never_written_from_a_miniature_record(tmp_path, capsys):
     (tmp_path / "results.json").write_text(json.dumps({"mini": True, "tables": {CHEAPEST: {"status": "ok"}}}))
     before = (ROOT / "README.md").read_bytes()
     with pytest.raises(SystemExit) as stop:
-        cli.main(["--readme", "--results", str(tmp_path), "--root", str(ROOT)])
+        cli.main(["--docs", "--results", str(tmp_path), "--root", str(ROOT)])
     assert stop.value.code == 2 and "holds no full reproduction" in capsys.readouterr().err
     assert (ROOT / "README.md").read_bytes() == before
 

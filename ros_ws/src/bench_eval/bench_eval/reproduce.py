@@ -1,14 +1,17 @@
-"""The README's result tables as data, and the record of their reproduction (scripts/reproduce.py).
+"""The documentation's generated result tables as data, and the record of their reproduction
+(scripts/reproduce.py).
 
-Each study declares the tables the README quotes in its own folder (``tables.yaml``, read into its Study's
-``tables``): the script of scripts/ that produces each, its arguments at the README's run counts, where its
-Markdown lands (the command's standard output or a file under its output directory), whether it takes
-``--scheduler`` and ``--resume``, and its miniature (flag values replaced, e.g. ``--runs 1``, and ``--set``
-overrides that shorten the runs). Nothing here names a study.
+Each study declares the tables its documentation page shows in its own folder (``tables.yaml``, read into its
+Study's ``tables``); the repository's other generated tables (the demo's report, the speed benchmarks) are
+declared in ``docs/tables/*.yaml``. A declaration names the script of scripts/ that produces the table, its
+arguments at the documented run counts, where its Markdown lands (the command's standard output or a file under
+its output directory), whether it takes ``--scheduler`` and ``--resume``, and its miniature (flag values
+replaced, e.g. ``--runs 1``, and ``--set`` overrides that shorten the runs). Nothing here names a study.
 
 The record (``RESULTS.md`` + ``results.json``) holds the commit, the machine and, per table, the command, its
 wall time and its Markdown; a table whose entry is complete for the same commit and command is skipped on
-``--resume``.
+``--resume``. A documentation page (Markdown) shows a table in a generated block, ``<!-- results: TABLE -->``
+… ``<!-- /results -->``, which ``fill_page`` rewrites from the record.
 """
 from __future__ import annotations
 
@@ -31,14 +34,14 @@ STDOUT = "stdout"
 
 @dataclass(frozen=True)
 class Table:
-    """One README table and the command that produces it."""
+    """One generated table of the documentation and the command that produces it."""
     name: str
     """Unique over all studies: ``STUDY.TABLE``."""
     title: str
     script: str
     """A script of the repository's scripts/ folder, e.g. ``montecarlo.py``."""
     args: tuple[str, ...]
-    """Its arguments at the README's run counts (without the output directory, --scheduler, --resume)."""
+    """Its arguments at the documented run counts (without the output directory, --scheduler, --resume)."""
     markdown: str = STDOUT
     """Where the table's Markdown is: ``stdout`` or a path under the output directory."""
     text: bool = False
@@ -55,12 +58,12 @@ class Table:
     """In the miniature: flag -> value replacing the flag's value (e.g. ``--runs: 1``)."""
     mini_set: tuple[str, ...] = ()
     """In the miniature: ``--set KEY=VALUE`` overrides appended (e.g. a shorter ``time.duration``)."""
-    readme: tuple[str, ...] = ()
-    """What the README shows of the table's Markdown: for each text, the first bold caption line (``**…**``)
+    captions: tuple[str, ...] = ()
+    """What a page shows of the table's Markdown: for each text, the first bold caption line (``**…**``)
     containing it and the Markdown table or code block under it (``excerpt``); empty: all of it."""
     figures: tuple[str, ...] = ()
-    """Figures the command writes (paths under its output directory) that the README shows under the table,
-    from their copies in the repository (``figure_path``)."""
+    """Figures the command writes (paths under its output directory) that a page shows under the table, from
+    their copies in the repository (``figure_path``)."""
 
 
 def read_tables(path: Path, study: str) -> tuple[Table, ...]:
@@ -81,7 +84,7 @@ def read_tables(path: Path, study: str) -> tuple[Table, ...]:
                 resume=s.get("resume", bool, False), scenario=s.get("scenario", str, None),
                 mini_args={str(k): str(v) for k, v in mini.get("args", dict, {}).items()},
                 mini_set=tuple(str(o) for o in mini.get("set", list, [])),
-                readme=tuple(str(c) for c in s.get("readme", list, [])),
+                captions=tuple(str(c) for c in s.get("captions", list, [])),
                 figures=tuple(str(f) for f in s.get("figures", list, []))))
             mini.finish()
             s.finish()
@@ -214,7 +217,7 @@ def render(record: Mapping, order: list[str]) -> str:
              f"({record.get('wall_s', 0):.0f} s in the last invocation; resumed tables keep their own)", ""]
     if record.get("mini"):
         lines += ["The miniature (one run per cell, shortened runs): it proves every table has a working "
-                  "generator; its figures are not the README's.", ""]
+                  "generator; its figures are not the documentation's.", ""]
     for name in order:
         entry = record["tables"].get(name)
         if not entry:
@@ -229,11 +232,11 @@ def render(record: Mapping, order: list[str]) -> str:
 
 
 class ExcerptError(ValueError):
-    """A table's ``readme`` caption is not in its Markdown, or README names no declared table."""
+    """A table's caption is not in its Markdown, or a page's block names no declared table."""
 
 
 def excerpt(markdown: str, captions: tuple[str, ...]) -> str:
-    """The parts of a command's Markdown the README shows: for each caption text, the first bold line containing
+    """The parts of a command's Markdown a page shows: for each caption text, the first bold line containing
     it and the table (``|`` rows) or fenced code block that follows it; all of it when there are no captions.
     Raises ExcerptError naming a caption that is not there."""
     if not captions:
@@ -258,11 +261,13 @@ def excerpt(markdown: str, captions: tuple[str, ...]) -> str:
 
 
 BLOCK = re.compile(r"(<!-- results: (?P<name>[\w.]+) -->\n)(?P<body>.*?)(<!-- /results -->)", re.S)
-"""A generated block of the README: ``<!-- results: TABLE -->`` … ``<!-- /results -->``."""
+"""A generated block of a page: ``<!-- results: TABLE -->`` … ``<!-- /results -->``."""
 
+LOCAL_LINK = re.compile(r"\[([^\]]+)\]\(#[^)]*\)")
+"""A link to a section of the command's own report (``[STUDY](#STUDY)``), meaningless on another page."""
 
 FIGURES = f"{RESULTS_DIR}/figures"
-"""Where the figures the README shows are kept, relative to the repository: FIGURES/TABLE/FILE."""
+"""Where the figures the pages show are kept, relative to the repository: FIGURES/TABLE/FILE."""
 
 
 def figure_path(table: Table, figure: str) -> str:
@@ -270,36 +275,51 @@ def figure_path(table: Table, figure: str) -> str:
     return f"{FIGURES}/{table.name}/{Path(figure).name}"
 
 
-def readme_block(table: Table, entry: Mapping) -> str:
-    """A README block's body: the table's excerpt, its figures and where they come from (command, commit, wall
-    time, load)."""
-    body = excerpt(entry.get("markdown", ""), table.readme)  # a text table's Markdown is fenced already
+def page_block(table: Table, entry: Mapping, to_root: str = "") -> str:
+    """A generated block's body: the table's excerpt (links into the command's own report reduced to their
+    text), its figures (``to_root``: the path from the page's folder to the repository, e.g. ``../../``) and where
+    they come from (command, commit, wall time, load, machine)."""
+    body = LOCAL_LINK.sub(r"\1", excerpt(entry.get("markdown", ""), table.captions))  # text tables: fenced already
     for figure in table.figures:
-        body += f"\n\n![{table.name}: {Path(figure).name}]({figure_path(table, figure)})"
-    load = entry.get("load_average")
-    source = (f"*Generated by `scripts/reproduce.py --readme` from `results/RESULTS.md` ({table.name}): "
+        body += f"\n\n![{table.name}: {Path(figure).name}]({to_root}{figure_path(table, figure)})"
+    load, machine = entry.get("load_average"), entry.get("machine")
+    source = (f"*Generated by `scripts/reproduce.py --docs` from `results/results.json` ({table.name}): "
               f"`{' '.join(entry['identity'])}`, commit `{entry['commit'][:12]}`, {entry['wall_s']:.0f} s"
-              + (f", load average {load[0]} at its start" if load else "") + ".*")
+              + (f", load average {load[0]} at its start" if load else "")
+              + (f", {machine['cpus']} CPUs ({machine['cpu_model']})" if machine else "") + ".*")
     return f"{body}\n\n{source}\n"
 
 
-def readme_names(text: str) -> list[str]:
-    """The table names of the README's generated blocks, in order."""
+def block_names(text: str) -> list[str]:
+    """The table names of a page's generated blocks, in order."""
     return [m.group("name") for m in BLOCK.finditer(text)]
 
 
-def fill_readme(text: str, record: Mapping, tables: Mapping[str, Table]) -> str:
-    """The README with every generated block rewritten from the record. Raises ExcerptError for a block naming
-    an undeclared table or one the record does not hold complete."""
+def fill_page(text: str, record: Mapping, tables: Mapping[str, Table], to_root: str = "") -> str:
+    """A page with every generated block rewritten from the record (``to_root`` as in ``page_block``). Raises
+    ExcerptError for a block naming an undeclared table or one the record does not hold complete."""
     def body(m: re.Match) -> str:
         name = m.group("name")
         if name not in tables:
-            raise ExcerptError(f"README block names no declared table: {name}")
+            raise ExcerptError(f"block names no declared table: {name}")
         entry = record.get("tables", {}).get(name)
         if not entry or entry.get("status") != "ok":
-            raise ExcerptError(f"README block {name}: results/results.json holds no complete run of it")
+            raise ExcerptError(f"block {name}: results/results.json holds no complete run of it")
         try:
-            return m.group(1) + readme_block(tables[name], entry) + m.group(4)
+            return m.group(1) + page_block(tables[name], entry, to_root) + m.group(4)
         except ExcerptError as err:
-            raise ExcerptError(f"README block {name}: {err}") from err
+            raise ExcerptError(f"block {name}: {err}") from err
     return BLOCK.sub(body, text)
+
+
+def pages(root: Path) -> list[Path]:
+    """The repository's pages that may hold generated blocks: README.md and every Markdown file under docs/
+    (its build directory excepted)."""
+    docs = sorted(p for p in (Path(root) / "docs").rglob("*.md") if "_build" not in p.parts)
+    return [Path(root) / "README.md", *docs]
+
+
+def to_root(root: Path, page: Path) -> str:
+    """The relative path from a page's folder to the repository (``""`` at the top, ``../../`` two down)."""
+    depth = len(Path(page).resolve().parent.relative_to(Path(root).resolve()).parts)
+    return "../" * depth

@@ -3,8 +3,8 @@
 
 A study's folder holds its scenario (``scenario.yaml``, registered in ``tracking_bench.scenarios``), the
 paper's numbers and claims as data (``paper.yaml``: ``paper`` and ``claims``, bench_eval.claims), its report
-section and, optionally, its sweep report, the lookup of the paper's case for a sweep cell and the README's
-result tables with their commands (``tables.yaml``, scripts/reproduce.py).
+section and, optionally, its sweep report, the lookup of the paper's case for a sweep cell and the result
+tables of its documentation page with their commands (``tables.yaml``, scripts/reproduce.py).
 """
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ class Study:
     sweep_extra: Callable | None = None
     """(distinct truths [(label, cfg)]) -> (JSON rows, Markdown) appended to a sweep's report."""
     tables: tuple[Table, ...] = ()
-    """The README's result tables of the study and the command of each (bench_eval.reproduce.Table, read from
-    its folder's tables.yaml by load_tables): what scripts/reproduce.py runs."""
+    """The result tables of the study's documentation page and the command of each (bench_eval.reproduce.Table,
+    read from its folder's tables.yaml by load_tables): what scripts/reproduce.py runs."""
     demo_runs: int = 1
     """Seeded runs of the study in ``make demo`` (bench_eval.cli.demo): as many as its claims need to be
     decided (bench_eval.claims) where its runs are cheap, within the demo's time budget."""

@@ -1,18 +1,20 @@
-"""Regenerate every result table the README quotes: each study's declared tables (its folder's tables.yaml),
-each by its own command at the README's run counts, one after the other, locally or on a Dask cluster
+"""Regenerate every result table the documentation shows: each study's declared tables (its folder's
+tables.yaml) and the repository's own (docs/tables/*.yaml: the demo's report, the speed benchmarks), each by its
+own command at the documented run counts, one after the other, locally or on a Dask cluster
 (--scheduler, passed to the commands that take it). Writes results/RESULTS.md and results/results.json with
 the commit, the machine (CPUs, model, load), and each table's command, wall time, load and Markdown. --resume skips
 a table already complete for the same commit and arguments, and resumes the runs of an interrupted batch.
 --mini runs the miniature (one run per cell, shortened runs) into runs/reproduce-mini, to prove every table
 has a working generator; --check only validates every command (script, flags, overrides) without running;
---readme rewrites the README's result tables (its generated blocks) from the record.
+--docs rewrites the generated blocks of README.md and the docs/ pages from the record.
 
 Examples:
   .venv/bin/python scripts/reproduce.py                       # every table (long: an idle machine helps)
   .venv/bin/python scripts/reproduce.py --resume --only leo_radar.montecarlo,star_tracker.bound
   .venv/bin/python scripts/reproduce.py --scheduler tcp://HEAD:8786 --work /shared/reproduce
   .venv/bin/python scripts/reproduce.py --mini
-  .venv/bin/python scripts/reproduce.py --readme              # README's result tables from results/results.json
+  .venv/bin/python scripts/reproduce.py --only speed.filters,speed.graph
+  .venv/bin/python scripts/reproduce.py --docs                # the pages' result tables from results/results.json
 """
 from __future__ import annotations
 
@@ -41,9 +43,16 @@ EPILOG = exit_codes(
     c2="bad input: an unknown table, a declared command that does not validate (--check), no scripts/ folder")
 
 
-def declared_tables() -> list[rp.Table]:
-    """Every registered study's tables, in the studies' registration order."""
-    return [t for name in plugins.names("studies") for t in study(name).tables]
+DECLARED = "docs/tables"
+"""The repository's own generated tables, one YAML file per group (its stem prefixes the tables' names)."""
+
+
+def declared_tables(root: Path) -> list[rp.Table]:
+    """Every registered study's tables, in the studies' registration order, then the repository's own
+    (root/DECLARED/*.yaml, in name order)."""
+    own = sorted((Path(root) / DECLARED).glob("*.yaml"))
+    return [t for name in plugins.names("studies") for t in study(name).tables] \
+        + [t for path in own for t in rp.read_tables(path, path.stem)]
 
 
 def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> list[str]:
@@ -98,7 +107,8 @@ def run_table(table: rp.Table, root: Path, work: Path, head: str, mini: bool, sc
     status = "ok" if ok else f"FAILED (exit {code}; log {out / 'stderr.txt'})"
     print(f"[reproduce] {table.name}: {status} in {wall:.0f} s", file=sys.stderr, flush=True)
     return {"title": table.title, "status": "ok" if ok else f"failed (exit {code})", "wall_s": round(wall, 1),
-            "load_average": load, "identity": ident, "markdown": markdown, "log": str(out / "stderr.txt")}
+            "load_average": load, "machine": {k: v for k, v in rp.machine().items() if k in ("cpus", "cpu_model")},
+            "identity": ident, "markdown": markdown, "log": str(out / "stderr.txt")}
 
 
 def write_record(results: Path, record: dict, order: list[str]) -> None:
@@ -125,21 +135,34 @@ def copy_figures(table: rp.Table, root: Path, work: Path, entry: dict) -> None:
                                   "table again (scripts/reproduce.py --only " + table.name + ")")
 
 
-def write_readme(readme: Path, record_path: Path, tables: list[rp.Table], work: Path) -> str:
-    """Rewrite the README's generated blocks from a full record, and copy the figures they show from the work
-    directory; returns what was done, in one line."""
+def write_pages(root: Path, record_path: Path, tables: list[rp.Table], work: Path) -> str:
+    """Rewrite the generated blocks of README.md and every docs/ page from a full record, and copy the figures
+    they show from the work directory; returns what was done, in one line. Raises ExcerptError for a block that
+    cannot be filled, or a declared table that no page shows."""
     record = rp.read_results(record_path)
     if record.get("mini") or not record.get("tables"):
         raise rp.ExcerptError(f"{record_path} holds no full reproduction: run scripts/reproduce.py first")
     for table in tables:
         if table.figures and table.name in record["tables"]:
-            copy_figures(table, readme.parent, work, record["tables"][table.name])
-    text = readme.read_text(encoding="utf-8")
-    new = rp.fill_readme(text, record, {t.name: t for t in tables})
-    with writing(readme.parent):
-        readme.write_text(new, encoding="utf-8")
-    return (f"{readme.name}: {len(rp.readme_names(new))} generated block(s) from {record_path} "
-            f"({'changed' if new != text else 'unchanged'})")
+            copy_figures(table, root, work, record["tables"][table.name])
+    by_name, shown, changed = {t.name: t for t in tables}, [], []
+    for page in rp.pages(root):
+        text = page.read_text(encoding="utf-8")
+        try:
+            new = rp.fill_page(text, record, by_name, rp.to_root(root, page))
+        except rp.ExcerptError as err:
+            raise rp.ExcerptError(f"{page.relative_to(root)}: {err}") from err
+        shown += rp.block_names(new)
+        if new != text:
+            with writing(page.parent):
+                page.write_text(new, encoding="utf-8")
+            changed.append(str(page.relative_to(root)))
+    unshown = sorted(set(by_name) - set(shown))
+    if unshown:
+        raise rp.ExcerptError(f"no page shows the declared table(s) {unshown}: add a block "
+                              "<!-- results: TABLE --><!-- /results --> where each belongs")
+    return (f"{len(shown)} generated block(s) from {record_path}; "
+            + (f"changed: {', '.join(changed)}" if changed else "every page unchanged"))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -148,9 +171,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", help="comma-separated table names (default: every declared table; see --list)")
     p.add_argument("--list", action="store_true", help="print the declared tables and their commands, then exit")
     p.add_argument("--check", action="store_true", help="validate every chosen table's command, run nothing")
-    p.add_argument("--readme", action="store_true",
-                   help="rewrite README.md's generated blocks (<!-- results: TABLE --> ... <!-- /results -->) from "
-                        "the record (results/results.json), run nothing")
+    p.add_argument("--docs", action="store_true",
+                   help="rewrite the generated blocks (<!-- results: TABLE --> ... <!-- /results -->) of README.md and "
+                        "the docs/ pages from the record (results/results.json), run nothing")
     p.add_argument("--mini", action="store_true", help="the miniature: one run per cell, shortened runs")
     p.add_argument("--resume", action="store_true", help="skip tables complete for this commit and arguments")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the commands that take it")
@@ -163,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     root = args.root.resolve()
     if not (root / "scripts").is_dir():
         p.error(f"{root} has no scripts/ folder: run from the repository or pass --root")
-    declared = declared_tables()
+    declared = declared_tables(root)
     tables, names = declared, [t.name for t in declared]
     if len(set(names)) != len(names):
         p.error(f"duplicate table names: {sorted(n for n in set(names) if names.count(n) > 1)}")
@@ -185,11 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     suffix = "reproduce-mini" if args.mini else "reproduce"
     results = args.results or (root / ("runs/" + suffix if args.mini else rp.RESULTS_DIR))
     work = args.work or root / "runs" / suffix
-    if args.readme:
+    if args.docs:
         if args.mini:
-            p.error("--readme shows the full tables: leave out --mini")
+            p.error("--docs shows the full tables: leave out --mini")
         try:
-            print(write_readme(root / "README.md", results / "results.json", declared, work))
+            print(write_pages(root, results / "results.json", declared, work))
         except rp.ExcerptError as err:
             p.error(str(err))
         return 0
