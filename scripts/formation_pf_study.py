@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Paper 001 (SCENARIOS.md §2, formation_pf) through the ROS graph: Monte Carlo per variant, then its figures.
+"""Paper 001 (the formation_pf study) through the ROS graph: Monte Carlo per variant, then its figures.
 
 For each configuration (the default 0.02 m range reading and the scenario's variants) this runs a Monte
 Carlo of formation_pf (bench_eval.montecarlo; unless ``--tabulate-only``) and reads the bags back. Per filter

@@ -340,10 +340,11 @@ def test_a_known_range_rate_bias_added_to_a_real_run_moves_the_mean_by_exactly_t
 def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
     """The time-averaged baseline NEES (6 dof; the metric's own, grace_velocity/metrics.py) of three one-hour
     runs, against the 95 % chi-square band of N independent samples, N = one per 60 s of scored time (the NEES
-    decorrelates in 13-26 s: integrated autocorrelation, measured on seed 1). The study's finding (README,
-    grace_velocity: (a) 4.5 and its smoothers 3.8 conservative, (b) 7.1 overconfident) holds, and each filter's
-    covariance is wrong by less than a factor of 2: (a) and the smoothers lie below the band but above the band
-    of a covariance twice too large; (b) above the band but below that of a covariance half as large."""
+    decorrelates in 13-26 s: integrated autocorrelation, measured on seed 1). The study's finding
+    (docs/studies/grace_velocity.md: (a) 4.5 and its smoothers 3.8 conservative, (b) 7.1 overconfident) holds,
+    and each filter's covariance is wrong by less than a factor of 2: (a) and the smoothers lie below the band
+    but above the band of a covariance twice too large; (b) above the band but below that of a covariance half as
+    large."""
     scores = score_bags(grace_runs)["filters"]
     skip = grace_runs[0].scenario["scoring"]["skip_s"]
     samples = len(grace_runs) * (grace_runs[0].scenario["time"]["duration"] - skip) / 60.0

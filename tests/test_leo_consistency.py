@@ -8,7 +8,7 @@ noise (zero) and Gauss-Newton re-solves of all scans since the first (tracker_fi
 
 What is asserted, per 50 s window from 100 s on: the NEES averaged over runs and over the window lies in
 the 95 % band of a single step's N-run average, chi2(6 N) / N (time averaging only narrows a consistent
-filter's spread). The 50-100 s window is marginal (the README's Monte Carlo puts it just above the band), so
+filter's spread). The 50-100 s window is marginal (the leo_radar study's Monte Carlo puts it just above the band), so
 it is only held below 1.5 times the band's upper limit.
 The first 50 s are not asserted: there the posterior is far from Gaussian and no Gaussian estimator is
 consistent; see the scenario file. The paper's recursive filters

@@ -340,7 +340,7 @@ def test_wrap_angle_range_and_equivalence():
 def test_the_papers_sir_is_not_consistent_on_formation_pf_and_the_bench_pf_is_conservative():
     """formation_pf as published (N = 10 000, 2 cm range, 0.01 deg angles, a noise-free CW truth), 60 s, five
     seeded runs in process (bench_engine.inprocess), scored by the bench's NEES code on the scorer's tracks.
-    The study (README, formation_pf) measured: the paper's SIR collapses to one particle at the first update
+    The study (docs/studies/formation_pf.md) measured: the paper's SIR collapses to one particle at the first update
     (N_eff = 1) and its NEES is ~1e39; the bench's pf is below the band (2.4: the filter assumes the paper's
     Q, the truth has no process noise). Asserted: the SIR's NEES is above the 95 % band by more than 1e6 and
     its N_eff is 1 at the median step; the pf's is below the band's lower limit, above a quarter of it."""

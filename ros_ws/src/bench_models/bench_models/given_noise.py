@@ -1,6 +1,6 @@
 """A dynamics model whose process noise is a given discrete covariance per step instead of a derived one.
 
-Paper 001 states its Q directly as a per-step diagonal (SCENARIOS §2); wrapping any dynamics model keeps
+Paper 001 (formation_pf) states its Q directly as a per-step diagonal; wrapping any dynamics model keeps
 its transition and replaces only Q, scaled linearly with the step length (``per_step`` = Q at dt = 1 s
 when ``reference_dt`` is 1).
 """

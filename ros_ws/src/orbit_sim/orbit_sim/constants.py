@@ -1,6 +1,6 @@
 """Physical constants (SI units) shared by the orbit models.
 
-Values follow paper 000 (000_bdad40065924f578, section 2) and WGS84. The paper prints
+Values follow paper 000 (leo_radar, section 2) and WGS84. The paper prints
 Re = 6378.173 km; that is a transposition typo for the WGS84 equatorial radius 6378.137 km used here.
 """
 MU_EARTH: float = 3.986004418e14

@@ -1,4 +1,4 @@
-"""Star-camera pipeline (paper 003, SCENARIOS.md §4). No module of the core imports rclpy.
+"""Star-camera pipeline (paper 003, the star_tracker study). No module of the core imports rclpy.
 
 catalogue   the real sky: Hipparcos 2, magnitude-limited, proper motion to an epoch, unresolved pairs merged,
             cached on disk (keyed by its inputs, rebuilt when corrupt)

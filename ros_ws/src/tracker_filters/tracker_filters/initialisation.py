@@ -1,4 +1,4 @@
-"""Initial state "from the first radar scan" (paper 000, section 6; SCENARIOS.md section 1).
+"""Initial state "from the first radar scan" (paper 000, section 6: the leo_radar study).
 
 Position: the inverse polar conversion of the first (range, azimuth, elevation). Default: its mean and
 covariance by the unscented transform of the measurement noise (3-D scaled sigma points, alpha = 1,

@@ -88,9 +88,9 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
             "filter run with its own q, orbit_fit / orbit_fit_j2 dynamic orbit determination of each satellite "
             "from its own fixes with the truth's force model / two-body + J2 and empirical accelerations "
             "(scripts/grace_bounds.py prints them next to the bounds)."
-            "\n\nWhy the filter loses here (README, grace_velocity): in ECI the baseline turns with the orbit, so its "
-            "jerk (n³|b| ≈ 3e-4 m/s³) forces a large white-jerk q, which passes GNSS noise into the velocity along "
-            "the baseline, the only component the range rate sees.")
+            "\n\nWhy the filter loses here (docs/studies/grace_velocity.md): in ECI the baseline turns with the "
+            "orbit, so its jerk (n³|b| ≈ 3e-4 m/s³) forces a large white-jerk q, which passes GNSS noise into the "
+            "velocity along the baseline, the only component the range rate sees.")
     if paper:
         text += "\n\n" + paper_note(paper)
     header = ["estimator", "runs", "std", "mean", "max", "min", "std vs truth", "mean vs truth",
