@@ -41,8 +41,8 @@ def test_no_tracked_file_points_outside_the_repository_or_cites_a_paper_by_its_f
 
 
 def test_the_patterns_catch_what_they_are_for():
-    assert OUTSIDE.search("see " + ".." + "/shared/" + "SCENARIOS.md") and not OUTSIDE.search("--out /shared/mc")
-    assert FILE_CITATION.search("Paper 002_2f5c41c22f687bff") and not FILE_CITATION.search("paper 002, eq. 27")
+    assert OUTSIDE.search("see " + ".." + "/shared/" + "SCENARIOS" + ".md") and not OUTSIDE.search("--out /shared/mc")
+    assert FILE_CITATION.search("Paper 002_" + "2f5c41c22f687bff") and not FILE_CITATION.search("paper 002, eq. 27")
 
 
 def test_the_readme_fits_on_a_page():
