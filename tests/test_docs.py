@@ -2,16 +2,22 @@
 repository or cites a paper by a file name only a local copy has; the README fits on a page; the docs build's
 step runner appends its shortening where a reader's command would take it. (The site itself is built, with
 warnings as errors, by `make docs` in CI.)"""
+import importlib.util
 import re
 import subprocess
-import sys
 
 import pytest
 
 from graph_helpers import ROOT
 
-sys.path.insert(0, str(ROOT / "docs" / "_ext"))
-from run_blocks import shortened  # noqa: E402  (the docs extension, on the path just above)
+
+def docs_extension(name: str):
+    """One of the docs build's local extensions (docs/_ext/NAME.py), loaded from its file."""
+    spec = importlib.util.spec_from_file_location(f"docs_ext_{name}", ROOT / "docs" / "_ext" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
 
 OUTSIDE = re.compile("|".join([re.escape(".." + "/shared"), "SCENARIOS" + r"\.md", "ROS_ON_PIP" + r"\.md"]))
 """A reference shelf beside the repository that no other clone has."""
@@ -59,4 +65,13 @@ def test_the_readme_fits_on_a_page():
     ("mkdir -p runs", "mkdir -p runs"),
 ])
 def test_the_docs_step_runner_shortens_only_bench_commands_at_their_end(text, expected):
-    assert shortened(text, "--runs 1") == expected
+    assert docs_extension("run_blocks").shortened(text, "--runs 1") == expected
+
+
+def test_the_api_pages_make_a_plain_docstring_valid_restructuredtext_without_changing_its_words():
+    api = docs_extension("api_pages")
+    lines = ["Returns |x| for:", "- a list item", "  continued", "text after the list", "    an indented line",
+             "three ``Time``s", "::", "", "    |literal| kept"]
+    assert api.plain_layout(lines) == ["Returns \\|x\\| for:", "", "- a list item", "  continued", "",
+                                       "text after the list", "", "    an indented line", "",
+                                       "three ``Time``\\ s", "::", "", "    |literal| kept"]

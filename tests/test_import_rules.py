@@ -4,7 +4,7 @@
    body, ``if TYPE_CHECKING:`` ones included: a circle of annotations is a circle of design too) close no cycle
    among the bench's modules; the failure names the cycle. A function-level import only hides a circle, so the
    imports inside functions may close none either.
-2. Node-kind modules are cheap to import (ARCHITECTURE.md, "A pipeline stage"): every node reads every registered
+2. Node-kind modules are cheap to import (docs/extending.md, "A pipeline stage"): every node reads every registered
    node kind to build the graph (bench_engine.graph.node_kinds()), so loading them, in a fresh interpreter, loads
    none of HEAVY. A kind imports what its core needs where the core is built.
 3. Imports sit at the top of a module. An import inside a function is allowed only where it buys something:
