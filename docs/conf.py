@@ -25,7 +25,7 @@ release = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dir
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.mathjax", "api_pages", "run_blocks"]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}  # .rst: the generated API pages
 root_doc = "index"
-exclude_patterns = ["_build", "tables", "README.md"]
+exclude_patterns = ["_build", "tables"]
 myst_enable_extensions = ["colon_fence", "deflist", "dollarmath"]
 myst_heading_anchors = 3
 
