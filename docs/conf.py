@@ -36,7 +36,7 @@ html_static_path: list[str] = []
 # Every reference is checked (nitpicky), except to what lies outside the bench: the standard library, numpy,
 # scipy and the other libraries its signatures name have no inventory here (the site is built offline).
 nitpicky = True
-BENCH = r"(bench_engine|bench_eval|bench_models|bench_studies|orbit_sim|radar_sensor|star_tracker|tracker_filters)"
+BENCH = r"(bench_ccsds|bench_engine|bench_eval|bench_models|bench_studies|orbit_sim|radar_sensor|star_tracker|tracker_filters)"
 nitpick_ignore_regex = [(r"py:.*", rf"(?!{BENCH}\b).*")]
 
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}
@@ -46,7 +46,7 @@ autodoc_preserve_defaults = True
 
 # api_pages: one page per package, every module that imports no ROS client library at its top level.
 api_packages = ["bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-                "bench_eval", "bench_studies"]
+                "bench_eval", "bench_ccsds", "bench_studies"]
 api_source = str(ROOT / "ros_ws" / "src")
 
 # run_blocks: the steps run in a scratch copy of the repository's layout (links to .venv, scripts, foxglove,

@@ -4,13 +4,13 @@ A message holds segments; each segment one tracking pass of one set of participa
 PARTICIPANT_n, MODE, PATH, ANGLE_TYPE, RANGE_UNITS, ...) and data lines ``KEYWORD = epoch value`` between
 DATA_START and DATA_STOP. The keywords the bench writes and reads, with their units in the file and in memory:
 
-=======================  ==============  =======  ==========================================================
-keyword                  file            memory   meaning
-=======================  ==============  =======  ==========================================================
-RANGE                    km (RANGE_UNITS) m       one-way distance participant 1 to 2 (the radar's range)
-ANGLE_1, ANGLE_2         deg             rad      azimuth (from north, clockwise) and elevation (ANGLE_TYPE AZEL)
-DOPPLER_INSTANTANEOUS    km/s            m/s      instantaneous range rate
-=======================  ==============  =======  ==========================================================
+=======================  ================  =======  ===============================================================
+keyword                  file              memory   meaning
+=======================  ================  =======  ===============================================================
+RANGE                    km (RANGE_UNITS)  m        one-way distance participant 1 to 2 (the radar's range)
+ANGLE_1, ANGLE_2         deg               rad      azimuth (from north, clockwise) and elevation (ANGLE_TYPE AZEL)
+DOPPLER_INSTANTANEOUS    km/s              m/s      instantaneous range rate
+=======================  ================  =======  ===============================================================
 
 Other data keywords are read as numbers and kept under their name, unconverted (:attr:`TdmSegment.other`).
 The reader takes version 1.0 and 2.0 KVN files and reports any problem in one line naming the file and line
