@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Graph speed: sim-time / wall-time ratio of a full run (truth + sensors + filters + recorder).
+"""Graph speed: sim-time / wall-time ratio of a full run (truth + sensors + estimators + recorder).
 
 Runs the scenario through launch.py in each process mode and prints start-up time (process start to the
 first step: discovery and readiness barrier) separately from the stepping time, and the ratio of simulated
@@ -29,11 +29,11 @@ MODES = {"multi-process": [], "single-process": ["--single-process"],
          "single-process-unpinned": ["--single-process", "--no-pin"]}
 
 
-def one_run(scenario: str, mode: str, filters: str, domain: int, extra: list[str]) -> dict:
+def one_run(scenario: str, mode: str, estimators: str, domain: int, extra: list[str]) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         cmd = [sys.executable, str(LAUNCH), scenario, "--out", str(out), "--domain-id", str(domain), "--no-score",
-               "--filters", filters, *MODES[mode], *extra]
+               "--estimators", estimators, *MODES[mode], *extra]
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode != 0:
             raise RuntimeError(f"{mode} run failed:\n{res.stderr[-2000:]}")
@@ -46,18 +46,18 @@ def one_run(scenario: str, mode: str, filters: str, domain: int, extra: list[str
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="leo_radar")
-    p.add_argument("--filters", default="ekf,ukf")
+    p.add_argument("--estimators", default="ekf,ukf")
     p.add_argument("--repeat", type=int, default=1, help="runs per mode (the median is printed)")
     p.add_argument("--modes", default=",".join(MODES), help=f"comma-separated subset of {list(MODES)}")
     p.add_argument("--domain-id", type=int, default=90)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = p.parse_args(argv)
     extra = [a for o in args.overrides for a in ("--set", o)]
-    print(f"{args.scenario} with {args.filters} + recorder; {args.repeat} run(s) per mode, median")
+    print(f"{args.scenario} with {args.estimators} + recorder; {args.repeat} run(s) per mode, median")
     print(f"{'mode':16s} {'steps':>6s} {'sim [s]':>8s} {'start-up [s]':>12s} {'stepping [s]':>12s} "
           f"{'steps/s':>8s} {'sim/wall':>9s}")
     for mode in args.modes.split(","):
-        runs = [one_run(args.scenario, mode, args.filters, args.domain_id, extra) for _ in range(args.repeat)]
+        runs = [one_run(args.scenario, mode, args.estimators, args.domain_id, extra) for _ in range(args.repeat)]
         startup = statistics.median(r["startup_s"] for r in runs)
         stepping = statistics.median(r["stepping_s"] for r in runs)
         steps, sim = runs[0]["steps"], runs[0]["sim_s"]

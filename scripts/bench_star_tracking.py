@@ -9,7 +9,7 @@ lost-in-space frame included), its range over the repeats and the median and p90
 
     .venv/bin/python scripts/bench_star_tracking.py                       # the 400-frame default case
     .venv/bin/python scripts/bench_star_tracking.py --repeat 5 --variant rotation
-    .venv/bin/python scripts/bench_star_tracking.py --filters jpdaf_wahba --set star_cameras.camera.false_rate=3
+    .venv/bin/python scripts/bench_star_tracking.py --estimators jpdaf_wahba --set star_cameras.camera.false_rate=3
 
 Budget (issue 8): the JPDAF at most 5 ms per frame. Nothing is asserted: on a shared machine the times are
 upper bounds.
@@ -21,7 +21,8 @@ import time
 
 import numpy as np
 
-from bench_engine.config import load_scenario, scenario_seed, select_variant
+from bench_engine.config import load_scenario, select_variant
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, measurement_topic, resolve_estimators
 from bench_engine.inprocess import run_in_process
 from star_tracker.camera_stage import STAR_CAMERA, read_cameras
@@ -54,14 +55,14 @@ def main() -> None:
     ap.add_argument("--scenario", default="star_tracker")
     ap.add_argument("--variant", default=None, help="the scenario's variants, comma-separated")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override (repeatable)")
-    ap.add_argument("--filters", default=None, help="comma-separated trackers (default: the scenario's)")
+    ap.add_argument("--estimators", default=None, help="comma-separated star trackers (default: the scenario's)")
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--repeat", type=int, default=3, help="runs of the cores (default 3)")
     args = ap.parse_args()
 
     cfg = select_variant(load_scenario(args.scenario, args.set), args.variant)
     seed = scenario_seed(cfg) if args.seed is None else args.seed
-    requested = args.filters.split(",") if args.filters else None
+    requested = args.estimators.split(",") if args.estimators else None
     filters = [n for n in read_trackers(cfg) if n in resolve_estimators(cfg, requested)]
     runs = [time_cores(cfg, filters, seed) for _ in range(args.repeat)]
     frames = len(next(iter(runs[0].values())))

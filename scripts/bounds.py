@@ -13,7 +13,7 @@ With --out, each case's report (the study's tables and figures, √bound dashed)
 Examples:
   .venv/bin/python scripts/bounds.py leo_radar --runs 10
   .venv/bin/python scripts/bounds.py formation_pf --runs 10 --variant j2_truth
-  .venv/bin/python scripts/bounds.py formation_pf --runs 10 --filters pf,ukf \
+  .venv/bin/python scripts/bounds.py formation_pf --runs 10 --estimators pf,ukf \
       --set 'filters.ukf={type: ukf, dynamics: {model: cw, sigma_accel: 0.0}}'
   .venv/bin/python scripts/bounds.py formation_cqkf --grid tables --runs 2 --out runs/bounds-cqkf
 """
@@ -27,6 +27,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BLAS thread per worker
 
+from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, load_scenario, select_variant  # noqa: E402
 from bench_eval.inprocess_runs import bag_data  # noqa: E402
 from bench_eval.report import fmt, write_report  # noqa: E402
@@ -43,15 +44,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario override (repeatable), e.g. --set 'filters.ukf.dynamics.sigma_accel=0.0'")
     p.add_argument("--grid", help="every cell of this sweep grid of the scenario (scripts/sweep.py's grids)")
-    p.add_argument("--filters", help="comma-separated estimators (default: the scenario's default_filters)")
+    add_estimators_option(p)
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--out", type=Path, help="write each case's report (Markdown + PNG) under this directory")
     return p.parse_args(argv)
 
 
 def _run(job: tuple[dict, list[str] | None, int]):
-    cfg, filters, seed = job
-    return bag_data(cfg, filters, seed)
+    cfg, estimators, seed = job
+    return bag_data(cfg, estimators, seed)
 
 
 def table_rows(case: str, scored: dict) -> list[str]:
@@ -74,18 +75,18 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    filters = args.filters.split(",") if args.filters else None
+    estimators = names(args.estimators)
     seeds = range(args.seed0, args.seed0 + args.runs)
     print(f"{args.scenario}: {len(cases)} case(s) x {args.runs} runs (seeds {seeds[0]}..{seeds[-1]}), in process\n")
     print("| case | estimator | bound | position: efficiency (last RMSE / √bound [m]) | velocity: efficiency (last "
           "RMSE / √bound [m/s]) |\n|---|---|---|---|---|")
     with ProcessPoolExecutor(args.jobs) as pool:
         for case, cfg in cases:
-            runs = list(pool.map(_run, [(cfg, filters, s) for s in seeds]))
+            runs = list(pool.map(_run, [(cfg, estimators, s) for s in seeds]))
             scored, series = score_bags(runs, with_series=True)
-            print("\n".join(table_rows(case, scored["filters"])), flush=True)
+            print("\n".join(table_rows(case, scored["estimators"])), flush=True)
             if args.out:
-                write_report(args.out / case, {scored["scenario"]: scored["filters"]}, {scored["scenario"]: series})
+                write_report(args.out / case, {scored["scenario"]: scored["estimators"]}, {scored["scenario"]: series})
     return 0
 
 

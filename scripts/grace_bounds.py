@@ -24,6 +24,7 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 import numpy as np
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_engine.scenario import default_estimators
 from bench_eval.inprocess_runs import bag_data
 from bench_eval.report import BOUND_STYLE, Plot, save_plot
 from bench_eval.scoring import run_offline, scoring_options
@@ -70,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), args.variant), args.overrides)
     start = time.perf_counter()
-    data = bag_data(cfg, cfg.get("default_filters"), args.seed)
+    data = bag_data(cfg, default_estimators(cfg), args.seed)
     opts = scoring_options(cfg)
     seconds = {}
     for name, job in opts.offline.items():
@@ -92,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{bound_b * 1e6:.4f}")
     print(f"{'estimator':14} {'RMS vs truth':>13} {'std vs KBR':>11} {'eff. (b)':>9} {'eff. (a)':>9} {'time [s]':>9}")
     errors = {}
-    for name in [*cfg.get("default_filters", []), *opts.offline]:
+    for name in [*(default_estimators(cfg) or []), *opts.offline]:
         r = residuals(data, name, opts.options)
         if r is None:
             continue

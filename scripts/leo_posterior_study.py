@@ -14,7 +14,7 @@ posterior is, consistency needs a sample-based estimator.
 Examples:
   .venv/bin/python scripts/leo_posterior_study.py                        # 20 runs, 2/5/10/20/40 s
   .venv/bin/python scripts/leo_posterior_study.py --runs 40 --jobs 2 --times 1,3,10,30,60 --json out.json
-  .venv/bin/python scripts/leo_posterior_study.py --filters ekf_paper,ukf_paper --plot nees.png
+  .venv/bin/python scripts/leo_posterior_study.py --estimators ekf_paper,ukf_paper --plot nees.png
 """
 from __future__ import annotations
 
@@ -29,6 +29,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BL
 
 from tqdm import tqdm  # noqa: E402
 
+from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, load_scenario  # noqa: E402
 from bench_studies.leo_radar.posterior_study import one_run, plot, print_table, summarise  # noqa: E402
 from tracker_filters.builders import build_filter_stack  # noqa: E402
@@ -39,7 +40,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--runs", type=int, default=20, help="seeds 0..runs-1 (default 20)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--times", default="2,5,10,20,40", help="s after the first scan (default 2,5,10,20,40)")
-    p.add_argument("--filters", default="ekf,ukf", help="scenario filters to compare (default ekf,ukf)")
+    add_estimators_option(p, default_text="ekf,ukf; filters of the scenario")
     p.add_argument("--samples", type=int, default=20_000, help="importance samples (default 20000)")
     p.add_argument("--iterations", type=int, default=6, help="adaptive sampling passes (default 6)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -53,7 +54,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f"--times must be comma-separated seconds, got {args.times!r}")
     if args.runs < 2 or args.jobs < 1 or args.times[0] <= 0.0:
         p.error("need --runs >= 2, --jobs >= 1 and positive --times")
-    args.filters = [f for f in args.filters.split(",") if f]
+    args.estimators = names(args.estimators) or ["ekf", "ukf"]
     return args
 
 
@@ -61,12 +62,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
         cfg = load_scenario("leo_radar", args.overrides)
-        for name in args.filters:
+        for name in args.estimators:
             build_filter_stack(cfg, name)
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    jobs = [{"seed": s, "times": args.times, "filters": args.filters, "overrides": args.overrides,
+    jobs = [{"seed": s, "times": args.times, "estimators": args.estimators, "overrides": args.overrides,
              "samples": args.samples, "iterations": args.iterations} for s in range(args.runs)]
     with ProcessPoolExecutor(args.jobs) as pool:
         results = list(tqdm(pool.map(one_run, jobs), total=args.runs, unit="run", desc="leo_radar posterior"))

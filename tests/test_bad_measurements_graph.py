@@ -44,7 +44,7 @@ def test_bad_measurements_are_rejected_and_filters_stay_sane(tmp_path: Path) -> 
     doctored = tmp_path / "doctored"
     _doctored_copy(original / "bag", doctored)
     replay = tmp_path / "replay"
-    res = script("replay.py", str(doctored), "--filters", "ekf,ukf", "--out", str(replay))
+    res = script("replay.py", str(doctored), "--estimators", "ekf,ukf", "--out", str(replay))
     assert res.returncode == 0, res.stderr[-2000:]
     before, after = read_bag(original / "bag"), read_bag(replay / "bag")
     for name in ("ekf", "ukf"):

@@ -89,7 +89,7 @@ def _linear_formation(tmp_sigma: float = 1e-3) -> dict:
     dyn = f"{{model: cw, sigma_accel: {tmp_sigma}}}"
     return load_scenario("formation_pf", [
         sensor, "time.duration=60.0", f"filter_defaults.dynamics={dyn}", "filters={kf: {type: kf}}",
-        "default_filters=[kf]",
+        "estimators=[kf]",
         f"scoring.bounds={{pcrb: {{bound: pcrb, params: {{dynamics: {dyn}, prior: kf}}, from_s: 10.0}}}}"])
 
 
@@ -101,14 +101,14 @@ def test_the_registered_pcrb_of_a_recorded_run_is_the_kalman_covariance_on_a_lin
     assert list(bound.steps) == list(est.steps) and len(est.steps) < 61  # misses: scans only
     np.testing.assert_allclose(bound.P, est.P, rtol=1e-7, atol=1e-12)
     result, series = score_bags([data], with_series=True)
-    scored = result["filters"]["kf"]["bounds"]["pcrb"]
+    scored = result["estimators"]["kf"]["bounds"]["pcrb"]
     sigma = np.sqrt(np.mean(np.trace(est.P[:, :3, :3], axis1=1, axis2=2)[est.t - est.t[0] >= 10.0]))
     assert scored["position"]["sqrt_bound"] == pytest.approx(sigma, rel=1e-9)
     assert set(scored["axes"]) == {"x", "y", "z", "vx", "vy", "vz"}
     # the report's generic pieces: the dashed curve is sqrt(trace) of the KF's own covariance, one table row a group
     [(name, t, curve)] = bound_curves(series, "position")
     np.testing.assert_allclose(curve, np.sqrt(np.trace(est.P[:, :3, :3], axis1=1, axis2=2)), rtol=1e-9)
-    assert [row[:3] for row in bounds_table(result["filters"]).rows] == [["kf", "pcrb", "position [m]"],
+    assert [row[:3] for row in bounds_table(result["estimators"]).rows] == [["kf", "pcrb", "position [m]"],
                                                                          ["kf", "pcrb", "velocity [m/s]"]]
 
 

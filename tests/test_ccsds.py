@@ -117,13 +117,13 @@ def test_tdm_written_and_read_back(tmp_path):
 
 
 def _run(cfg: dict) -> dict:
-    return {"scenario": cfg, "filters": ["f"], "seed": 1}
+    return {"scenario": cfg, "estimators": ["f"], "seed": 1}
 
 
 def _radar_scenario() -> dict:
     cfg = select_variant(load_scenario("leo_radar"), "iss")
     return {k: cfg[k] for k in ("scenario", "earth", "time", "truth", "sensors", "filter_defaults", "filters",
-                                 "default_filters", "scoring")}
+                                 "estimators", "scoring")}
 
 
 def test_export_maps_what_ccsds_holds_and_lists_the_rest(tmp_path):
@@ -149,7 +149,7 @@ def test_export_maps_what_ccsds_holds_and_lists_the_rest(tmp_path):
         ("/gnss/measurement", "bench_msgs/msg/VectorMeasurement",
          [Measurement(k, t, "eci", "gnss", np.ones(3), np.eye(3), ["x", "y", "z"]) for k, t in enumerate(t_ns)]),
     ]
-    write_bag(tmp_path / "bag", {"scenario": cfg, "filters": ["pairf", "rel"], "seed": 0}, streams)
+    write_bag(tmp_path / "bag", {"scenario": cfg, "estimators": ["pairf", "rel"], "seed": 0}, streams)
     result = export_bag(tmp_path / "bag", tmp_path / "out")
     assert sorted(p.name for p in result.written) == ["isl.tdm", "kbr.tdm", "pairf.oem", "truth.oem"]
     assert set(result.skipped) == {"rel", "gnss", "isl (part)"}

@@ -63,7 +63,7 @@ def test_an_imported_tdm_gives_the_original_runs_estimates(original, tmp_path):
         assert m.elevation == pytest.approx(ref.elevation, rel=2.3e-16, abs=0)
         np.testing.assert_array_equal(m.covariance, ref.covariance)
     for name in ("ekf", "ukf"):  # scored by what needs no truth
-        block = score["filters"][name]["innovations"]
+        block = score["estimators"][name]["innovations"]
         assert score["metric"] == "innovations (no truth)" and block["updates"] == len(scans) - 1
         assert block["nis_dof"] == 3 and block["nis_band"][0] < 3.0 < block["nis_band"][1]
         assert 0.5 * block["nis_band"][0] < block["nis_mean"] < 2 * block["nis_band"][1]
@@ -81,8 +81,8 @@ def test_with_the_truths_oem_as_reference_it_scores_as_the_original(original, tm
     first = json.loads((original / "score.json").read_text())
     for name in ("ekf", "ukf"):
         for key in ("rmse_converged_m", "rmse_peak_m", "nees_mean"):
-            assert score["filters"][name][key] == pytest.approx(first["filters"][name][key], rel=1e-6)
-        assert "innovations" in score["filters"][name]
+            assert score["estimators"][name][key] == pytest.approx(first["estimators"][name][key], rel=1e-6)
+        assert "innovations" in score["estimators"][name]
     truth = sorted((m for _t, m in read_bag(out / "bag")["/truth/state"]), key=stamp)
     reference = {m.step: m for _t, m in read_bag(original / "bag")["/truth/state"]}
     assert len(truth) == len(read_bag(original / "bag")["/radar/measurement"])

@@ -101,7 +101,7 @@ def test_sir_degenerates_as_expected(bag: dict) -> None:
 
 def test_score_has_the_formation_metrics(run: Path) -> None:
     scored = json.loads((run / "score.json").read_text())
-    assert scored["scenario"] == "formation_pf" and set(scored["filters"]) == {"pf", "sir"}
-    pf = scored["filters"]["pf"]
+    assert scored["scenario"] == "formation_pf" and set(scored["estimators"]) == {"pf", "sir"}
+    pf = scored["estimators"]["pf"]
     assert pf["settling_time_s"] is not None and pf["settling_time_s"] < 30.0
     assert min(pf["within_3sigma"].values()) > 0.97

@@ -265,7 +265,7 @@ def _known_bias_run(bias: np.ndarray, kbr_bias: float, sigma_v: float):
     P = np.repeat(np.diag([1e-4] * 3 + [sigma_v ** 2] * 3)[None], K, 0)
     sat1 = np.hstack([np.full((K, 3), 7.0e6) + [0.0, 10.0 * 1e3, 0.0], np.full((K, 3), 7.6e3)])
     steps = 2 * np.arange(K)                               # estimates every other step, as at the 5 s KBR rate
-    data = BagData({"scenario": {}, "filters": ["est", "sat1", "sat2"]},
+    data = BagData({"scenario": {}, "estimators": ["est", "sat1", "sat2"]},
                    truth={int(s): (float(tt), np.r_[bb, ww]) for s, tt, bb, ww in zip(steps, t, b, w)},
                    truth_labels=list(BASELINE))
     data.measurements["kbr"] = {int(s): np.array([r + kbr_bias]) for s, r in zip(steps, rho_dot)}
@@ -325,13 +325,13 @@ def grace_runs():
 
 
 def test_a_known_range_rate_bias_added_to_a_real_run_moves_the_mean_by_exactly_that_bias(grace_runs) -> None:
-    base = score_bags([grace_runs[0]])["filters"]["kf_a"]
+    base = score_bags([grace_runs[0]])["estimators"]["kf_a"]
     biased = copy.deepcopy(grace_runs[0])
     est = biased.estimates["kf_a"]
     cols = [est.labels.index(lab) for lab in BASELINE]
     u = est.x[:, cols[:3]] / np.linalg.norm(est.x[:, cols[:3]], axis=1, keepdims=True)
     est.x[:, cols[3:]] += 1.0e-3 * u                          # +1 mm/s along the estimated baseline
-    moved = score_bags([biased])["filters"]["kf_a"]
+    moved = score_bags([biased])["estimators"]["kf_a"]
     for key in ("rr_kbr", "rr_truth"):
         assert moved[key]["mean"] - base[key]["mean"] == pytest.approx(1.0e-3, abs=1e-10)
         assert moved[key]["std"] == pytest.approx(base[key]["std"], rel=1e-9)
@@ -345,7 +345,7 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
     and each filter's covariance is wrong by less than a factor of 2: (a) and the smoothers lie below the band
     but above the band of a covariance twice too large; (b) above the band but below that of a covariance half as
     large."""
-    scores = score_bags(grace_runs)["filters"]
+    scores = score_bags(grace_runs)["estimators"]
     skip = grace_runs[0].scenario["scoring"]["skip_s"]
     samples = len(grace_runs) * (grace_runs[0].scenario["time"]["duration"] - skip) / 60.0
     lo, hi = chdtri(6 * samples, np.array([0.975, 0.025])) / samples

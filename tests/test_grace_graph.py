@@ -90,14 +90,14 @@ def test_the_fixed_lag_smoother_runs_in_the_graph_300_s_behind(graph_run) -> Non
     lag = msgs(bag, "/kf_a_lag/estimate")
     fixes = list(range(0, STEPS, 2))
     assert [e.step for e in lag] == fixes[:-30]                        # 300 s = 30 fixes at 10 s
-    scores = scored["filters"]
+    scores = scored["estimators"]
     # the in-graph smoother sees 300 s of future data: close to the offline RTS over the whole run
     assert scores["kf_a_lag"]["rr_truth"]["std"] < 0.6 * scores["kf_a"]["rr_truth"]["std"]
 
 
 def test_scores_have_their_known_answers(graph_run) -> None:
     _, _, scored = graph_run
-    scores = scored["filters"]
+    scores = scored["estimators"]
     assert {"kf_a", "kf_b", "kf_a_rts", "kf_a_lag", "newton", "savgol", "kf_pair"} <= set(scores)
     floor = scores["kf_a"]["kbr_noise_std"]
     assert floor == pytest.approx(1e-6, rel=0.1)                         # the KBR's sigma
@@ -132,7 +132,7 @@ def test_outages_and_gross_outliers_give_a_well_defined_run(tmp_path) -> None:
     assert all(482 <= k <= 490 for k in after_outage), (after_outage, sorted(outliers))  # lock lost across it,
     if after_outage:                                          # so the filter restarts and says so
         assert "lost lock and restarts" in log
-    for name, block in json.loads(res.stdout)["filters"].items():
+    for name, block in json.loads(res.stdout)["estimators"].items():
         assert np.isfinite(block["rr_kbr"]["std"]), name
     last = msgs(bag, "/kf_a/estimate")[-1]                   # converged again by the end of the hour
     truth = msgs(bag, "/truth/state")[last.step]

@@ -54,7 +54,7 @@ def test_scores_printed_and_saved(multiprocess_run: Path) -> None:
     scored = json.loads((multiprocess_run / "score.json").read_text())
     assert scored["scenario"] == "leo_radar" and scored["runs"] == 1
     for name in ("ekf", "ukf"):
-        block = scored["filters"][name]
+        block = scored["estimators"][name]
         for key in ("rmse_converged_m", "rmse_peak_m", "convergence_time_s", "band_m", "nees_mean", "axes", "radar"):
             assert key in block
         raw = block["radar"]["measurement"]
@@ -83,7 +83,7 @@ def test_single_process_gives_identical_data(multiprocess_run: Path, tmp_path: P
 def test_replay_reproduces_the_filter(multiprocess_run: Path, tmp_path: Path) -> None:
     """Replaying the recorded measurements into a fresh UKF gives the recorded UKF estimates."""
     out = tmp_path / "replay"
-    res = script("replay.py", str(multiprocess_run / "bag"), "--filters", "ukf", "--out", str(out))
+    res = script("replay.py", str(multiprocess_run / "bag"), "--estimators", "ukf", "--out", str(out))
     assert res.returncode == 0, res.stderr[-3000:]
     a, b = read_bag(multiprocess_run / "bag"), read_bag(out / "bag")
     assert "/ekf/estimate" not in b
@@ -96,7 +96,7 @@ def test_score_script_reads_bags(multiprocess_run: Path, tmp_path: Path) -> None
     res = script("score.py", str(multiprocess_run / "bag"), "--json", "--plots", str(tmp_path / "rep"))
     assert res.returncode == 0, res.stderr
     scored = json.loads(res.stdout)
-    assert set(scored["filters"]) == {"ekf", "ukf"}
+    assert set(scored["estimators"]) == {"ekf", "ukf"}
     assert (tmp_path / "rep" / "report.md").is_file()
     assert list((tmp_path / "rep").glob("*.png"))
 
@@ -105,7 +105,7 @@ def test_pass_through_north_gives_no_innovation_spike(tmp_path: Path) -> None:
     """The leo_radar pass crosses azimuth 0/2pi at t ~ 4446 s: wrapped innovations keep the NIS bounded."""
     out = tmp_path / "north"
     res = script("launch.py", "leo_radar", "--out", str(out), "--no-score",
-                 "--filters", "ekf,ukf", "--set", "time.start=4426.0", "--set", "time.duration=40")
+                 "--estimators", "ekf,ukf", "--set", "time.start=4426.0", "--set", "time.duration=40")
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     az = np.array([m.azimuth for _, m in bag["/radar/measurement"]])

@@ -16,7 +16,7 @@ CASES = {"leo_radar": ["ekf", "ukf"], "formation_cqkf": ["ss", "cwb"]}
 @pytest.mark.parametrize("scenario", sorted(CASES))
 def test_in_process_run_equals_the_graph_run(tmp_path: Path, scenario: str) -> None:
     filters = CASES[scenario]
-    res = script("launch.py", scenario, "--seed", "4", "--filters", ",".join(filters), "--out", str(tmp_path),
+    res = script("launch.py", scenario, "--seed", "4", "--estimators", ",".join(filters), "--out", str(tmp_path),
                  "--set", "time.duration=25", "--no-score", "--single-process")
     assert res.returncode == 0, res.stderr[-2000:]
     bag = read_bag(tmp_path / "bag")

@@ -21,7 +21,7 @@ from graph_helpers import (ROOT, SHORT_PASS, launch_in_background, node_pid, rea
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--filters", "ekf,kalman9000"], "'filters.kalman9000.type' must be one of"),
+    (["--estimators", "ekf,kalman9000"], "'filters.kalman9000.type' must be one of"),
     (["--set", "sensors.radar.sigma_rnge=3"], "unknown key(s) 'sensors.radar.sigma_rnge'"),
     (["--set", "sensors.radar.sigma_range=-1"], "'sensors.radar.sigma_range' must be > 0, got -1.0"),
     (["--set", "sensors.radar.p_detect=1.5"], "'sensors.radar.p_detect' must be in [0, 1], got 1.5"),
@@ -150,7 +150,7 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
                  *SHORT_PASS, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     scored = json.loads(res.stdout)
-    assert scored["runs"] == 2 and set(scored["filters"]) == {"ekf", "ukf"}
+    assert scored["runs"] == 2 and set(scored["estimators"]) == {"ekf", "ukf"}
     assert all((out / f"run_{i:03d}" / "bag" / "metadata.yaml").is_file() for i in range(2))
     assert (out / "report" / "report.md").is_file()
     # seeds differ between runs: the measurement noise differs

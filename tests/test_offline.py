@@ -58,7 +58,7 @@ def synthetic_run(cfg: dict, steps: int = 300, seed: int = 3) -> tuple[BagData, 
         K = P @ H.T @ np.linalg.inv(S)
         m, P = m + K @ (z - H @ m), (np.eye(6) - K @ H) @ P
         truth.append(x), xs.append(m), Ps.append(P)
-    data = BagData({"scenario": cfg, "filters": ["ss"]})
+    data = BagData({"scenario": cfg, "estimators": ["ss"]})
     data.estimates["ss"] = Estimates(np.arange(steps), dt * np.arange(steps), np.array(xs), np.array(Ps), LABELS, {})
     data.truth = {k: (dt * k, t) for k, t in enumerate(truth)}
     data.truth_labels = LABELS

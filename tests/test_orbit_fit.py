@@ -138,7 +138,7 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
     report's residual figure draws that bound (the metric's series carry it mapped to the range rate)."""
 
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "dynamic"),
-                          ["time.duration=3600.0", "default_filters=[kf_a]"])
+                          ["time.duration=3600.0", "estimators=[kf_a]"])
     data = bag_data(cfg, ["kf_a"], seed=3)
     opts = scoring_options(cfg)
     opts.offline = {k: v for k, v in opts.offline.items() if k in ("orbit_fit", "savgol")}

@@ -155,7 +155,7 @@ def test_score_recovers_a_crashed_bag_and_names_what_it_cannot_read(tmp_path: Pa
     mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size * 3 // 5])
     res = script("score.py", str(crashed), "--json")
     assert res.returncode == 0, res.stderr[-2000:]
-    assert "recovered" in res.stderr and json.loads(res.stdout)["filters"]["ss"]["runs"] == 1
+    assert "recovered" in res.stderr and json.loads(res.stdout)["estimators"]["ss"]["runs"] == 1
     (tmp_path / "empty").mkdir()
     res = script("score.py", str(tmp_path / "empty"))
     assert res.returncode == 2 and "not a bag directory" in res.stderr and "Traceback" not in res.stderr

@@ -62,7 +62,7 @@ def test_registered_sensor_estimator_and_three_stage_pipeline_run_through_the_gr
                  "--set", f"time.pacing_window={window}", extra_env={"PYTHONPATH": plugin_path})
     assert res.returncode == 0, res.stderr[-3000:]
     scored = json.loads(res.stdout)
-    assert scored["metric"] == "final_error" and scored["filters"]["mine"]["final_error_m"] < 20.0
+    assert scored["metric"] == "final_error" and scored["estimators"]["mine"]["final_error_m"] < 20.0
     bag = read_bag(tmp_path / "bag")
     steps = list(range(41))
     for topic in ("/truth/state", "/ro/measurement", "/relay/estimate", "/smooth/estimate", "/mine/estimate"):

@@ -221,7 +221,7 @@ def test_a_bag_recovered_after_the_recorder_is_killed_has_sim_log_times(tmp_path
 
 def test_a_replayed_bag_is_in_sim_time_and_replays_by_step(run: Path, tmp_path: Path) -> None:
     out = tmp_path / "replay"
-    res = script("replay.py", str(run / "bag"), "--filters", "ukf", "--out", str(out))
+    res = script("replay.py", str(run / "bag"), "--estimators", "ukf", "--out", str(out))
     assert res.returncode == 0, res.stderr[-3000:]
     rows = _rosbags_times(out / "bag")
     assert [(topic, t) for topic, t, s in rows if t != s] == []

@@ -121,10 +121,10 @@ def test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates
 
 
 def test_the_scorer_runs_a_registered_offline_smoother_over_a_recorded_run(tmp_path: Path):
-    res = script("launch.py", "formation_cqkf", "--variant", "smoothed", "--filters", "ss,cw", "--json",
+    res = script("launch.py", "formation_cqkf", "--variant", "smoothed", "--estimators", "ss,cw", "--json",
                  "--set", "time.duration=900", "--single-process", "--out", str(tmp_path))
     assert res.returncode == 0, res.stderr[-2000:]
-    filters = json.loads(res.stdout)["filters"]
+    filters = json.loads(res.stdout)["estimators"]
     assert set(filters) == {"ss", "cw", "ss_rts", "cw_rts"}  # cwb's smoother has no source in this run
     for name in ("ss", "cw"):
         assert filters[f"{name}_rts"]["runs"] == 1

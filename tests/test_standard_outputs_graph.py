@@ -102,7 +102,7 @@ def test_leo_radar_publishes_odometry_diagnostics_and_markers_beside_its_estimat
 
 def test_star_tracker_attitudes_are_poses_and_attitude_estimates(tmp_path):
     out = tmp_path / "run"
-    res = script("launch.py", "star_tracker", "--variant", "short", "--filters", "sna_triad,jpdaf_wahba",
+    res = script("launch.py", "star_tracker", "--variant", "short", "--estimators", "sna_triad,jpdaf_wahba",
                  "--out", str(out), "--no-score", timeout=240)
     assert res.returncode == 0, res.stdout + res.stderr
     n = counts(out / "bag")
@@ -153,7 +153,7 @@ def test_a_batch_makes_its_runs_without_views(tmp_path):
 def test_the_switch_turns_the_views_off(tmp_path):
     out = tmp_path / "run"
     res = script("launch.py", "leo_radar", "--set", "time.duration=5", "--set", "standard_views=false",
-                 "--filters", "ukf", "--out", str(out), "--no-score", "--single-process", timeout=240)
+                 "--estimators", "ukf", "--out", str(out), "--no-score", "--single-process", timeout=240)
     assert res.returncode == 0, res.stdout + res.stderr
     assert Counter(t.rsplit("/", 1)[1] for t in counts(out / "bag")) == Counter(
         {"state": 1, "clock": 1, "measurement": 1, "estimate": 1})

@@ -51,7 +51,7 @@ def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
         assert est[0].header.frame_id == "icrs" and len(est[0].covariance) == 9
         assert all(abs(np.linalg.norm(m.state) - 1.0) < 1e-9 and m.state[0] >= 0 for m in est)
         assert [stamp(m) for m in est] == sorted(stamp(m) for m in est)
-    scores = json.loads(res.stdout[res.stdout.index("{"):])["filters"]
+    scores = json.loads(res.stdout[res.stdout.index("{"):])["estimators"]
     for name in TRACKERS:
         block = scores[name]
         assert math.isfinite(block["rms_arcsec"]) and 0.1 < block["rms_arcsec"] < 120.0

@@ -32,7 +32,7 @@ def _final_position_errors(bag: dict, filters: list[str]) -> dict[str, float]:
 def test_filters_run_unchanged_on_other_scenarios(tmp_path: Path, scenario: str, filters: list[str],
                                                   extra: list[str], bound_m: float) -> None:
     out = tmp_path / scenario
-    res = script("launch.py", scenario, "--filters", ",".join(filters), "--out", str(out), "--single-process",
+    res = script("launch.py", scenario, "--estimators", ",".join(filters), "--out", str(out), "--single-process",
                  "--no-score", *extra)
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")

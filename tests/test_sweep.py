@@ -131,12 +131,12 @@ def test_two_cell_sweep_runs_through_the_graph(tmp_path):
     assert [c["id"] for c in result["cells"]] == ["rho-1km", "rho-10km"]
     for cell in result["cells"]:
         assert (out / cell["id"] / "run_000" / "bag" / "metadata.yaml").is_file()
-        assert cell["runs_ok"] == 1 and set(cell["score"]["filters"]) == {"ss", "cw", "cwb"}
+        assert cell["runs_ok"] == 1 and set(cell["score"]["estimators"]) == {"ss", "cw", "cwb"}
         assert cell["paper"]["table"] == 1  # e = 0, range/angles every 1 s
-        mae = cell["score"]["filters"]["ss"]["mae"]
+        mae = cell["score"]["estimators"]["ss"]["mae"]
         assert all(np.isfinite(v) and v > 0 for v in mae.values())
     # a 10x larger formation has a larger range noise and model error: larger errors
-    big, small = (c["score"]["filters"]["ss"]["mae"]["x"] for c in result["cells"][::-1])
+    big, small = (c["score"]["estimators"]["ss"]["mae"]["x"] for c in result["cells"][::-1])
     assert big > small
     table = (out / "table.md").read_text()
     header = "| state | rho=1km: ss (SS) | rho=1km: cw (CW) | rho=1km: cwb (CW+bias) | rho=10km: ss (SS) |"

@@ -40,7 +40,7 @@ def test_the_player_republishes_measurements_and_a_sensor_its_own() -> None:
 
 def _bag(truth_labels: list[str], est_labels: list[str], x: np.ndarray, P: np.ndarray,
          truth: np.ndarray) -> BagData:
-    data = BagData({"scenario": {}, "filters": ["f"]}, truth={k: (float(k), truth[k]) for k in range(len(truth))},
+    data = BagData({"scenario": {}, "estimators": ["f"]}, truth={k: (float(k), truth[k]) for k in range(len(truth))},
                    truth_labels=truth_labels)
     data.estimates["f"] = Estimates(np.arange(len(x)), np.arange(len(x), dtype=float), x, P, est_labels, {})
     return data
@@ -98,4 +98,4 @@ def test_each_selected_estimator_belongs_to_the_one_kind_whose_section_defines_i
 def test_the_star_tracker_scenario_gives_its_trackers_to_their_kind_and_nothing_to_the_filters() -> None:
     cfg = load_scenario("star_tracker")
     kinds = {n.name: n.kind for n in build_graph(cfg, None, record=False).of_role("estimator")}
-    assert set(kinds.values()) == {"star_tracker"} and set(kinds) == set(cfg["default_filters"])
+    assert set(kinds.values()) == {"star_tracker"} and set(kinds) == set(cfg["estimators"])

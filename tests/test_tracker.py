@@ -200,7 +200,7 @@ def test_without_clutter_and_misses_the_tracker_stage_is_its_filter():
     the plain filter's on the same measurements (same prior, same predict and update calls)."""
     cfg = apply_overrides(load_scenario(DEMO), ["cluttered_sensors.cam.p_detect=1.0",
                                                 "cluttered_sensors.cam.clutter_rate=0.0"])
-    run = run_in_process(cfg, ["kf"], seed=3)
+    run = run_in_process(cfg, ["kf", "gnn"], seed=3)
     sets, tracked = run.items["/cam/detections"], run.items["/gnn/estimate"]
     assert [len(d.Z) for d in sets] == [1] * 121 and len(tracked) == 121
     plain = FilterStage(cfg, "kf")

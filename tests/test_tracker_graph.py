@@ -78,7 +78,7 @@ def test_the_tracker_estimates_are_accurate_and_scored(graph_run):
     assert np.all(np.abs(errors[10:]) < 5 * sigmas[10:])              # within 5 of its own sigmas once settled
     assert np.all(np.linalg.norm(errors[10:], axis=1) < 0.1)           # 10 cm: ~3 sensor sigmas, not 100 m clutter
     # the scorer scores the tracker like a filter, close to the clean filter's accuracy
-    filters = score["filters"]
+    filters = score["estimators"]
     assert {"cw", "gnn"} <= set(filters)
     gnn, cw = filters["gnn"], filters["cw"]
     assert gnn["nees_bounds"][0] <= gnn["nees_mean"] <= gnn["nees_bounds"][1]

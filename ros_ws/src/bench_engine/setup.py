@@ -31,8 +31,6 @@ setup(
             "player = bench_engine.kinds:PLAYER"],
         "tracking_bench.codecs": [
             "bench_msgs.msg.TruthState = bench_engine.stage:TRUTH_CODEC",
-            "bench_msgs.msg.StateEstimate = bench_engine.stage:ESTIMATE_CODEC"],
-        "tracking_bench.sections": [
-            "standard_views = bench_engine.views:standard_views"]
+            "bench_msgs.msg.StateEstimate = bench_engine.stage:ESTIMATE_CODEC"]
     },
 )

@@ -30,7 +30,8 @@ import numpy as np
 from bench_engine import yamlio
 from bench_engine.bag_writer import BagWriter
 from bench_engine.cdr import lite_class, serialize
-from bench_engine.config import ScenarioError, scenario_seed
+from bench_engine.config import ScenarioError
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, measurement_topic
 from bench_engine.labels import ORBIT
 from bench_engine.sim_clock import SimClock
@@ -203,7 +204,7 @@ def _run_config(cfg: dict, grid, last_step: int, bag_dir: Path, tdm: Path, refer
     cfg = copy.deepcopy(cfg)
     if last_step >= grid.steps:
         cfg["time"]["duration"] = last_step * grid.dt
-    return {"scenario": cfg, "filters": [], "record": True, "source": "ccsds", "out": str(bag_dir.parent),
+    return {"scenario": cfg, "estimators": [], "record": True, "source": "ccsds", "out": str(bag_dir.parent),
             "bag_dir": str(bag_dir), "seed": scenario_seed(cfg),
             "ccsds_import": {"tdm": str(tdm.resolve()), "reference": str(Path(reference).resolve()) if reference else None}}
 

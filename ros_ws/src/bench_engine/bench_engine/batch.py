@@ -25,13 +25,15 @@ from tqdm import tqdm
 from bench_engine import yamlio
 from bench_engine.batch_run import RunResult, RunSpec, complete, crosstalk, recorded_steps, run_one
 from bench_engine.config import ScenarioError
+from bench_engine.scenario import coerce_scenario
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 
 
 def _comparable(cfg: dict) -> dict:
-    """A resolved scenario without the views switch: the views change no estimate, and a batch sets the switch
-    in its runs (RunSpec.standard_views), not in the configuration its caller expects."""
-    return {k: v for k, v in cfg.items() if k != VIEWS_SWITCH}
+    """A resolved scenario as a run records it (bench_engine.scenario.coerce_scenario) without the views switch:
+    the views change no estimate, and a batch sets the switch in its runs (RunSpec.standard_views), not in the
+    configuration its caller expects."""
+    return {k: v for k, v in coerce_scenario(cfg).items() if k != VIEWS_SWITCH}
 
 
 def reusable_run(out: Path, expected: dict, resume: bool) -> bool:

@@ -54,7 +54,7 @@ class RunSpec:
     scenario: str
     out: Path
     seed: int
-    filters: str | None = None
+    estimators: str | None = None
     variant: str | None = None
     overrides: list[str] = field(default_factory=list)
     multiprocess: bool = False
@@ -67,8 +67,8 @@ class RunSpec:
                str(self.out)]
         if domain is not None:
             cmd += ["--domain-id", str(domain)]
-        if self.filters:
-            cmd += ["--filters", self.filters]
+        if self.estimators:
+            cmd += ["--estimators", self.estimators]
         if self.variant:
             cmd += ["--variant", self.variant]
         if not self.multiprocess:

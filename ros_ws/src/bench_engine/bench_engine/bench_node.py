@@ -51,6 +51,7 @@ from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, RE
 from bench_engine.parameters import description, unflatten
 from bench_engine.msg_schema import message_class
 from bench_engine.process import exit_now
+from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_engine.timegrid import build_time
 
@@ -76,17 +77,17 @@ def delivered(publishers: list, timeout_s: float = FLUSH_TIMEOUT_S) -> list:
 
 
 def load_run_config(path: str) -> dict:
-    """The launcher's run config: {scenario: {...}, filters: [...], record: bool, source: str, ...}."""
+    """The launcher's run config: {scenario: {...}, estimators: [...], record: bool, source: str, ...}."""
     with open(path, encoding="utf-8") as f:
-        run = yamlio.load(f)
-    for key in ("scenario", "filters"):
+        run = upgrade_run_config(yamlio.load(f))
+    for key in ("scenario", "estimators"):
         if key not in run:
             raise ScenarioError(f"run config {path} has no '{key}' key")
     return run
 
 
 def graph_of(run: dict) -> Graph:
-    return build_graph(run["scenario"], run["filters"], run.get("record", True), run.get("source", "truth"))
+    return build_graph(run["scenario"], run["estimators"], run.get("record", True), run.get("source", "truth"))
 
 
 def standalone_graph(settings: dict, name: str, kind: str) -> Graph:

@@ -133,11 +133,6 @@ def select_variant(cfg: dict, variant: str | None) -> dict:
     return cfg
 
 
-def scenario_seed(cfg: dict) -> int:
-    """The scenario's ``seed`` (an integer >= 0, default 0), read strictly."""
-    return Section(cfg, "").get("seed", int, 0, lambda v: v >= 0, "an integer >= 0")
-
-
 class Section:
     """Typed, checked access to one mapping of the scenario; remembers which keys were read."""
 

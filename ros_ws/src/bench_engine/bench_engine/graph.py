@@ -18,6 +18,7 @@ from typing import Callable
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
+from bench_engine.scenario import default_estimators
 from bench_engine.topics import (  # noqa: F401 - re-exported: the graph is where callers find a run's topics
     ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DONE_TOPIC, ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, READY_TOPIC,
     TOTALS_TOPIC, TRUTH_TOPIC, TRUTH_TYPE, NodeSpec, estimate_topic, measurement_topic, topic_owner)
@@ -51,10 +52,10 @@ class NodeKind:
     order: int = 0
     """Build order among kinds of one role (lower first)."""
     claims: Callable[[dict], list[str]] | None = None
-    """For an estimator kind whose nodes a run selects by name (``--filters``, ``default_filters``): the names
-    its own scenario section defines. Each selected name belongs to the one kind claiming it (or, unclaimed, to
-    the kind that ``takes_unclaimed``), and such a kind's ``instances`` receives only its own names; every
-    other kind receives the whole selection (e.g. a smoother of a selected filter)."""
+    """For an estimator kind whose nodes a run selects by name (``--estimators``, the scenario's ``estimators``):
+    the names its own scenario section defines. Each selected name belongs to the one kind claiming it (or,
+    unclaimed, to the kind that ``takes_unclaimed``), and such a kind's ``instances`` receives only its own
+    names; a kind that claims nothing receives the whole selection."""
     takes_unclaimed: bool = False
     """This kind owns the selected names no kind claims (the filter kind: a name without a section is a
     filter of that type)."""
@@ -127,14 +128,12 @@ class Graph:
 
 
 def resolve_estimators(cfg: dict, requested: list[str] | None) -> list[str]:
-    """The run's selected estimators, of any kind: ``requested`` (the launcher's ``--filters``), else the
-    scenario's ``default_filters``, else every estimator a kind's section defines (``NodeKind.claims``)."""
-    names = requested or cfg.get("default_filters") or [
+    """The run's selected estimators, of any kind: ``requested`` (the command line's ``--estimators``), else the
+    scenario's ``estimators``, else every estimator a kind's section defines (``NodeKind.claims``)."""
+    names = requested or default_estimators(cfg) or [
         n for k in node_kinds().values() if k.claims is not None for n in k.claims(cfg)]
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise ScenarioError(f"'default_filters' must be a list of estimator names, got {names!r}")
     if not names:
-        raise ScenarioError("no estimators requested and the scenario has no 'default_filters'")
+        raise ScenarioError("no estimators selected, and the scenario has no 'estimators' and defines none")
     if len(set(names)) != len(names):
         raise ScenarioError(f"estimator names must be unique, got {names}")
     for name in names:
@@ -229,7 +228,7 @@ def _resolve_topics(nodes: list[NodeSpec]) -> None:
     names = [n.name for n in nodes]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
-        raise ScenarioError(f"node names must be unique across sensors, filters and stages; repeated: {duplicates}")
+        raise ScenarioError(f"node names must be unique across sensors, estimators and stages; repeated: {duplicates}")
     publisher: dict[str, NodeSpec] = {}
     for node in nodes:
         for topic in node.publishes:
@@ -239,6 +238,8 @@ def _resolve_topics(nodes: list[NodeSpec]) -> None:
     for node in nodes:
         for topic in node.subscribes:
             if topic not in publisher:
-                raise ScenarioError(f"node '{node.name}' consumes {topic}, which no node of the run publishes; "
-                                    f"published topics: {sorted(publisher)}")
+                source = topic_owner(topic, ESTIMATE)
+                hint = f"; select estimator '{source}' too" if source is not None else ""
+                raise ScenarioError(f"node '{node.name}' consumes {topic}, which no node of the run publishes"
+                                    f"{hint}; published topics: {sorted(publisher)}")
             node.subscribes[topic] = publisher[topic].publishes[topic]

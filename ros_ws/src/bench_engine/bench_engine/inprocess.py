@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from bench_engine.config import scenario_seed
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_settings
 from bench_engine.stage import Item, Log
@@ -34,15 +34,15 @@ def _collector(run: InProcessRun, node: str) -> Log:
     return lambda level, text: run.logs.append((node, level, text))
 
 
-def run_in_process(cfg: dict, filters: list[str] | None = None, seed: int | None = None,
+def run_in_process(cfg: dict, estimators: list[str] | None = None, seed: int | None = None,
                    until_step: int | None = None, roles: tuple[str, ...] = ("sensor", "estimator")) -> InProcessRun:
-    """Run ``cfg`` (a resolved scenario) with ``filters`` (default: its default_filters) and ``seed``
+    """Run ``cfg`` (a resolved scenario) with ``estimators`` (default: its own selection) and ``seed``
     (default: the scenario's) up to step ``until_step`` (default: the last). ``roles=("sensor",)`` runs the
     truth and the sensors only (the measurements, without estimators)."""
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
     # no ROS, so no standard views (bench_engine.views: the shells' by-products of the cores' items)
-    graph = build_graph({**cfg, VIEWS_SWITCH: False}, resolve_estimators(cfg, filters), record=False)
+    graph = build_graph({**cfg, VIEWS_SWITCH: False}, resolve_estimators(cfg, estimators), record=False)
     run = InProcessRun(graph, {t: [] for t in graph.data_topics() if t != CLOCK_TOPIC})
     context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()

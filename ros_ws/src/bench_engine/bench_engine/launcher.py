@@ -18,20 +18,16 @@ from pathlib import Path
 
 import setproctitle
 
-from bench_engine import phases, plugins, yamlio
-from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, scenario_seed,
-                                 select_variant)
+from bench_engine import phases, yamlio
+from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
 from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import flatten, node_settings, parameters_file
 from bench_engine.process import exit_now
 from bench_engine.bag_errors import BagUnrecoverable
 from bench_engine.recovery import ensure_complete
-from bench_engine.timegrid import build_time
+from bench_engine.scenario import check_top_level, coerce_scenario, scenario_seed, section_readers
 
-ENGINE_KEYS = ("scenario", "description", "seed", "time", "default_filters", "variants", "sweeps")
-"""Top-level keys the engine reads itself (``default_filters``: the run's estimators, of any kind); every
-other section is registered by the package that reads it (``tracking_bench.sections``)."""
 MAX_DOMAIN_ID = 101
 
 
@@ -73,26 +69,17 @@ def local_dds_env(domain_id: int) -> dict[str, str]:
     return env
 
 
-def validate(cfg: dict, filters: list[str], source: str) -> None:
+def validate(cfg: dict, estimators: list[str], source: str) -> None:
     """Build every object of the run once; raises ScenarioError naming the first bad key or value.
 
-    Checks the top-level keys, the time grid, every registered section (``tracking_bench.sections``: a
-    function cfg -> typed object) and each node's core objects (its kind's ``check``)."""
-    sections = plugins.registered("sections")
-    top = Section(cfg, "")
-    scenario_seed(cfg)
-    top.get("scenario", str, "")
-    top.get("description", str, "")
-    top.get("default_filters", list, [])
-    top.get("variants", dict, {})
-    top.get("sweeps", dict, {})
-    top.mark(*ENGINE_KEYS, *sections)
-    top.finish()
-    build_time(cfg)
-    for read in sections.values():
+    Checks the top-level keys and the time grid (bench_engine.scenario), every registered section
+    (``tracking_bench.sections``: a reader cfg -> typed section) and each node's core objects (its kind's
+    ``check``)."""
+    check_top_level(cfg)
+    for read in section_readers().values():
         read(cfg)
     kinds = node_kinds()
-    for spec in build_graph(cfg, filters, record=False, source=source).nodes:
+    for spec in build_graph(cfg, estimators, record=False, source=source).nodes:
         settings = node_settings(cfg, spec.kind, spec.name)
         check = kinds[spec.kind].check
         if check is not None:
@@ -108,22 +95,25 @@ def write_parameters(plan: "RunPlan") -> None:
         plan.parameters_file(spec.name).write_text(parameters_file(flat))
 
 
-def prepare_run(scenario: str, out: Path, filters: list[str] | None = None, seed: int | None = None,
+def prepare_run(scenario: str, out: Path, estimators: list[str] | None = None, seed: int | None = None,
                 overrides: list[str] = (), variant: str | None = None, record: bool = True,
                 source: str = "truth", extra: dict | None = None, cfg: dict | None = None) -> RunPlan:
-    """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``."""
+    """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``: the
+    scenario as validated (every value of its declared type, deprecated keys renamed:
+    bench_engine.scenario.coerce_scenario), the selected ``estimators``, the seed and the run's options."""
     if cfg is None:
         cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
     if seed is not None:
         cfg = {**cfg, "seed": int(seed)}
-    names = resolve_estimators(cfg, filters)
+    names = resolve_estimators(cfg, estimators)
     validate(cfg, names, source)
+    cfg = coerce_scenario(cfg)
     graph = build_graph(cfg, names, record, source)
     out = Path(out).resolve()
     if record and (out / "bag").exists():
         raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
     out.mkdir(parents=True, exist_ok=True)
-    run = {"scenario": cfg, "filters": names, "record": record, "source": source, "out": str(out),
+    run = {"scenario": cfg, "estimators": names, "record": record, "source": source, "out": str(out),
            "bag_dir": str(out / "bag"), "seed": scenario_seed(cfg)}
     run.update(extra or {})
     config_path = out / "run_config.yaml"

@@ -1,4 +1,4 @@
-"""Bag player node: re-publishes a recorded run's truth and measurements, paced by the filters' acks.
+"""Bag player node: re-publishes a recorded run's truth and measurements, paced by the estimators' acks.
 
 The recorded serialized messages are published unchanged (``publish(bytes)``), so the header stamps, steps
 and noise are exactly those of the original run: any filter can be re-run on identical data. Topics:

@@ -17,6 +17,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per proces
 
 from bench_engine import phases  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, available_scenarios  # noqa: E402
 from bench_engine.launcher import RunPlan, prepare_run, run_graph  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
@@ -26,7 +27,7 @@ RUN_EXIT_CODES = {
     "c0": "the run completed (the bag is closed and complete)",
     "c1": "a node failed (named, with the tail of its log; the bag is closed, or recovered)",
     "c2": "bad input, stopped before any node started: an unknown or invalid scenario (a YAML syntax error "
-          "names the file and line), filter, variant, --set key or value, a ROS domain held by another run, or "
+          "names the file and line), estimator, variant, --set key or value, a ROS domain held by another run, or "
           "an output directory that cannot be written (a file, read-only, no space left)",
     "c124": "the run did not end within its time limit (the nodes were stopped)",
 }
@@ -34,9 +35,9 @@ RUN_EXIT_CODES = {
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """The options of one run (scenario, filters, seed, output, overrides, variants, process mode)."""
+    """The options of one run (scenario, estimators, seed, output, overrides, variants, process mode)."""
     p.add_argument("scenario", help=f"scenario name ({', '.join(available_scenarios())}) or a YAML path")
-    p.add_argument("--filters", help="comma-separated filter names (default: the scenario's default_filters)")
+    add_estimators_option(p)
     p.add_argument("--seed", type=int, help="random seed of the sensors (default: the scenario's seed)")
     p.add_argument("--out", default=None, help="output directory (default: runs/SCENARIO-TIMESTAMP)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -59,11 +60,10 @@ def launch(args: argparse.Namespace) -> tuple[int, RunPlan | None]:
     """Validate, run and time the graph of ``args``; returns (exit code, plan)."""
     out = Path(args.out or f"runs/{Path(args.scenario).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
     phases.mark_process_start("launcher", out.resolve())
-    filters = [f.strip() for f in args.filters.split(",") if f.strip()] if args.filters else None
     try:
         with writing(out):  # a file error (a file in the way, read-only, no space) is told in one line
             check_output(out)  # before the validation, which may take seconds
-            plan = prepare_run(args.scenario, out, filters, args.seed, args.overrides, args.variant,
+            plan = prepare_run(args.scenario, out, names(args.estimators), args.seed, args.overrides, args.variant,
                                extra={"executor": args.executor})
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)

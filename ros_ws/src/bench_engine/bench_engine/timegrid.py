@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
+from bench_engine.settings import NON_NEGATIVE, POSITIVE, Settings, read, setting
 
 MAX_STEPS = 10_000_000
 """Most lock-steps a run may have (a day at 0.01 s); beyond it a typo in ``time`` is far likelier than intent."""
@@ -42,22 +43,36 @@ class TimeGrid:
         return (self.start_ns + np.arange(self.steps, dtype=np.int64) * self.dt_ns) * 1e-9
 
 
+@dataclass(frozen=True, kw_only=True)
+class Time(Settings):
+    """The scenario's ``time`` section."""
+
+    start: float = setting(unit="s", doc="sim time of step 0 (since the scenario's epoch)", check=NON_NEGATIVE)
+    dt: float = setting(unit="s", doc="the lock-step period: one truth sample per step", check=POSITIVE)
+    duration: float = setting(unit="s", doc="the run's length: duration / dt + 1 steps", check=POSITIVE)
+    pacing_window: int = setting(0, doc="messages the source may run ahead of its slowest consumer "
+                                        "(bench_engine.lockstep; 0: strict lock-step)", check=NON_NEGATIVE)
+    epoch: str | dt_.datetime | None = setting(
+        None, doc="the UTC date and time of t = 0, ISO 8601 (e.g. 2008-09-20T12:25:40.104192Z): what a truth from a "
+                  "real satellite's elements needs, and the Earth's orientation at t = 0 (null: no calendar date)")
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.duration / self.dt)) + 1
+
+    def validate(self, path: str) -> None:
+        parse_epoch(self.epoch, f"{path}.epoch")
+        if int(round(self.dt * 1e9)) < 1 or self.steps > MAX_STEPS:
+            raise ScenarioError(f"'{path}.duration' / '{path}.dt' = {self.duration:g} s / {self.dt:g} s gives "
+                                f"{self.steps} steps; a run may have at most {MAX_STEPS} steps of at least 1 ns: "
+                                f"shorten {path}.duration or lengthen {path}.dt")
+
+
 def build_time(cfg: dict) -> TimeGrid:
-    """The grid of ``time``: start, dt, duration [s] (steps = duration / dt + 1), pacing_window."""
-    sec = Section(cfg.get("time"), "time")
-    start = sec.non_negative("start")
-    dt = sec.positive("dt")
-    duration = sec.positive("duration")
-    window = sec.get("pacing_window", int, 0, lambda v: v >= 0, ">= 0")
-    epoch = parse_epoch(sec.get("epoch", (str, dt_.datetime), None), "time.epoch")
-    sec.finish()
-    dt_ns = int(round(dt * 1e9))
-    steps = int(round(duration / dt)) + 1
-    if dt_ns < 1 or steps > MAX_STEPS:
-        raise ScenarioError(f"'time.duration' / 'time.dt' = {duration:g} s / {dt:g} s gives {steps} steps; a run "
-                            f"may have at most {MAX_STEPS} steps of at least 1 ns: shorten time.duration or "
-                            "lengthen time.dt")
-    return TimeGrid(int(round(start * 1e9)), dt_ns, steps, window, epoch)
+    """The grid of the scenario's ``time`` section (:class:`Time`)."""
+    t = read(Time, cfg.get("time"), "time")
+    return TimeGrid(int(round(t.start * 1e9)), int(round(t.dt * 1e9)), t.steps, t.pacing_window,
+                    parse_epoch(t.epoch, "time.epoch"))
 
 
 def parse_epoch(value: str | dt_.datetime | None, key: str) -> dt_.datetime | None:

@@ -51,8 +51,9 @@ from typing import Any, Callable
 import numpy as np
 
 from bench_engine import cdr
-from bench_engine.config import ScenarioError
 from bench_engine.labels import POSITION, QUATERNION, ROTATION, VELOCITY
+from bench_engine.scenario import EngineKeys
+from bench_engine.settings import read_key
 from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, Item
@@ -123,11 +124,8 @@ them."""
 
 
 def standard_views(cfg: dict) -> bool:
-    """The scenario's ``standard_views`` (a registered section: a bool, default true)."""
-    value = cfg.get(SWITCH, True)
-    if not isinstance(value, bool):
-        raise ScenarioError(f"'{SWITCH}' must be true or false, got {value!r}")
-    return value
+    """The scenario's ``standard_views`` (bench_engine.scenario.EngineKeys: a bool, default true)."""
+    return read_key(EngineKeys, cfg, SWITCH)
 
 
 def add_standard_views(nodes: list[NodeSpec], cfg: dict) -> None:

@@ -42,6 +42,7 @@ from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import resolve_estimators
 from bench_engine.labels import POSITION, VELOCITY
+from bench_engine.scenario import default_estimators
 from bench_eval import metrics
 from bench_models.truth_dynamics import truth_dynamics
 from tracker_filters.builders import build_dynamics, build_filter_stack, measurement_source
@@ -183,14 +184,14 @@ def _pcrb_settings(cfg: dict, params: dict):
     """(dynamics, prior filter, sensors) of the pcrb params: ``dynamics`` (required): ``truth``, the truth
     model's own deterministic dynamics (bench_models.truth_dynamics), or a dynamics section as a filter's
     (a registered model and its process noise); ``prior`` (the filter whose initialiser gives J_0; default the
-    first default filter); ``sensors`` (default: that filter's)."""
+    first of the scenario's estimators); ``sensors`` (default: that filter's)."""
     sec = Section(params, "scoring.bounds.params")
     if sec.data.get("dynamics") == "truth":
         sec.mark("dynamics")
         dynamics = truth_dynamics(cfg)
     else:
         dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
-    defaults = list(cfg.get("default_filters") or [])
+    defaults = default_estimators(cfg) or []
     prior = sec.get("prior", str, defaults[0] if defaults else ...)
     if prior not in (cfg.get("filters") or {}) and prior not in resolve_estimators(cfg, None):
         raise ScenarioError(f"'scoring.bounds.params.prior': '{prior}' is not a filter of the scenario")

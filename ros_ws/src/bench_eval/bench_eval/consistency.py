@@ -27,7 +27,7 @@ POSITION = ("x", "y", "z")
 def innovation_scores(runs: list) -> dict[str, dict]:
     """{estimator: {"innovations": {...}}} for every run filter with estimates in ``runs`` (loaded bags:
     bench_eval.scoring.BagData, which imports this module where it needs it)."""
-    names = [n for n in dict.fromkeys(n for d in runs for n in d.run.get("filters", [])) if
+    names = [n for n in dict.fromkeys(n for d in runs for n in d.run.get("estimators", [])) if
              any(n in d.estimates for d in runs)]
     return {name: {"innovations": json_ready(_scores(name, [d for d in runs if name in d.estimates]))}
             for name in names}

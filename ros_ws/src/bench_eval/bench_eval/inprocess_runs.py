@@ -16,7 +16,7 @@ def bag_data(cfg: dict, filters: list[str] | None, seed: int) -> BagData:
     centroids) and every estimator's estimates in step order."""
     run = run_in_process(cfg, filters, seed=seed)
     estimators = [spec.name for spec in run.graph.of_role("estimator")]
-    data = BagData({"scenario": {**cfg, "seed": int(seed)}, "filters": estimators})
+    data = BagData({"scenario": {**cfg, "seed": int(seed)}, "estimators": estimators})
     truth = run.items[TRUTH_TOPIC]
     data.truth = {s.step: (s.t, np.asarray(s.state, dtype=float)) for s in truth}
     data.truth_labels = list(truth[-1].labels)

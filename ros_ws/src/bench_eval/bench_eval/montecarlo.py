@@ -13,6 +13,7 @@ from pathlib import Path
 
 from bench_engine import phases
 from bench_engine.batch import RunSpec, reusable_run, run_batch
+from bench_engine.cli.options import names
 from bench_engine.launcher import prepare_run
 from bench_eval.report import write_report
 from bench_eval.scoring import load_bag, score_bags
@@ -24,20 +25,20 @@ class MonteCarlo:
     out: Path
     runs: int
     seed0: int = 1
-    filters: str | None = None
+    estimators: str | None = None
+    """Comma-separated estimator names (None: the scenario's)."""
     variant: str | None = None
     overrides: list[str] = field(default_factory=list)
     multiprocess: bool = False
 
     def specs(self) -> list[RunSpec]:
-        return [RunSpec(self.scenario, self.out / f"run_{i:03d}", self.seed0 + i, self.filters, self.variant,
+        return [RunSpec(self.scenario, self.out / f"run_{i:03d}", self.seed0 + i, self.estimators, self.variant,
                         list(self.overrides), self.multiprocess) for i in range(self.runs)]
 
     def validate(self) -> dict:
         """Resolve and check the scenario once before N runs start (ScenarioError naming the bad key); returns
         the resolved scenario of run 0."""
-        filters = self.filters.split(",") if self.filters else None
-        return prepare_run(self.scenario, self.out / "validate", filters, self.seed0, self.overrides, self.variant,
+        return prepare_run(self.scenario, self.out / "validate", names(self.estimators), self.seed0, self.overrides, self.variant,
                            record=False).run["scenario"]
 
     def pending(self, resolved: dict, resume: bool = False) -> list[RunSpec]:
@@ -94,7 +95,7 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
         scored["runs_per_minute"] = round(60 * len(results) / wall, 2)
     (mc.out / "score.json").write_text(json.dumps(scored, indent=1))
     phases.mark("scored", "montecarlo", mc.out.resolve())
-    write_report(mc.out / "report", {scored["scenario"]: scored["filters"]},
+    write_report(mc.out / "report", {scored["scenario"]: scored["estimators"]},
                  {scored["scenario"]: series} if series else {})
     phases.mark("reported", "montecarlo", mc.out.resolve())
     return scored, failures

@@ -20,6 +20,7 @@ from bench_engine.bag_reader import BagReader
 from bench_engine.columns import Table
 from bench_engine.config import ScenarioError, Section
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
+from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_eval import metrics
 from bench_eval.claims import diverged
@@ -117,6 +118,9 @@ class BagData:
     bounds: dict = field(default_factory=dict)
     """Bound name -> its bench_eval.bounds.BoundSeries over this run (filled by the scorer: compute_bounds)."""
 
+    def __post_init__(self) -> None:
+        self.run = upgrade_run_config(self.run)   # a bag recorded before 'estimators' says 'filters'
+
     @property
     def scenario(self) -> dict:
         return self.run["scenario"]
@@ -210,10 +214,10 @@ def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
 
 
 def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
-    """The estimators of a run that are scored against the truth: the run's filters, the offline estimators,
+    """The estimators of a run that are scored against the truth: the run's selected ones, the offline estimators,
     then any other estimator of the bag (a tracker, a smoother, a pipeline stage) that estimates truth
     components (e.g. a 9-state kinematic smoother whose positions and velocities are in the truth)."""
-    names = [n for n in data.run["filters"] + offline if n in data.estimates]
+    names = [n for n in data.run["estimators"] + offline if n in data.estimates]
     return names + sorted(n for n, e in data.estimates.items()
                           if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
 
@@ -235,7 +239,7 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
     the metric family the scenario's ``scoring.metric`` names.
 
-    Returns {"scenario", "runs", "metric", "filters": {name: scores}} (and the plot series when
+    Returns {"scenario", "runs", "metric", "estimators": {name: scores}} (and the plot series when
     ``with_series``).
     """
     scenario, tracks, runs = collect(bag_dirs)
@@ -249,13 +253,13 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     family = plugins.load("metrics", opts.metric)
     compute_bounds(runs, opts.bounds)
     result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
-              "filters": family.score(tracks, runs, opts.options)}
+              "estimators": family.score(tracks, runs, opts.options)}
     bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)
     for name, block in bound_scores.items():
-        result["filters"].setdefault(name, {})["bounds"] = block
+        result["estimators"].setdefault(name, {})["bounds"] = block
     if any("ccsds_import" in data.run for data in runs):  # real data scored against a reference: what needs none too
         for name, block in innovation_scores(runs).items():
-            result["filters"].setdefault(name, {}).update(block)
+            result["estimators"].setdefault(name, {}).update(block)
     if not with_series:
         return result
     series = family.series(tracks, runs, opts.options)
@@ -269,7 +273,7 @@ def _score_without_truth(scenario: str, runs: list[BagData], with_series: bool):
     """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
     innovations, post-fit residuals and the estimators' own convergence (bench_eval.consistency)."""
     result = {"scenario": scenario, "runs": len(runs), "metric": "innovations (no truth)",
-              "filters": innovation_scores(runs)}
+              "estimators": innovation_scores(runs)}
     return (result, {}) if with_series else result
 
 
@@ -284,7 +288,7 @@ def print_summary(scored: dict) -> str:
     """A short human-readable table of the main numbers (the metric family's own parts: ``Metric.summary``)."""
     family_summary = plugins.load("metrics", scored["metric"]).summary if "metric" in scored else None
     lines = [f"{scored['scenario']} — {scored['runs']} run(s)"]
-    for name, block in scored["filters"].items():
+    for name, block in scored["estimators"].items():
         if diverged(block):
             lines.append(f"  {name}: diverged (the filter lost the target: NEES beyond any chi-square band)")
             continue

@@ -223,15 +223,16 @@ def run_dir(out: Path, cell: Cell, i: int) -> Path:
 
 
 def cell_record(grid: Grid, cell: Cell) -> dict:
-    """The JSON description of a cell (its score is added when it has run)."""
-    filters = {}
+    """The JSON description of a cell (its score is added when it has run): its estimators with their dynamics
+    model and sigma_accel (for a filter; None for the others)."""
+    estimators = {}
     for name in resolve_estimators(cell.cfg, None):
         dyn = filter_config(cell.cfg, name).get("dynamics") or {}
-        filters[name] = {"model": dyn.get("model"), "sigma_accel": dyn.get("sigma_accel")}
+        estimators[name] = {"model": dyn.get("model"), "sigma_accel": dyn.get("sigma_accel")}
     found = study(grid.scenario)
     paper = found.sweep_case(cell.cfg) if found and found.sweep_case else None
     return {"id": cell.id, "labels": cell.labels, "values": cell.values, "variants": cell.variants,
-            "overrides": cell.overrides, "filters": filters, "paper": paper}
+            "overrides": cell.overrides, "estimators": estimators, "paper": paper}
 
 
 def reusable(out: Path, grid: Grid, runs: int, seed0: int, resume: bool) -> set[tuple[str, int]]:
@@ -345,5 +346,5 @@ def generic_sweep_report(out: Path, sweep: dict) -> Path:
     sections = [ReportSection(f"{sweep['scenario']} — sweep '{sweep['grid']}'", sweep.get("description", ""))]
     for cell in sweep["cells"]:
         if cell.get("score"):
-            sections += generic_sections(cell["id"], cell["score"]["filters"], None, None)
+            sections += generic_sections(cell["id"], cell["score"]["estimators"], None, None)
     return render(out, sections, f"Sweep {sweep['scenario']} / {sweep['grid']}", filename="table.md")

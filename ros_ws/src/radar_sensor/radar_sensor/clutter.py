@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section, scenario_seed
+from bench_engine.config import ScenarioError, Section
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import DetectionSet, Outputs, TruthSample, python_log
 from orbit_sim.truth import build_earth

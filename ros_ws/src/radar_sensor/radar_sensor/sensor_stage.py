@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, scenario_seed
+from bench_engine.config import ScenarioError
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
 from radar_sensor.sensor import build_sensor

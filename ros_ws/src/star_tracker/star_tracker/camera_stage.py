@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section, scenario_seed
+from bench_engine.config import ScenarioError, Section
+from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from star_tracker.messages import STAR_CENTROIDS_TYPE, star_truth_topic
 

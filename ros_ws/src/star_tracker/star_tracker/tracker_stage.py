@@ -1,6 +1,6 @@
 """Star identification, tracking and attitude in the graph: the node kind ``star_tracker`` (role estimator)
-for every entry of the scenario's ``star_trackers`` section that the run selects (``default_filters`` or
-``--filters``). Each runs the per-frame core (pipeline.StarTrackerPipeline: lost-in-space → SNA or JPDAF
+for every entry of the scenario's ``star_trackers`` section that the run selects (``--estimators`` or the
+scenario's ``estimators``). Each runs the per-frame core (pipeline.StarTrackerPipeline: lost-in-space → SNA or JPDAF
 tracking → TRIAD or Wahba attitude) on one camera's centroids, so several trackers see identical frames.
 
     star_tracker_defaults: {camera: camera, motion: constant_velocity, sigma_a: 0.05}

@@ -19,7 +19,8 @@ from typing import Callable
 import numpy as np
 
 from orbit_sim import relative
-from bench_engine.config import ScenarioError, Section, scenario_seed
+from bench_engine.config import ScenarioError, Section
+from bench_engine.scenario import scenario_seed
 from bench_engine import plugins
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
 from radar_sensor.sensor import Sensor, build_sensor

@@ -1,5 +1,7 @@
 """The filter node's core: any registered filter on any scenario whose models it fits, registered as the
-node kind ``filter`` for the run's selected filters (``--filters`` or the scenario's ``default_filters``).
+node kind ``filter`` for the run's selected filters (``--estimators`` or the scenario's ``estimators``: the
+selected names that no other kind's section defines; a name the ``filters`` section does not define is a filter
+of that type).
 
 Subscribes the measurement topics of the sensors it consumes (``/SENSOR/measurement``); publishes
 ``/NAME/estimate`` (bench_msgs/StateEstimate with full covariance and state labels) after every accepted

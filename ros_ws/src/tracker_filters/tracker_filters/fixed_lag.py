@@ -1,5 +1,6 @@
 """Fixed-lag smoothing in the graph: the node kind ``fixed_lag`` for every entry of the scenario's
-``fixed_lag_smoothers`` section whose source filter is in the run.
+``fixed_lag_smoothers`` section that the run selects (``--estimators`` or the scenario's ``estimators``, like
+any estimator); its source filter must be selected too.
 
     fixed_lag_smoothers:
       kf_a_lag: {source: kf_a, lag_s: 300.0}   # the estimate of each step once lag_s of later data is in
@@ -82,17 +83,13 @@ class FixedLagSmoother:
                         P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
 
 
-def _instances(cfg: dict, selected: list[str]) -> list[str]:
-    """The smoothers of the run's selected estimators."""
-    return [n for n, c in read_fixed_lag(cfg).items() if c.source in selected]
-
-
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = read_fixed_lag(cfg)[name]
     return NodeSpec(name, "fixed_lag", publishes={estimate_topic(name): ESTIMATE_TYPE},
                     subscribes={estimate_topic(conf.source): ""})
 
 
-FIXED_LAG = NodeKind("fixed_lag", "estimator", "bench_engine.stage_node:StageNode", instances=_instances,
-                     spec=_spec, check=lambda cfg, name: FixedLagSmoother(cfg, name), stage=FixedLagSmoother,
-                     order=1)
+FIXED_LAG = NodeKind("fixed_lag", "estimator", "bench_engine.stage_node:StageNode",
+                     instances=lambda cfg, names: list(names), spec=_spec,
+                     check=lambda cfg, name: FixedLagSmoother(cfg, name), stage=FixedLagSmoother, order=1,
+                     claims=lambda cfg: list(read_fixed_lag(cfg)))

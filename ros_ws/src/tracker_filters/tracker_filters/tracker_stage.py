@@ -1,5 +1,5 @@
 """The tracker node's core, registered as the node kind ``tracker`` (role estimator) for every entry of the
-scenario's ``trackers`` section:
+scenario's ``trackers`` section that the run selects (``--estimators`` or the scenario's ``estimators``):
 
     trackers:
       gnn:
@@ -116,5 +116,6 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 
 TRACKER = NodeKind("tracker", "estimator", "bench_engine.stage_node:StageNode",
-                   instances=lambda cfg, requested: list(read_trackers(cfg)), spec=_spec,
-                   check=lambda cfg, name: build_tracker(cfg, name), stage=TrackerStage)
+                   instances=lambda cfg, names: list(names), spec=_spec,
+                   check=lambda cfg, name: build_tracker(cfg, name), stage=TrackerStage,
+                   claims=lambda cfg: list(read_trackers(cfg)))

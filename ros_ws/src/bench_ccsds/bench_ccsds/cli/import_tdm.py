@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         plan = prepare_run(run["scenario"]["scenario"], out, estimators, run.get("seed"), source="player",
                            extra={"replay_bag": str(imported.bag_dir), "ccsds_import": run["ccsds_import"]},
                            cfg=run["scenario"])
-    print(f"[import] {args.tdm} -> {plan.bag_dir} with {plan.run['filters']}", file=sys.stderr)
+    print(f"[import] {args.tdm} -> {plan.bag_dir} with {plan.run['estimators']}", file=sys.stderr)
     code = run_graph(plan, args.domain_id, args.single_process, tag="import")
     if code != 0:
         return code

@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         with writing(args.out / name):
             (args.out / name / "score.json").write_text(json.dumps(scored, indent=1))
         print(print_summary(scored))
-        scored_all[name] = scored["filters"]
+        scored_all[name] = scored["estimators"]
         if series:
             series_all[name] = series
     with writing(args.out):

@@ -2,7 +2,7 @@
 
 Examples:
   .venv/bin/python scripts/launch.py leo_radar
-  .venv/bin/python scripts/launch.py leo_radar --filters ukf --seed 7 --out runs/ukf7
+  .venv/bin/python scripts/launch.py leo_radar --estimators ukf --seed 7 --out runs/ukf7
   .venv/bin/python scripts/launch.py leo_radar --set sensors.radar.p_detect=1.0 --single-process
   .venv/bin/python scripts/launch.py leo_radar --variant table3_angles
 
@@ -16,7 +16,7 @@ from bench_engine.process import exit_now
 from bench_engine.run import RUN_EXIT_CODES, add_run_arguments, launch
 from bench_eval.scoring import NothingToScore, score_run
 
-EPILOG = exit_codes(**{**RUN_EXIT_CODES, "c1": RUN_EXIT_CODES["c1"] + ", or the filters published nothing to score"})
+EPILOG = exit_codes(**{**RUN_EXIT_CODES, "c1": RUN_EXIT_CODES["c1"] + ", or the estimators published nothing to score"})
 
 
 def main(argv: list[str] | None = None) -> int:

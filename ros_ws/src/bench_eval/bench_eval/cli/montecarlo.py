@@ -14,7 +14,7 @@ again, twice at most, with a line naming the run and the node. --resume keeps th
 
 Examples:
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 100 --jobs 2 --out runs/mc
-  .venv/bin/python scripts/montecarlo.py leo_radar --runs 10 --filters ukf --set time.duration=120
+  .venv/bin/python scripts/montecarlo.py leo_radar --runs 10 --estimators ukf --set time.duration=120
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc --resume
 """
@@ -32,6 +32,7 @@ from bench_engine import phases  # noqa: E402
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
 from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
                                     run_main, writing)
+from bench_engine.cli.options import add_estimators_option  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.errors import NothingToScore  # noqa: E402
@@ -43,7 +44,7 @@ EPILOG = exit_codes(
     c1="a run failed (each failed run is named with its log; the others are scored), none could be scored, or "
        "the Dask scheduler could not be reached",
     c2="bad input, stopped before any run started: an unknown or invalid scenario (a YAML syntax error names the "
-       "file and line), filter, variant or --set key or value, run directories already in OUT (without "
+       "file and line), estimator, variant or --set key or value, run directories already in OUT (without "
        "--resume), or an output directory that cannot be written (a file, read-only, no space left)")
 
 
@@ -51,7 +52,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("scenario", help="scenario name or YAML path")
     p.add_argument("--runs", type=int, required=True, help="number of Monte Carlo runs")
-    p.add_argument("--filters", help="comma-separated filter names (default: the scenario's)")
+    add_estimators_option(p)
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/mc-SCENARIO)")
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 (run i uses seed0 + i)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -69,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the Monte Carlo of the command line; the exit codes of EPILOG."""
     args = parse_args(argv)
     mc = MonteCarlo(args.scenario, args.out or Path(f"runs/mc-{Path(args.scenario).stem}"), args.runs, args.seed0,
-                    args.filters, args.variant, args.overrides, args.multiprocess)
+                    args.estimators, args.variant, args.overrides, args.multiprocess)
     phases.mark_process_start("montecarlo", mc.out.resolve())
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
     check_writable(mc.out)  # a file, read-only or full: one line (run_main), before anything starts

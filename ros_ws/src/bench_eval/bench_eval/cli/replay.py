@@ -1,12 +1,12 @@
-"""Re-run filters on the measurements of a recorded bag, and record (and score) a new bag.
+"""Re-run estimators on the measurements of a recorded bag, and record (and score) a new bag.
 
 A player node re-publishes the recorded truth and measurements unchanged (same stamps, same noise), paced by
-the new filters, so any filter can be compared on identical data. The scenario comes from the bag's
+the new estimators, so any estimator can be compared on identical data. The scenario comes from the bag's
 run_config.yaml; --set changes it (e.g. a filter's parameters) for the replay.
 
 Examples:
-  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --filters ukf --out runs/replay-ukf
-  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --filters ukf --set filters.ukf.params.alpha=0.5
+  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --estimators ukf --out runs/replay-ukf
+  .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --estimators ukf --set filters.ukf.params.alpha=0.5
 """
 from __future__ import annotations
 
@@ -24,15 +24,16 @@ from bench_engine import yamlio  # noqa: E402
 from bench_engine.bag_errors import BagDamaged  # noqa: E402
 from bench_engine.bag_reader import BagReader  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
 
 EPILOG = exit_codes(
     c0="the replay completed and its bag was scored",
-    c1="a node failed (named, with the tail of its log), or the new filters published nothing to score",
+    c1="a node failed (named, with the tail of its log), or the new estimators published nothing to score",
     c2="bad input, stopped before any node started: a directory that is not a bag recorded by this bench, a "
-       "damaged bag, an invalid filter or --set key or value, a ROS domain held by another run, or an output "
+       "damaged bag, an invalid estimator or --set key or value, a ROS domain held by another run, or an output "
        "directory that cannot be written (a file, read-only, no space left)",
     c124="the replay did not end within its time limit")
 
@@ -52,13 +53,13 @@ def recorded_run(bag: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Replay the bag of the command line into fresh filters; the exit codes of EPILOG."""
+    """Replay the bag of the command line into fresh estimators; the exit codes of EPILOG."""
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("bag", type=Path, help="bag directory recorded by launch.py / montecarlo.py")
-    p.add_argument("--filters", required=True, help="comma-separated filter names to run on the bag's data")
+    add_estimators_option(p, required=True)
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/replay-TIMESTAMP)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override for the replay (filters only: the data are fixed), repeatable")
+                   help="scenario override for the replay (estimators only: the data are fixed), repeatable")
     p.add_argument("--single-process", action="store_true", help="run every node in this one process")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID (default: the first one no other bench run holds)")
@@ -70,12 +71,12 @@ def main(argv: list[str] | None = None) -> int:
         cfg = apply_overrides(recorded["scenario"], args.overrides)
         with writing(out):
             check_output(out)  # before the validation
-            plan = prepare_run(cfg["scenario"], out, args.filters.split(","), recorded.get("seed"),
+            plan = prepare_run(cfg["scenario"], out, names(args.estimators), recorded.get("seed"),
                                source="player", extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
     except (ScenarioError, BagDamaged) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['filters']}", file=sys.stderr)
+    print(f"[replay] {args.bag} -> {plan.bag_dir} with {plan.run['estimators']}", file=sys.stderr)
     code = run_graph(plan, args.domain_id, args.single_process, tag="replay")
     if code != 0:
         return code

@@ -31,6 +31,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from bench_engine import plugins  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.cli.options import names  # noqa: E402
 from bench_engine import launcher  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant  # noqa: E402
 from bench_engine.graph import resolve_estimators  # noqa: E402
@@ -57,7 +58,7 @@ def declared_tables(root: Path) -> list[rp.Table]:
 
 def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> list[str]:
     """Problems with a table's command, without running it: a missing script, a flag its --help does not
-    list, a scenario that its --variant, --set overrides and --filters make invalid (bench_engine.launcher's
+    list, a scenario that its --variant, --set overrides and --estimators make invalid (bench_engine.launcher's
     validate: every key and value of the run checked)."""
     script = root / "scripts" / table.script
     if not script.is_file():
@@ -73,8 +74,8 @@ def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> 
         try:
             cfg = apply_overrides(select_variant(load_scenario(table.scenario), rp.value(args, "--variant")),
                                   rp.overrides(args))
-            chosen = rp.value(args, "--filters")
-            launcher.validate(cfg, resolve_estimators(cfg, chosen.split(",") if chosen else None), "truth")
+            chosen = names(rp.value(args, "--estimators") or rp.value(args, "--filters"))   # --filters: old name
+            launcher.validate(cfg, resolve_estimators(cfg, chosen), "truth")
         except ScenarioError as err:
             problems.append(f"{table.name}: {table.scenario} rejects its settings: {err}")
     return problems

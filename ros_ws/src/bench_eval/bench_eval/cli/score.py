@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.plots:
         from bench_eval.report import write_report  # matplotlib: most of a summary's start-up, only for plots
         with writing(args.plots):
-            path = write_report(args.plots, {scored["scenario"]: scored["filters"]},
+            path = write_report(args.plots, {scored["scenario"]: scored["estimators"]},
                                 {scored["scenario"]: series} if series else {})
         print(f"report: {path}", file=sys.stderr)
     return 0

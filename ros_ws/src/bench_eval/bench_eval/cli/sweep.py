@@ -29,6 +29,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
 from bench_engine.cli.guard import (ArgumentParser, check_output, check_writable, exit_codes,  # noqa: E402
                                     is_file_error, run_main, writing)
+from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outputs  # noqa: E402
@@ -51,9 +52,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 of every cell (run i uses seed0 + i)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario override applied to every cell after its own, repeatable")
+    add_estimators_option(p, default_text="each cell's 'estimators'")
     add_batch_arguments(p)
     p.add_argument("--json", action="store_true", help="print sweep.json instead of the summary")
     args = p.parse_args(argv)
+    if names(args.estimators):   # every cell's selection: the scenario key, set after the cells' own
+        args.overrides.append(f"estimators=[{', '.join(names(args.estimators))}]")
     check_batch_arguments(p, args)
     return args
 

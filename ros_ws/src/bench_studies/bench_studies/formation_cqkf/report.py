@@ -133,7 +133,7 @@ def _cell_label(cell: Mapping, skip: Sequence[str] = ()) -> str:
 def _model_names(cell: Mapping) -> dict[str, str]:
     """Filter name -> the paper's name of its dynamics model (the filter name for other models)."""
     models = PAPER["models"]
-    return {f: models.get(d.get("model"), f) for f, d in cell["filters"].items()}
+    return {f: models.get(d.get("model"), f) for f, d in cell["estimators"].items()}
 
 
 def _display_names(cell: Mapping) -> dict[str, str]:
@@ -146,9 +146,9 @@ def _scored_cells(sweep: Mapping) -> list[Mapping]:
 
 
 def _mae_cell(cell: Mapping, name: str, key: str, factor: float) -> str:
-    block = cell["score"]["filters"][name]
+    block = cell["score"]["estimators"][name]
     text = fmt_mean_se(block.get("mae_runs", {}).get(key) or [block["mae"][key]], factor)
-    paper = (cell.get("paper") or {}).get("mae", {}).get(cell["filters"][name].get("model"), {}).get(key)
+    paper = (cell.get("paper") or {}).get("mae", {}).get(cell["estimators"][name].get("model"), {}).get(key)
     return text if paper is None else f"{text} ({fmt(paper)})"
 
 
@@ -163,8 +163,8 @@ def sweep_paper_tables(sweep: Mapping) -> list[Table]:
     tables = []
     for group, cells in groups.items():
         header = ["state"] + [f"{col}={c['labels'][col]}: {_display_names(c).get(f, f)}" for c in cells
-                              for f in c["score"]["filters"]]
-        rows = [[f"{symbol} [{unit}]"] + [_mae_cell(c, f, key, factor) for c in cells for f in c["score"]["filters"]]
+                              for f in c["score"]["estimators"]]
+        rows = [[f"{symbol} [{unit}]"] + [_mae_cell(c, f, key, factor) for c in cells for f in c["score"]["estimators"]]
                 for key, symbol, unit, factor in FORMATION_COMPONENTS]
         tables_ = sorted({c["paper"]["table"] for c in cells if c.get("paper")})
         ref = f" — paper Table {', '.join(map(str, tables_))} in parentheses" if tables_ else ""
@@ -174,9 +174,9 @@ def sweep_paper_tables(sweep: Mapping) -> list[Table]:
 
 def sweep_cells_table(sweep: Mapping) -> Table:
     """Every cell and filter: mean absolute error per component (mean ± SE over runs; paper in parentheses)."""
-    rows = [[_cell_label(c), _display_names(c).get(f, f), str(c["score"]["filters"][f]["runs"])]
+    rows = [[_cell_label(c), _display_names(c).get(f, f), str(c["score"]["estimators"][f]["runs"])]
             + [_mae_cell(c, f, key, factor) for key, _, _, factor in FORMATION_COMPONENTS]
-            for c in _scored_cells(sweep) for f in c["score"]["filters"]]
+            for c in _scored_cells(sweep) for f in c["score"]["estimators"]]
     return Table("All cells: mean absolute error (mean ± standard error over runs; paper in parentheses)",
                  ["cell", "filter", "runs"] + [f"{s} [{u}]" for _, s, u, _ in FORMATION_COMPONENTS], rows)
 
@@ -187,10 +187,10 @@ def sweep_ordering_table(sweep: Mapping) -> Table:
     rows = []
     for c in _scored_cells(sweep):
         names = _model_names(c)
-        models = {f: d.get("model") for f, d in c["filters"].items()}
+        models = {f: d.get("model") for f, d in c["estimators"].items()}
         row = [_cell_label(c)]
         for key, _, _, _ in FORMATION_COMPONENTS:
-            runs = {f: b.get("mae_runs", {}).get(key) or [b["mae"][key]] for f, b in c["score"]["filters"].items()}
+            runs = {f: b.get("mae_runs", {}).get(key) or [b["mae"][key]] for f, b in c["score"]["estimators"].items()}
             text = paired_ordering(runs, names)
             if c.get("paper"):
                 text += f" (paper {_paper_ordering(c['paper'], models, key, names)})"
@@ -210,7 +210,7 @@ def sweep_bounds_table(sweep: Mapping) -> Table | None:
     truth's dynamics and the cell's measurements (scenario scoring.bounds), and the efficiency (bench_eval.bounds)."""
     rows = []
     for c in _scored_cells(sweep):
-        for f, block in c["score"]["filters"].items():
+        for f, block in c["score"]["estimators"].items():
             for bound, b in (block.get("bounds") or {}).items():
                 cells = []
                 for key, _, factor in BOUND_GROUPS:
@@ -228,8 +228,8 @@ def sweep_bounds_table(sweep: Mapping) -> Table | None:
 
 
 def sweep_consistency_table(sweep: Mapping) -> Table:
-    rows = [(_cell_label(c), f, c["score"]["filters"][f], c["filters"][f].get("sigma_accel"))
-            for c in _scored_cells(sweep) for f in c["score"]["filters"]]
+    rows = [(_cell_label(c), f, c["score"]["estimators"][f], c["estimators"][f].get("sigma_accel"))
+            for c in _scored_cells(sweep) for f in c["score"]["estimators"]]
     return formation_consistency_table("Consistency: time-averaged NEES of the run-averaged NEES (position and "
                                        "velocity) against its 95 % chi-square band, and the paper's ±3σ check", rows)
 
@@ -248,9 +248,9 @@ def _draw_mae_vs(cells: Sequence[Mapping], axis: str, title: str) -> Callable[[F
         axs = fig.subplots(2, 3, sharex=True)
         x = np.array([c["values"][axis] for c in cells], dtype=float)
         for (key, symbol, unit, factor), ax in zip(FORMATION_COMPONENTS, axs.ravel()):
-            for name in cells[0]["score"]["filters"]:
-                stats = [mean_se(factor * np.asarray(c["score"]["filters"][name].get("mae_runs", {}).get(key)
-                                                     or [c["score"]["filters"][name]["mae"][key]])) for c in cells]
+            for name in cells[0]["score"]["estimators"]:
+                stats = [mean_se(factor * np.asarray(c["score"]["estimators"][name].get("mae_runs", {}).get(key)
+                                                     or [c["score"]["estimators"][name]["mae"][key]])) for c in cells]
                 m, se = np.array(stats).T
                 ax.errorbar(x, m, yerr=np.nan_to_num(se), marker="o", ms=3, capsize=2, lw=1.0,
                             label=_display_names(cells[0])[name])
@@ -270,10 +270,10 @@ def _draw_nees_vs(cells: Sequence[Mapping], axis: str, title: str) -> Callable[[
     def draw(fig: Figure) -> None:
         ax = fig.subplots()
         x = np.array([c["values"][axis] for c in cells], dtype=float)
-        for name in cells[0]["score"]["filters"]:
-            ax.plot(x, [c["score"]["filters"][name]["nees_mean"] for c in cells], marker="o", ms=3, lw=1.0,
+        for name in cells[0]["score"]["estimators"]:
+            ax.plot(x, [c["score"]["estimators"][name]["nees_mean"] for c in cells], marker="o", ms=3, lw=1.0,
                     label=_display_names(cells[0])[name])
-        lo, hi = np.array([c["score"]["filters"][name]["nees_bounds"] for c in cells], dtype=float).T
+        lo, hi = np.array([c["score"]["estimators"][name]["nees_bounds"] for c in cells], dtype=float).T
         ax.fill_between(x, lo, hi, color="0.85", label="95 % band")
         ax.set(xlabel=axis, ylabel="time-averaged NEES (6 dof)", title=title)
         ax.set_yscale("log")
@@ -301,10 +301,10 @@ def sweep_consistent_values_table(sweep: Mapping) -> list[Table]:
         return []
     rows = []
     for group, cells in groups.items():
-        for name in cells[0]["score"]["filters"]:
+        for name in cells[0]["score"]["estimators"]:
             inside = [c["values"][axis] for c in cells
-                      if c["score"]["filters"][name]["nees_bounds"][0] <= c["score"]["filters"][name]["nees_mean"]
-                      <= c["score"]["filters"][name]["nees_bounds"][1]]
+                      if c["score"]["estimators"][name]["nees_bounds"][0] <= c["score"]["estimators"][name]["nees_mean"]
+                      <= c["score"]["estimators"][name]["nees_bounds"][1]]
             rows.append([group, _display_names(cells[0])[name], fmt(min(inside)) if inside else "none"])
     return [Table(f"Smallest {axis} with the time-averaged NEES inside the 95 % band",
                   ["cells", "filter", axis], rows)]

@@ -54,10 +54,10 @@ def tabulate(run_dir: Path, settle_s: float) -> dict[str, dict]:
     runs = load_bags(bags)
     opts = scoring_options(runs[0].scenario).options
     out = {}
-    for name in runs[0].run["filters"]:
+    for name in runs[0].run["estimators"]:
         tracks = [track_of(d, name) for d in runs]
         diags = [d.estimates[name].diagnostics for d in runs]
-        out[name] = filter_figures(tracks, diags, scored["filters"][name], settle_s,
+        out[name] = filter_figures(tracks, diags, scored["estimators"][name], settle_s,
                                    opts["position_threshold"], opts["velocity_threshold"])
     return out
 

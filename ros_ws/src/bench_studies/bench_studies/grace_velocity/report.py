@@ -115,7 +115,7 @@ def _cell_axes(cell: Mapping) -> tuple[float, float]:
 
 
 def _methods(cells: list) -> list[str]:
-    present = set().union(*(c["score"]["filters"] for c in cells if c.get("score")))
+    present = set().union(*(c["score"]["estimators"] for c in cells if c.get("score")))
     return [m for m in SWEEP_ORDER if m in present] + sorted(present - set(SWEEP_ORDER))
 
 
@@ -135,7 +135,7 @@ def sweep_tables(sweep: Mapping) -> list[Table]:
     rows_std, rows_mean = [], []
     for cell in sorted(cells, key=_cell_axes):
         interval, sigma = _cell_axes(cell)
-        scores = cell["score"]["filters"]
+        scores = cell["score"]["estimators"]
         best = min((m for m in methods if m in scores), key=lambda m: scores[m]["rr_kbr"]["std"])
         label = [f"{interval:g} s", f"{sigma * 100:g} cm"]
         rows_std.append(label + [_std_cell(scores.get(m)) for m in methods] + [best])
@@ -157,7 +157,7 @@ def _draw_sweep(sweep: Mapping):
             row = sorted((c for c in cells if _cell_axes(c)[1] == sigma), key=_cell_axes)
             x = [_cell_axes(c)[0] for c in row]
             for m in methods:
-                y = [c["score"]["filters"].get(m, {}).get("rr_kbr", {}).get("std", np.nan) * MM for c in row]
+                y = [c["score"]["estimators"].get(m, {}).get("rr_kbr", {}).get("std", np.nan) * MM for c in row]
                 ax.plot(x, y, marker="o", ms=3, lw=1.0, label=m)
             ax.set_yscale("log")
             ax.set_xlabel("GNSS fix interval [s]")

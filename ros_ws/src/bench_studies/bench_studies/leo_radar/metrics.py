@@ -96,7 +96,7 @@ def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     radar: dict[str, RadarSamples] = {}
     per_run: dict[str, dict] = {}
     for name in tracks:
-        samples = [radar_samples(d, name) for d in runs if name in d.estimates and name in d.run["filters"]]
+        samples = [radar_samples(d, name) for d in runs if name in d.estimates and name in d.run["estimators"]]
         samples = [s for s in samples if s is not None]
         if samples:  # the runs' samples pooled: RMSE over every run and scan
             radar[name] = RadarSamples(*(np.vstack([getattr(s, k) for s in samples])

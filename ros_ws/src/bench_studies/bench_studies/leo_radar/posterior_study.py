@@ -39,22 +39,22 @@ def one_run(job: dict) -> dict:
     """NEES of every estimator at each requested time for one seed (module docstring)."""
     times = job["times"]
     cfg = load_scenario("leo_radar", job["overrides"] + [f"time.duration={max(times) + 1.0}"])
-    run = run_in_process(cfg, job["filters"], seed=job["seed"])
-    sensor, dynamics = build_sensor(cfg, "radar"), build_filter_stack(cfg, job["filters"][0]).filter.dynamics
+    run = run_in_process(cfg, job["estimators"], seed=job["seed"])
+    sensor, dynamics = build_sensor(cfg, "radar"), build_filter_stack(cfg, job["estimators"][0]).filter.dynamics
     truth = {s.step: s.state for s in run.items["/truth/state"]}
-    estimates = {name: {e.step: e for e in run.items[f"/{name}/estimate"]} for name in job["filters"]}
+    estimates = {name: {e.step: e for e in run.items[f"/{name}/estimate"]} for name in job["estimators"]}
     sampler_rng = np.random.default_rng([job["seed"], 1])
-    out = {name: [] for name in [*job["filters"], LAPLACE, SAMPLED]}
+    out = {name: [] for name in [*job["estimators"], LAPLACE, SAMPLED]}
     out["ess"], post = [], None
     first, *scans = run.items["/radar/measurement"]
-    prior = estimates[job["filters"][0]][first.step]
+    prior = estimates[job["estimators"][0]][first.step]
     batch = PassBatch(dynamics, prior.x, prior.P, first.t)
     for m in scans:
         batch.add(m.t, m.z, m.R, sensor.model)
         if m.t - first.t < times[len(out["ess"])]:
             continue
         x = truth[m.step]
-        for name in job["filters"]:
+        for name in job["estimators"]:
             est = estimates[name][m.step]
             out[name].append(nees(est.x, est.P, x))
         # Gauss-Newton starts from the previous time's posterior mean, else the first filter's prior

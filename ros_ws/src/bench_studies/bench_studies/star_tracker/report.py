@@ -138,7 +138,7 @@ def sweep_tables(sweep: Mapping) -> list[Table]:
     """Per cell: SNA and JPDAF (TRIAD, then all-star) mean ± standard error over the runs, next to the paper."""
     rows = []
     for cell in sweep["cells"]:
-        scores = (cell.get("score") or {}).get("filters") or {}
+        scores = (cell.get("score") or {}).get("estimators") or {}
         paper = cell.get("paper") or {}
         sna, jp = scores.get("sna_triad"), scores.get("jpdaf_triad")
         rows.append([", ".join(f"{k} {v}" for k, v in cell["labels"].items()), str(paper.get("sigma", "—")),
@@ -159,7 +159,7 @@ def _draw_sweep(sweep: Mapping):
         ax = fig.subplots()
         cells = [c for c in sweep["cells"] if c.get("score") and c.get("paper")]
         for name, key, marker in (("sna_triad", "sna", "o"), ("jpdaf_triad", "jpdaf", "s")):
-            bench = [c["score"]["filters"].get(name, {}).get("rms_arcsec") or np.nan for c in cells]
+            bench = [c["score"]["estimators"].get(name, {}).get("rms_arcsec") or np.nan for c in cells]
             paper = [c["paper"][key] for c in cells]
             ax.plot(paper, bench, marker, label=name)
         lim = [0.0, max([1.0] + [c["paper"]["sna"] for c in cells]) * 1.2]
