@@ -25,6 +25,7 @@ import numpy as np
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
 from bench_engine.scenario import default_estimators
+from bench_engine.settings import replaced
 from bench_eval.inprocess_runs import bag_data
 from bench_eval.report import BOUND_STYLE, Plot, save_plot
 from bench_eval.scoring import run_offline, scoring_options
@@ -76,15 +77,15 @@ def main(argv: list[str] | None = None) -> int:
     seconds = {}
     for name, job in opts.offline.items():
         t0 = time.perf_counter()
-        run_offline(data, type(opts)(opts.metric, opts.options, {name: job}))
+        run_offline(data, replaced(opts, offline={name: job}))
         seconds[name] = time.perf_counter() - t0
-    skip = opts.options["skip_s"]
+    skip = opts.options.skip_s
     t_b, sd_b = dynamic_bound(data)
     first = min(t for t, _ in data.truth.values())
     late_b = t_b - first >= skip
     bound_b = _rms(sd_b[late_b])
     rts = data.estimates["kf_a_rts"]
-    sd_a = smoother_bound(rts, opts.options["baseline"])
+    sd_a = smoother_bound(rts, opts.options.baseline)
     late_a = rts.t - first >= skip
     bound_a = _rms(sd_a[late_a])
     print(f"grace_velocity seed {args.seed} ({args.variant or 'default'}): range-rate residual [um/s], "

@@ -23,7 +23,7 @@ def test_override_parses_yaml_values_and_creates_sections() -> None:
 def test_section_reads_typed_values_and_rejects_unknown_keys() -> None:
     sec = Section({"sigma": "1e-3", "p": 0.5, "name": "x", "typo": 1}, "sensors.radar")
     assert sec.positive("sigma") == pytest.approx(1e-3)  # YAML 1.1 reads 1e-3 as a string
-    assert sec.probability("p") == 0.5
+    assert sec.get("p", float) == 0.5
     assert sec.choice("name", ["x", "y"]) == "x"
     with pytest.raises(ScenarioError, match=r"unknown key\(s\) 'sensors.radar.typo'.*allowed: name, p, sigma"):
         sec.finish()

@@ -12,7 +12,8 @@ from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
 from scipy.special import chdtri
 
-from bench_engine.config import Section, apply_overrides, load_scenario
+from bench_engine.config import apply_overrides, load_scenario
+from bench_engine.settings import read
 from bench_engine.stage import Estimate, Measurement
 from bench_eval.inprocess_runs import bag_data
 from bench_eval.scoring import BagData, Estimates, score_bags
@@ -277,8 +278,8 @@ def _known_bias_run(bias: np.ndarray, kbr_bias: float, sigma_v: float):
 
 
 def _range_rate_scores(runs, skip_s: float = 0.0) -> dict:
-    options = RANGE_RATE.options(Section({"kbr": "kbr", "baseline": list(BASELINE), "skip_s": skip_s,
-                                          "pairs": {"pair": ["sat2", "sat1"]}}, "scoring"))
+    options = read(RANGE_RATE.options, {"kbr": "kbr", "baseline": list(BASELINE), "skip_s": skip_s,
+                                        "pairs": {"pair": ["sat2", "sat1"]}}, "scoring")
     return RANGE_RATE.score({"est": []}, runs, options)
 
 
@@ -321,7 +322,7 @@ def grace_runs():
     """Three seeded one-hour runs of grace_velocity (KF (a), (b) and the fixed-lag smoother), in process, as the
     scorer reads them; scored with the scenario's own scoring section (RTS, Newton, Savitzky-Golay offline)."""
     cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=3600"])
-    return [bag_data(cfg, ["kf_a", "kf_b"], seed) for seed in (1, 2, 3)]
+    return [bag_data(cfg, ["kf_a", "kf_b", "kf_a_lag"], seed) for seed in (1, 2, 3)]
 
 
 def test_a_known_range_rate_bias_added_to_a_real_run_moves_the_mean_by_exactly_that_bias(grace_runs) -> None:

@@ -9,6 +9,7 @@ from bench_engine.config import ScenarioError
 from bench_engine.stage import Measurement
 from bench_models.labelled import ComponentModel, RangeRateModel, UnboundModel
 from bench_studies.grace_velocity.metrics import range_rate
+from bench_engine.settings import read
 from radar_sensor.sensor import build_sensor
 from tracker_filters.derived import DerivedConfig, DifferenceStage, DifferentiatedStage
 from tracker_filters.differentiation import newton_weights
@@ -89,7 +90,8 @@ def _m(step: int, z, source: str = "a", R=None) -> Measurement:
 
 
 def test_difference_pairs_steps_in_any_arrival_order() -> None:
-    stage = DifferenceStage(DerivedConfig("b", "difference", ("a", "c"), ("bx", "by", "bz"), 0, 0.0))
+    stage = DifferenceStage("b", read(DerivedConfig, {"type": "difference", "of": ["a", "c"],
+                                                      "labels": ["bx", "by", "bz"]}, "derived_measurements.b"))
     assert stage.on_input("/a/measurement", _m(0, [5, 5, 5])) == []
     assert stage.on_input("/c/measurement", _m(1, [1, 1, 1], "c")) == []        # a missed step 1
     assert stage.on_input("/c/measurement", _m(2, [1, 2, 3], "c", 2 * np.eye(3))) == []
@@ -102,7 +104,8 @@ def test_difference_pairs_steps_in_any_arrival_order() -> None:
 
 def test_newton_velocity_is_exact_on_a_polynomial_and_lags_half_a_window() -> None:
     labels = ("bx", "by", "bz", "bvx", "bvy", "bvz")
-    stage = DifferentiatedStage(DerivedConfig("pv", "differentiated", ("b",), labels, 4, 300.0))
+    stage = DifferentiatedStage("pv", read(DerivedConfig, {"type": "differentiated", "of": "b", "labels": list(labels),
+                                                           "order": 4, "max_gap": 300.0}, "derived_measurements.pv"))
 
     def p(t):
         return np.array([1e5 + 3 * t - 0.02 * t**2 + 1e-4 * t**3, 2 * t, 1e-6 * t**4])

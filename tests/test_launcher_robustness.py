@@ -28,7 +28,7 @@ from graph_helpers import (ROOT, SHORT_PASS, launch_in_background, node_pid, rea
     (["--set", "colour=blue"], "unknown key(s) 'colour' in the scenario's top level"),
     (["--set", "filters.ukf.params.alpha=-1"], "alpha"),
     (["--variant", "nope"], "unknown variant 'nope'; allowed: iss, table3_angles"),
-    (["--set", "filters.ukf.params.alpha=abc"], "'filters.ukf.params': ukf: parameter alpha must be a number, got 'abc'"),
+    (["--set", "filters.ukf.params.alpha=abc"], "'filters.ukf.params.alpha' must be a number, got 'abc'"),
     (["--set", "time.duration=1e12"], "gives 10000000000001 steps; a run may have at most 10000000"),
 ])
 def test_bad_input_stops_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:

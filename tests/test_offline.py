@@ -24,7 +24,8 @@ def cqkf_with(offline) -> dict:
     ({"s": {"estimator": "rts", "source": "nope"}}, "source 'nope' is not a filter of the scenario"),
     ({"s": {"estimator": "rts", "sorce": "ss"}}, "missing key 'scoring.offline.s.source'"),
     ({"s": {"estimator": "rts", "source": "ss", "lag": 3}}, "lag"),
-    ({"s": {"estimator": "rts", "source": "ss", "params": {"lag": 3}}}, "rts takes no params"),
+    ({"s": {"estimator": "rts", "source": "ss", "params": {"lag": 3}}},
+     "unknown key\\(s\\) .scoring.offline.s.params.lag."),
 ])
 def test_a_bad_offline_entry_is_refused_naming_it(offline, message):
     with pytest.raises(ScenarioError, match=message):
@@ -66,11 +67,11 @@ def synthetic_run(cfg: dict, steps: int = 300, seed: int = 3) -> tuple[BagData, 
 
 
 def test_the_scorer_runs_the_named_offline_estimator_and_its_output_is_a_better_track():
-    cfg = cqkf_with({"ss+rts": {"estimator": "rts", "source": "ss"}, "cw+rts": {"estimator": "rts", "source": "cw"}})
+    cfg = cqkf_with({"ss_rts": {"estimator": "rts", "source": "ss"}, "cw_rts": {"estimator": "rts", "source": "cw"}})
     data, truth = synthetic_run(cfg)
     ran = run_offline(data, scoring_options(cfg))
-    assert ran == ["ss+rts"]  # cw did not run in this bag: its smoother is skipped
-    smoothed, filtered = data.estimates["ss+rts"], data.estimates["ss"]
+    assert ran == ["ss_rts"]  # cw did not run in this bag: its smoother is skipped
+    smoothed, filtered = data.estimates["ss_rts"], data.estimates["ss"]
     assert smoothed.labels == LABELS and np.array_equal(smoothed.steps, filtered.steps)
     np.testing.assert_array_equal(smoothed.x[-1], filtered.x[-1])
     err_s = np.sqrt(np.mean((smoothed.x - truth) ** 2, axis=0))

@@ -5,6 +5,7 @@ from matplotlib.figure import Figure
 from scipy.stats import chi2
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_engine.settings import replaced
 from bench_eval.inprocess_runs import bag_data
 from bench_eval.scoring import run_offline, scoring_options
 from bench_studies.grace_velocity.bounds import ORBIT_CRB
@@ -141,14 +142,14 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
                           ["time.duration=3600.0", "estimators=[kf_a]"])
     data = bag_data(cfg, ["kf_a"], seed=3)
     opts = scoring_options(cfg)
-    opts.offline = {k: v for k, v in opts.offline.items() if k in ("orbit_fit", "savgol")}
+    opts = replaced(opts, offline={k: v for k, v in opts.offline.items() if k in ("orbit_fit", "savgol")})
     run_offline(data, opts)
     rms = {n: np.sqrt(np.mean(residuals(data, n, opts.options)["truth"] ** 2)) for n in opts.offline}
     assert rms["orbit_fit"] < rms["savgol"] / 10
     data.bounds = {"orbit_crb": ORBIT_CRB.run(data, {})}
     bound = range_rate_bounds(data)["orbit_crb"]
     est = data.estimates["orbit_fit"]
-    cols = [est.labels.index(c) for c in opts.options["baseline"]]
+    cols = [est.labels.index(c) for c in opts.options.baseline]
     own = range_rate_sd(est.x[:, cols[:3]], est.x[:, cols[3:]], est.P[:, cols][:, :, cols])
     t0 = min(t for t, _ in data.truth.values())
     assert np.allclose(own, bound["sd"][np.isin(bound["t"], est.t - t0)], rtol=0.05)

@@ -83,6 +83,10 @@ def test_without_the_plugin_the_scenario_stops_naming_what_is_missing(tmp_path):
     del cfg["relays"], cfg["smoothers"]
     (tmp_path / "no_stages.yaml").write_text(yaml.safe_dump(cfg))
     res = script("launch.py", str(tmp_path / "no_stages.yaml"), "--out", str(tmp_path / "a"))
+    assert res.returncode == 2 and "'filters.mine.type' must be one of" in res.stderr and "inflated_ekf" in res.stderr
+    cfg["filters"]["mine"] = {"type": "ekf"}
+    (tmp_path / "no_stages.yaml").write_text(yaml.safe_dump(cfg))
+    res = script("launch.py", str(tmp_path / "no_stages.yaml"), "--out", str(tmp_path / "a"))
     assert res.returncode == 2 and "'scoring.metric' must be one of" in res.stderr and "final_error" in res.stderr
     cfg["scoring"] = {"metric": "errors"}
     (tmp_path / "no_stages.yaml").write_text(yaml.safe_dump(cfg))

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from bench_engine.config import Section, load_scenario, select_variant
-from bench_eval.bounds import read_bounds, score_bounds
-from bench_eval.scoring import track_of
+from bench_engine.config import load_scenario, select_variant
+from bench_eval.bounds import score_bounds
+from bench_eval.scoring import scoring_options, track_of
 from bench_eval.inprocess_runs import bag_data
 from bench_studies.star_tracker.report import ARCSEC, attitude_bounds
 from star_tracker.attitude import rotation_matrix
@@ -94,7 +94,7 @@ def test_the_jpdaf_is_above_the_truths_bound_and_at_its_own_models_bound_up_to_t
     efficiency is in [0.8, 1.5] (measured 1.03-1.23 over 8 runs; the model mismatch predicts ~1.09)."""
     cfg = select_variant(load_scenario("star_tracker"), "short")
     runs = [bag_data(cfg, ["jpdaf_wahba"], seed) for seed in (1, 2, 3)]
-    bounds = read_bounds(Section(cfg["scoring"]["bounds"], "scoring.bounds"), cfg)
+    bounds = scoring_options(cfg).bounds
     scores, _ = score_bounds({"jpdaf_wahba": [track_of(d, "jpdaf_wahba") for d in runs]}, runs, bounds)
     own = scores["jpdaf_wahba"]["wahba_tracked"]["axes"]
     for axis in ("rx", "ry", "rz"):

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import Section
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
+from bench_engine.settings import POSITIVE, SectionReader, Settings, read_entries, setting
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
 from bench_eval.metric_families import Metric
 from radar_sensor.sensor import Sensor
@@ -36,13 +36,19 @@ class RangeModel:
         return z - z_pred
 
 
-def _build_range_only(sec: Section, name: str, earth, every: int) -> Sensor:
-    sigma = sec.positive("sigma_range")
-    return Sensor(name, "range_only", RangeModel(), np.array([[sigma**2]]), sec.probability("p_detect", 1.0),
-                  every, "lvlh", lambda x, t: True)
+@dataclass(frozen=True, kw_only=True)
+class RangeOnly(Settings):
+    """The keys of a range_only sensor (beside type, interval and p_detect)."""
+
+    sigma_range: float = setting(unit="m", doc="range noise (1σ)", check=POSITIVE)
 
 
-RANGE_ONLY = SensorType("bench_msgs/msg/VectorMeasurement", _build_range_only)
+def _build_range_only(s, name: str, earth, every: int) -> Sensor:
+    return Sensor(name, "range_only", RangeModel(), np.array([[s.model.sigma_range**2]]), s.p_detect, every,
+                  "lvlh", lambda x, t: True)
+
+
+RANGE_ONLY = SensorType("bench_msgs/msg/VectorMeasurement", RangeOnly, _build_range_only)
 
 
 class InflatedEKF(ExtendedKalmanFilter):
@@ -59,28 +65,23 @@ class InflatedEKF(ExtendedKalmanFilter):
         self.P = self.P * self.inflation
 
 
-@dataclass
-class Link:
-    input: str
+@dataclass(frozen=True, kw_only=True)
+class Link(Settings):
+    """One stage of the pipeline."""
 
-
-def _read(cfg: dict, key: str) -> dict[str, Link]:
-    sec = Section(cfg.get(key), key)
-    links = {}
-    for name in sec.keys():
-        node = sec.section(name)
-        links[name] = Link(node.get("input", str))
-        node.finish()
-    sec.finish()
-    return links
+    input: str = setting(doc="the topic it consumes")
 
 
 def read_relays(cfg: dict) -> dict[str, Link]:
-    return _read(cfg, "relays")
+    return read_entries(Link, cfg.get("relays"), "relays")
 
 
 def read_smoothers(cfg: dict) -> dict[str, Link]:
-    return _read(cfg, "smoothers")
+    return read_entries(Link, cfg.get("smoothers"), "smoothers")
+
+
+RELAYS = SectionReader("relays", dict[str, Link], "relay stages (node kind relay)")
+SMOOTHERS = SectionReader("smoothers", dict[str, Link], "smoother stages (node kind smoother)")
 
 
 class Relay:
@@ -118,10 +119,16 @@ RELAY = _kind("relay", "relays", Relay, read_relays)
 SMOOTHER = _kind("smoother", "smoothers", Smoother, read_smoothers)
 
 
-def _final_error(tracks: dict, runs: list, options: dict) -> dict:
+def _final_error(tracks: dict, runs: list, options) -> dict:
     return {name: {"runs": len(group), "final_error_m": float(np.mean(
-        [np.linalg.norm(tr.error(options["components"])[-1]) for tr in group]))} for name, group in tracks.items()}
+        [np.linalg.norm(tr.error(options.components)[-1]) for tr in group]))} for name, group in tracks.items()}
 
 
-FINAL_ERROR = Metric(options=lambda sec: {"components": sec.get("components", list, ["x", "y", "z"])},
-                     score=_final_error, series=lambda tracks, runs, options: {})
+@dataclass(frozen=True, kw_only=True)
+class FinalErrorOptions(Settings):
+    """The final_error family's keys of the scoring section."""
+
+    components: list[str] = setting(["x", "y", "z"], doc="the state components whose final error is scored")
+
+
+FINAL_ERROR = Metric(options=FinalErrorOptions, score=_final_error, series=lambda tracks, runs, options: {})

@@ -29,7 +29,7 @@ setup(
             "bench_demo = bench_eval.cli.demo:command",
             "bench_reproduce = bench_eval.cli.reproduce:command"],
         "tracking_bench.sections": [
-            "scoring = bench_eval.scoring:scoring_options"],
+            "scoring = bench_eval.scoring:SCORING"],
         "tracking_bench.metrics": [
             "convergence = bench_eval.metric_families:CONVERGENCE",
             "errors = bench_eval.metric_families:ERRORS"],

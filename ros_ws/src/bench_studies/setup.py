@@ -42,8 +42,8 @@ setup(
             "wahba_tracked = bench_studies.star_tracker.bounds:WAHBA_TRACKED",
             "orbit_crb = bench_studies.grace_velocity.bounds:ORBIT_CRB"],
         "tracking_bench.truth_models": [
-            "pair_j2 = bench_studies.grace_velocity.pair_truth:pair_truth",
-            "pair_hifi = bench_studies.grace_velocity.pair_truth:pair_truth"],
+            "pair_j2 = bench_studies.grace_velocity.pair_settings:PAIR",
+            "pair_hifi = bench_studies.grace_velocity.pair_settings:PAIR"],
         "tracking_bench.offline": [
             "pair_orbit_fit = bench_studies.grace_velocity.pair_fit:PAIR_ORBIT_FIT"]
     },

@@ -23,14 +23,14 @@ setup(
         "tracking_bench.node_kinds": [
             "truth = orbit_sim.truth_source:TRUTH"],
         "tracking_bench.truth_models": [
-            "cowell_j2 = orbit_sim.truth:single_orbit_truth",
-            "cowell_twobody = orbit_sim.truth:single_orbit_truth",
-            "formation_j2 = orbit_sim.truth:formation_truth",
-            "formation_twobody = orbit_sim.truth:formation_truth",
-            "hill_cw = orbit_sim.truth:formation_truth",
-            "sgp4 = orbit_sim.tle:tle_truth"],
+            "cowell_j2 = orbit_sim.truth:SINGLE_ORBIT",
+            "cowell_twobody = orbit_sim.truth:SINGLE_ORBIT",
+            "formation_j2 = orbit_sim.truth:FORMATION",
+            "formation_twobody = orbit_sim.truth:FORMATION",
+            "hill_cw = orbit_sim.truth:FORMATION",
+            "sgp4 = orbit_sim.truth:SGP4"],
         "tracking_bench.sections": [
-            "earth = orbit_sim.truth:build_earth",
-            "truth = orbit_sim.truth:build_truth"]
+            "earth = orbit_sim.truth:EARTH",
+            "truth = orbit_sim.truth:TRUTH"]
     },
 )

@@ -36,7 +36,7 @@ setup(
             "bench_msgs.msg.VectorMeasurement = radar_sensor.messages:VECTOR_MEASUREMENT",
             "bench_msgs.msg.DetectionSet = radar_sensor.messages:DETECTION_SET"],
         "tracking_bench.sections": [
-            "cluttered_sensors = radar_sensor.clutter:read_section",
-            "sensors = radar_sensor.sensor_stage:read_sensors"]
+            "cluttered_sensors = radar_sensor.clutter:CLUTTERED_SENSORS",
+            "sensors = radar_sensor.sensor_types:SENSORS"]
     },
 )

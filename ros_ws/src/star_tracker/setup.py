@@ -23,14 +23,14 @@ setup(
     license="Apache-2.0",
     entry_points={
         "tracking_bench.truth_models": [
-            "lvlh_camera = star_tracker.truth_model:camera_truth"],
+            "lvlh_camera = star_tracker.truth_settings:CAMERA_TRUTH"],
         "tracking_bench.node_kinds": [
             "star_camera = star_tracker.camera_stage:STAR_CAMERA",
             "star_tracker = star_tracker.tracker_stage:STAR_TRACKER"],
         "tracking_bench.sections": [
-            "star_cameras = star_tracker.camera_stage:read_cameras",
-            "star_trackers = star_tracker.tracker_stage:read_trackers",
-            "star_tracker_defaults = star_tracker.tracker_stage:read_trackers"],
+            "star_cameras = star_tracker.camera_stage:CAMERAS",
+            "star_trackers = star_tracker.tracker_stage:TRACKERS_SECTION",
+            "star_tracker_defaults = star_tracker.tracker_stage:TRACKER_DEFAULTS"],
         "tracking_bench.codecs": [
             "bench_msgs.msg.StarCentroids = star_tracker.messages:STAR_CENTROIDS"]
     },

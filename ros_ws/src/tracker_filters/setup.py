@@ -23,11 +23,11 @@ setup(
         "console_scripts": [
             "filter_node = tracker_filters.filter_node:main"],
         "tracking_bench.sections": [
-            "trackers = tracker_filters.tracker_stage:read_trackers",
-            "derived_measurements = tracker_filters.derived:read_derived",
-            "fixed_lag_smoothers = tracker_filters.fixed_lag:read_fixed_lag",
-            "filters = tracker_filters.filter_settings:read_filters",
-            "filter_defaults = tracker_filters.filter_settings:read_filters"],
+            "trackers = tracker_filters.tracker_stage:TRACKERS",
+            "derived_measurements = tracker_filters.derived:DERIVED_MEASUREMENTS",
+            "fixed_lag_smoothers = tracker_filters.fixed_lag:FIXED_LAG_SMOOTHERS",
+            "filters = tracker_filters.filter_settings:FILTERS",
+            "filter_defaults = tracker_filters.filter_settings:FILTER_DEFAULTS"],
         "tracking_bench.node_kinds": [
             "filter = tracker_filters.filter_stage:FILTER",
             "tracker = tracker_filters.tracker_stage:TRACKER",
@@ -42,15 +42,15 @@ setup(
             "sir = tracker_filters.pf:SIRParticleFilter",
             "pf = tracker_filters.pf:RegularisedParticleFilter"],
         "tracking_bench.dynamics": [
-            "orbit_j2 = tracker_filters.builders:orbit_j2",
-            "cw = tracker_filters.builders:cw",
-            "cw_bias = tracker_filters.builders:cw_bias",
-            "ss = tracker_filters.builders:ss",
-            "white_jerk = tracker_filters.builders:white_jerk"],
+            "orbit_j2 = tracker_filters.filter_settings:ORBIT_J2",
+            "cw = tracker_filters.filter_settings:CW",
+            "cw_bias = tracker_filters.filter_settings:CW_BIAS",
+            "ss = tracker_filters.filter_settings:SS",
+            "white_jerk = tracker_filters.filter_settings:WHITE_JERK"],
         "tracking_bench.initialisers": [
-            "first_scan = tracker_filters.builders:first_scan",
-            "given = tracker_filters.builders:given",
-            "truth_scaled = tracker_filters.builders:truth_scaled",
-            "position_fix = tracker_filters.builders:position_fix"]
+            "first_scan = tracker_filters.filter_settings:FIRST_SCAN",
+            "given = tracker_filters.filter_settings:GIVEN",
+            "truth_scaled = tracker_filters.filter_settings:TRUTH_SCALED",
+            "position_fix = tracker_filters.filter_settings:POSITION_FIX"]
     },
 )

@@ -1,10 +1,11 @@
 """Scenario files: loading, command-line overrides and strict, self-describing validation.
 
 A scenario is a YAML mapping, registered by its study (entry-point group ``tracking_bench.scenarios``).
-Overrides ``key.path=value`` are applied on top (the value is parsed as YAML). Every consumer reads its
-section through :class:`Section`, which records the keys it asked for; :meth:`Section.finish` then rejects
-any key nobody asked for, naming it and the allowed keys. Checks on values raise :class:`ScenarioError`
-naming the full key path.
+Overrides ``key.path=value`` are applied on top (the value is parsed as YAML). :class:`Section` reads one
+mapping strictly: it records the keys asked for, and :meth:`Section.finish` rejects any key nobody asked for,
+naming it and the allowed keys; checks on values raise :class:`ScenarioError` naming the full key path. The
+scenario's sections are declared and read through it by bench_engine.settings (typed, once); other files of
+the bench (a study's paper.yaml and tables.yaml, a sweep grid) use it directly.
 """
 from __future__ import annotations
 
@@ -164,12 +165,6 @@ class Section:
 
     def positive(self, key: str, default: Any = ...) -> float:
         return self.get(key, float, default, lambda v: v > 0, "> 0")
-
-    def non_negative(self, key: str, default: Any = ...) -> float:
-        return self.get(key, float, default, lambda v: v >= 0, ">= 0")
-
-    def probability(self, key: str, default: Any = ...) -> float:
-        return self.get(key, float, default, lambda v: 0.0 <= v <= 1.0, "in [0, 1]")
 
     def choice(self, key: str, allowed: Iterable[str], default: Any = ...) -> str:
         allowed = list(allowed)

@@ -24,6 +24,8 @@ POSITION = ("x", "y", "z")
 VELOCITY = ("vx", "vy", "vz")
 ORBIT = POSITION + VELOCITY
 """A position-velocity state (an orbit in ECI, relative motion in LVLH)."""
+BIAS = ("bx", "by", "bz")
+"""A constant acceleration bias in LVLH (the CW+bias relative-motion state: ORBIT + BIAS)."""
 QUATERNION = ("qw", "qx", "qy", "qz")
 """An attitude quaternion, scalar first (Hamilton; rotating the reference frame into the body frame)."""
 ROTATION = ("rx", "ry", "rz")

@@ -14,6 +14,7 @@ throw-away package.
 """
 from __future__ import annotations
 
+import importlib
 from functools import lru_cache
 from importlib.metadata import entry_points
 
@@ -21,18 +22,18 @@ from bench_engine.errors import ScenarioError
 
 GROUPS = {
     "node_kinds": "tracking_bench.node_kinds",      # NodeKind (bench_engine.graph)
-    "truth_models": "tracking_bench.truth_models",  # builder(Section, cfg, grid) -> Truth
+    "truth_models": "tracking_bench.truth_models",  # TruthModel (orbit_sim.truth): settings class + builder
     "sensors": "tracking_bench.sensors",            # SensorType
     "codecs": "tracking_bench.codecs",              # message codec (encode item -> msg, decode msg -> item)
     "estimators": "tracking_bench.estimators",      # Filter class
-    "dynamics": "tracking_bench.dynamics",          # builder(Section, cfg) -> DynamicsModel
-    "initialisers": "tracking_bench.initialisers",  # builder(Section, cfg, dynamics) -> Initialiser
+    "dynamics": "tracking_bench.dynamics",          # Builder (settings, cfg) -> DynamicsModel
+    "initialisers": "tracking_bench.initialisers",  # Builder (settings, cfg, dynamics) -> Initialiser
     "metrics": "tracking_bench.metrics",            # Metric (bench_eval.scoring)
     "offline": "tracking_bench.offline",            # OfflineEstimator (bench_eval.offline)
     "bounds": "tracking_bench.bounds",              # Bound (bench_eval.bounds)
     "studies": "tracking_bench.studies",            # Study (bench_eval.study)
     "scenarios": "tracking_bench.scenarios",        # path of a scenario YAML file
-    "sections": "tracking_bench.sections",          # top-level scenario section -> reader(cfg) (strict)
+    "sections": "tracking_bench.sections",          # SectionReader of a top-level key (bench_engine.settings)
     "angle_labels": "tracking_bench.angle_labels",  # a label that is an angle (bench_engine.labels)
 }
 
@@ -70,3 +71,11 @@ def load(group: str, name: str) -> object:
 def registered(group: str) -> dict[str, object]:
     """Every component of a group, loaded: {name: component}."""
     return {name: load(group, name) for name in names(group)}
+
+
+@lru_cache(maxsize=None)
+def resolve(reference: str) -> object:
+    """The object a ``module:attribute`` string names, imported on first use (a registered component's builder:
+    bench_engine.settings.Builder)."""
+    module, _, attribute = reference.partition(":")
+    return getattr(importlib.import_module(module), attribute)

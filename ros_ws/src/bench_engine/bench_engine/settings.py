@@ -1,9 +1,10 @@
 """Typed scenario settings: every key declared once, with its type, default, unit, meaning and check.
 
 A section, or one mapping inside it, is a frozen, keyword-only dataclass deriving from :class:`Settings` whose
-fields are its keys, each declared with :func:`setting`. The annotation is the key's type: ``bool``, ``int``, ``float``, ``str``,
-a ``list`` of one of those, a free mapping (``dict``), another Settings class (a nested mapping), ``dict[str, X]``
-with X a Settings class (named entries: ``sensors: {radar: {…}}``), or a union of those with ``None`` (optional).
+fields are its keys, each declared with :func:`setting`. The annotation is the key's type: ``bool``, ``int``,
+``float``, ``str``, a ``list`` of one of those, a free mapping (``dict``), another Settings class (a nested
+mapping), ``dict[str, X]`` with X a Settings class (named entries: ``sensors: {radar: {…}}``), or a union of those
+with ``None`` (optional).
 :func:`variant` declares the keys that depend on another key's value (a sensor's ``type``, a dynamics ``model``):
 the chosen option's Settings class, read beside that key or under a key of its own.
 
@@ -12,8 +13,8 @@ a failed check or a key nobody declared raises ScenarioError in one line naming 
 allowed. Numbers are converted to the declared type (an integer for a ``float`` key becomes a float, and so
 does the text "3.986004418e14", which YAML 1.1 reads as a string). A class may check its keys together in
 ``validate(path)``. :func:`coerce` gives a mapping's declared values their types without checking anything (a
-node's ROS parameters: bench_engine.parameters), and :func:`entries` lists every key for the settings
-reference (bench_engine.settings_reference), so the reference and the validation cannot disagree.
+node's ROS parameters: bench_engine.parameters), and bench_engine.settings_reference lists every key from the
+same declarations, so the reference and the validation cannot disagree.
 
     @dataclass(frozen=True, kw_only=True)
     class Time(Settings):
@@ -32,8 +33,9 @@ import types
 import typing
 from dataclasses import MISSING, dataclass, field
 from functools import lru_cache
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable
 
+from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
 
 REQUIRED = MISSING
@@ -94,16 +96,48 @@ def variant(selected_by: str, names: Callable[[], Iterable[str]], load: Callable
 
 
 class Settings:
-    """Base of the typed settings classes (frozen dataclasses of :func:`setting` fields)."""
+    """Base of the typed settings classes (frozen dataclasses of :func:`setting` fields). An instance read by
+    :func:`read` knows where it was read: :meth:`where` names its keys in error messages."""
+
+    _path = ""
 
     def validate(self, path: str) -> None:
         """Checks across keys (ScenarioError naming them); the default has none."""
+
+    def where(self, key: str = "") -> str:
+        """The full key path of ``key`` of this mapping (of the mapping itself without one)."""
+        return join(self._path, key)
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoKeys(Settings):
+    """The settings of a choice that has no keys of its own (an offline estimator without parameters)."""
+
+
+@dataclass(frozen=True)
+class Builder:
+    """A registered component configured by one Settings class: ``settings`` (the keys it reads; cheap to import,
+    the graph and the settings reference read it) and ``build``, the ``module:function`` that builds it from
+    them, imported when something is built. Calling the Builder calls that function."""
+
+    settings: type
+    build: str
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return plugins.resolve(self.build)(*args, **kwargs)
+
+
+def replaced(obj: Settings, **changes: Any) -> Any:
+    """``dataclasses.replace`` that keeps where ``obj`` was read (:meth:`Settings.where`)."""
+    new = dataclasses.replace(obj, **changes)
+    object.__setattr__(new, "_path", obj._path)
+    return new
 
 
 # --- types ------------------------------------------------------------------------------------------------
 
 SCALARS = (bool, int, float, str, datetime.datetime)
-TYPE_TEXT = {bool: "true/false", int: "integer", float: "number", str: "string", dict: "mapping",
+TYPE_TEXT = {bool: "true/false", int: "integer", float: "number", str: "string", dict: "mapping", object: "any",
              datetime.datetime: "date and time"}
 
 
@@ -149,6 +183,8 @@ def shape(hint: Any) -> Shape:
         return Shape((dict,), settings=hint)
     if hint in SCALARS:
         return Shape((hint,))
+    if hint is Any:
+        return Shape((object,))
     raise TypeError(f"a setting cannot be of type {hint!r}")
 
 
@@ -157,9 +193,9 @@ def _is_settings(hint: Any) -> bool:
 
 
 @lru_cache(maxsize=None)
-def _fields(cls: type) -> tuple[tuple[dataclasses.Field, Any], ...]:
+def fields_of(cls: type) -> tuple[tuple[dataclasses.Field, Any], ...]:
     """(field, resolved annotation) of a Settings class, in declaration order."""
-    hints = typing.get_type_hints(cls, vars(sys.modules[cls.__module__]))
+    hints = typing.get_type_hints(cls)
     return tuple((f, hints[f.name]) for f in dataclasses.fields(cls))
 
 
@@ -172,7 +208,7 @@ def default_of(f: dataclasses.Field) -> Any:
     return REQUIRED
 
 
-def _choices(meta: Any) -> list[str] | None:
+def choices_of(meta: Any) -> list[str] | None:
     choices = meta.get("choices")
     if choices is None:
         return None
@@ -218,7 +254,7 @@ def read_entries(cls: type, data: Any, path: str) -> dict[str, Any]:
 def read_key(cls: type, data: Any, key: str, path: str = "") -> Any:
     """The one key ``key`` that ``cls`` declares, read from the mapping ``data`` as :func:`read` reads it
     (its type, default, check and old names), ignoring the mapping's other keys."""
-    for f, hint in _fields(cls):
+    for f, hint in fields_of(cls):
         if f.name == key:
             return _read_key(Section(data, path), f, hint)
     raise KeyError(f"{cls.__name__} declares no key {key!r}")
@@ -226,13 +262,14 @@ def read_key(cls: type, data: Any, key: str, path: str = "") -> Any:
 
 def _instance(cls: type, sec: Section) -> Any:
     values: dict[str, Any] = {}
-    for f, hint in _fields(cls):
+    for f, hint in fields_of(cls):
         var = f.metadata.get("variant")
         if var is not None:
             values[f.name] = _read_variant(var, f.name, sec, values)
         else:
             values[f.name] = _read_key(sec, f, hint)
     obj = cls(**values)
+    object.__setattr__(obj, "_path", sec.path)
     obj.validate(sec.path)
     return obj
 
@@ -257,14 +294,21 @@ def _read_key(sec: Section, f: dataclasses.Field, hint: Any) -> Any:
                 raise ScenarioError(f"'{sec._key(old)}' and '{sec._key(key)}' are one setting: keep '{key}' only")
             notice(f"the scenario key '{sec._key(old)}' is deprecated: call it '{sec._key(key)}'")
             sec = Section({**sec.data, key: sec.data[old]}, sec.path)  # a view with the new name
-    if sh.settings is not None:
+    if sh.settings is not None and (isinstance(sec.data.get(key), dict) or sh.kinds == (dict,)):
         return _read_nested(sec, key, sh, default)
-    value = sec.get(key, sh.kinds, default)
+    if object in sh.kinds:   # any value (an annotation-less estimator parameter)
+        sec.mark(key)
+        value = sec.data.get(key)
+        if value is None and default is REQUIRED:
+            raise ScenarioError(f"missing key '{sec._key(key)}'")
+        return default if value is None else value
+    kinds = tuple(k for k in sh.kinds if k is not dict) if sh.settings else sh.kinds
+    value = sec.get(key, kinds, ... if default is REQUIRED else default)
     if value is default or value is None:
         return value
     if isinstance(value, list):
         value = _read_list(value, sh, sec._key(key))
-    choices = _choices(meta)
+    choices = choices_of(meta)
     if choices is not None and value not in choices:
         raise ScenarioError(f"'{sec._key(key)}' must be one of {choices}, got {value!r}")
     check = meta.get("check")
@@ -310,7 +354,7 @@ def coerce(cls: type, data: Any) -> Any:
     if not isinstance(data, dict):
         return data
     out = dict(data)
-    for f, hint in _fields(cls):
+    for f, hint in fields_of(cls):
         var = f.metadata.get("variant")
         if var is not None:
             option = _option(var, out)
@@ -352,65 +396,8 @@ def _coerce_value(value: Any, sh: Shape) -> Any:
     return value
 
 
-# --- the reference ----------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Entry:
-    """One key of the settings reference: ``path`` (``<name>`` where the scenario names an entry), its type,
-    default, unit, meaning, the allowed values, and ``when`` it applies (e.g. ``sensors.<name>.type =
-    ground_radar``; empty: always)."""
-
-    path: str
-    type: str
-    default: str
-    unit: str
-    doc: str
-    allowed: str = ""
-    when: str = ""
-
-
-def describe_default(f: dataclasses.Field) -> str:
-    if f.metadata.get("default_text"):
-        return f.metadata["default_text"]
-    value = default_of(f)
-    if value is REQUIRED:
-        return "required"
-    return "null" if value is None else _yaml_value(value)
-
-
-def _yaml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return "inf" if value == float("inf") else repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k}: {_yaml_value(v)}" for k, v in value.items()) + "}"
-    return str(value)
-
-
-def entries(cls: type, prefix: str = "", when: str = "") -> Iterator[Entry]:
-    """Every key ``cls`` declares, depth first, as reference :class:`Entry`s under key path ``prefix``."""
-    for f, hint in _fields(cls):
-        var = f.metadata.get("variant")
-        if var is not None:
-            base = prefix if var.inline else _join(prefix, f.name)
-            selector = _join(prefix, var.selected_by)
-            for name in var.names():
-                option = var.load(name)
-                if option is not None:
-                    yield from entries(option, base, f"{selector} = {name}")
-            continue
-        path, sh, meta = _join(prefix, f.name), shape(hint), f.metadata
-        check, choices = meta.get("check"), _choices(meta)
-        allowed = ", ".join(choices) if choices is not None else (check.text if check else "")
-        yield Entry(path, sh.text(), describe_default(f), meta.get("unit", ""), meta.get("doc", ""), allowed, when)
-        if sh.settings is not None:
-            yield from entries(sh.settings, f"{path}.<name>" if sh.entries else path, when)
-
-
-def _join(prefix: str, key: str) -> str:
+def join(prefix: str, key: str) -> str:
+    """The key path of ``key`` under ``prefix``."""
     return f"{prefix}.{key}" if prefix else key
 
 
@@ -446,9 +433,3 @@ class SectionReader:
         if sh.entries and isinstance(data, dict):
             return {k: coerce(sh.settings, v) for k, v in data.items()}
         return coerce(sh.settings, data)
-
-    def entries(self) -> Iterator[Entry]:
-        sh = shape(self.schema)
-        yield Entry(self.key, "mapping of named entries" if sh.entries else "mapping", "{}", "", self.doc)
-        if not self.defaults_of:
-            yield from entries(sh.settings, f"{self.key}.<name>" if sh.entries else self.key)

@@ -39,13 +39,15 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.graph import resolve_estimators
 from bench_engine.labels import POSITION, VELOCITY
 from bench_engine.scenario import default_estimators
+from bench_engine.settings import NON_NEGATIVE, NoKeys, Settings, setting, variant
 from bench_eval import metrics
 from bench_models.truth_dynamics import truth_dynamics
 from tracker_filters.builders import build_dynamics, build_filter_stack, measurement_source
+from tracker_filters.filter_settings import DynamicsSettings
 from tracker_filters.pcrb import pcrb_along_truth
 
 Run = Any
@@ -69,32 +71,24 @@ class BoundSeries:
 @dataclass(frozen=True)
 class Bound:
     """``run(bag data, params) -> BoundSeries``; ``check(cfg, params)`` raises ScenarioError naming a bad
-    value before any run starts."""
+    value before any run starts; ``params``: the Settings class of its parameters."""
 
-    run: Callable[[Run, dict], BoundSeries]
-    check: Callable[[dict, dict], None]
+    run: Callable[[Run, Any], BoundSeries]
+    check: Callable[[dict, Any], None]
+    params: type = NoKeys
 
 
-@dataclass
-class BoundRun:
+@dataclass(frozen=True, kw_only=True)
+class BoundRun(Settings):
     """One entry of ``scoring.bounds``: the registered ``bound``, its ``params``, the summaries' start."""
 
-    bound: str
-    params: dict
-    from_s: float
-
-
-def read_bounds(sec: Section, cfg: dict) -> dict[str, BoundRun]:
-    """``scoring.bounds`` read strictly, each bound's params checked by the bound itself."""
-    bounds = {}
-    for name in sec.keys():
-        entry = sec.section(name)
-        bounds[name] = BoundRun(entry.choice("bound", plugins.names("bounds")), dict(entry.get("params", dict, {})),
-                                entry.non_negative("from_s", 0.0))
-        entry.finish()
-        plugins.load("bounds", bounds[name].bound).check(cfg, bounds[name].params)
-    sec.finish()
-    return bounds
+    bound: str = setting(doc="a registered bound (entry-point group tracking_bench.bounds)",
+                         choices=lambda: plugins.names("bounds"))
+    params: Settings = variant("bound", lambda: plugins.names("bounds"),
+                               lambda name: plugins.load("bounds", name).params, inline=False,
+                               doc="the bound's parameters")
+    from_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the summaries (efficiency) start this long "
+                                                                   "after the first truth sample")
 
 
 def _bound_at(series: BoundSeries, t: np.ndarray, labels: list[str], tol: float = metrics.DEFAULT_TOL_S) -> np.ndarray:
@@ -180,33 +174,46 @@ def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[Run],
 # --- pcrb: the posterior Cramér-Rao bound along the truth (tracker_filters.pcrb) -----------------------------
 
 
-def _pcrb_settings(cfg: dict, params: dict):
-    """(dynamics, prior filter, sensors) of the pcrb params: ``dynamics`` (required): ``truth``, the truth
-    model's own deterministic dynamics (bench_models.truth_dynamics), or a dynamics section as a filter's
-    (a registered model and its process noise); ``prior`` (the filter whose initialiser gives J_0; default the
-    first of the scenario's estimators); ``sensors`` (default: that filter's)."""
-    sec = Section(params, "scoring.bounds.params")
-    if sec.data.get("dynamics") == "truth":
-        sec.mark("dynamics")
+@dataclass(frozen=True, kw_only=True)
+class PcrbParameters(Settings):
+    """The pcrb bound's ``params``."""
+
+    dynamics: str | DynamicsSettings = setting(
+        doc="truth: the truth model's own deterministic dynamics (bench_models.truth_dynamics); or a dynamics "
+            "section as a filter's (a registered model and its process noise)")
+    prior: str | None = setting(None, doc="the filter whose initialiser gives J_0",
+                                default_text="the first of the scenario's estimators")
+    sensors: list[str] | None = setting(None, doc="the measurements whose information it adds",
+                                        default_text="the prior filter's")
+
+    def validate(self, path: str) -> None:
+        if isinstance(self.dynamics, str) and self.dynamics != "truth":
+            raise ScenarioError(f"'{path}.dynamics' must be truth or a dynamics section, got {self.dynamics!r}")
+
+
+def _pcrb_settings(cfg: dict, params: PcrbParameters):
+    """(dynamics, prior filter, sensors) of the pcrb params (:class:`PcrbParameters`)."""
+    if params.dynamics == "truth":
         dynamics = truth_dynamics(cfg)
     else:
-        dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
+        dynamics = build_dynamics(params.dynamics, cfg)
     defaults = default_estimators(cfg) or []
-    prior = sec.get("prior", str, defaults[0] if defaults else ...)
+    prior = params.prior or (defaults[0] if defaults else None)
+    if prior is None:
+        raise ScenarioError(f"missing key '{params.where('prior')}' (the scenario selects no estimators)")
     if prior not in (cfg.get("filters") or {}) and prior not in resolve_estimators(cfg, None):
-        raise ScenarioError(f"'scoring.bounds.params.prior': '{prior}' is not a filter of the scenario")
-    sensors = sec.get("sensors", list, list(build_filter_stack(cfg, prior).sensors))
-    sec.finish()
+        raise ScenarioError(f"'{params.where('prior')}': '{prior}' is not a filter of the scenario")
+    sensors = params.sensors or list(build_filter_stack(cfg, prior).sensors)
     return dynamics, prior, sensors
 
 
-def _pcrb_check(cfg: dict, params: dict) -> None:
+def _pcrb_check(cfg: dict, params: PcrbParameters) -> None:
     dynamics, _, sensors = _pcrb_settings(cfg, params)
     for name in sensors:
         measurement_source(cfg, name, dynamics.labels)
 
 
-def _pcrb_run(data: Run, params: dict) -> BoundSeries:
+def _pcrb_run(data: Run, params: PcrbParameters) -> BoundSeries:
     """The PCRB (tracker_filters.pcrb) of the run: the truth at the steps where the bound's sensors delivered a
     scan, F and Q of ``dynamics`` between them, each scan's information H^T R^{-1} H with the sensor's own model
     and R. J_0 is the inverse of the prior filter's initial covariance, from its initialiser applied to the
@@ -238,4 +245,4 @@ def _pcrb_run(data: Run, params: dict) -> BoundSeries:
     return BoundSeries(steps, t, labels, pcrb_along_truth(dynamics, t, x, scans, J0))
 
 
-PCRB = Bound(run=_pcrb_run, check=_pcrb_check)
+PCRB = Bound(run=_pcrb_run, check=_pcrb_check, params=PcrbParameters)

@@ -11,12 +11,12 @@ time series its plots need.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
-from bench_engine.config import Section
 from bench_engine.labels import ORBIT
+from bench_engine.settings import NON_NEGATIVE, POSITIVE, NoKeys, Settings, setting
 from bench_eval import metrics
 from bench_eval.scoring import BagData
 
@@ -25,14 +25,15 @@ Tracks = dict[str, list[metrics.Track]]
 
 @dataclass(frozen=True)
 class Metric:
-    """A metric family: ``options(section) -> dict``, ``score(tracks, runs, options) -> JSON-ready dict per
-    filter``, ``series(tracks, runs, options) -> plot series per filter``, and optionally ``summary(one
-    filter's scores) -> parts`` the scorer's one-line summary shows (bench_eval.scoring.print_summary) beside
-    the generic ones."""
+    """A metric family: ``options``, the Settings class of its keys in the ``scoring`` section (beside
+    ``metric``, ``offline`` and ``bounds``); ``score(tracks, runs, options) -> JSON-ready dict per estimator``;
+    ``series(tracks, runs, options) -> plot series per estimator``; and optionally ``summary(one estimator's
+    scores) -> parts`` the scorer's one-line summary shows (bench_eval.scoring.print_summary) beside the generic
+    ones."""
 
-    options: Callable[[Section], dict]
-    score: Callable[[Tracks, list[BagData], dict], dict]
-    series: Callable[[Tracks, list[BagData], dict], dict]
+    options: type
+    score: Callable[[Tracks, list[BagData], Any], dict]
+    series: Callable[[Tracks, list[BagData], Any], dict]
     summary: Callable[[dict], list[str]] | None = None
 
 
@@ -53,15 +54,25 @@ def error_series(tracks: Tracks, runs: list[BagData] | None = None, options: dic
     return series
 
 
-def _error_options(sec: Section) -> dict:
-    return {"skip_s": sec.non_negative("skip_s", 0.0),
-            "position_threshold": sec.positive("position_threshold", 0.5),
-            "velocity_threshold": sec.positive("velocity_threshold", 0.02),
-            "hold_after_s": sec.get("hold_after_s", float, None, lambda v: v >= 0, ">= 0")}
+@dataclass(frozen=True, kw_only=True)
+class ErrorOptions(Settings):
+    """The ``errors`` family's keys of the ``scoring`` section."""
+
+    skip_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the start of each run not scored")
+    position_threshold: float = setting(0.5, unit="m", check=POSITIVE,
+                                        doc="settled: every position error component below it")
+    velocity_threshold: float = setting(0.02, unit="m/s", check=POSITIVE,
+                                        doc="settled: every velocity error component below it")
+    hold_after_s: float | None = setting(None, unit="s", check=NON_NEGATIVE,
+                                         doc="per run: do the thresholds hold from then on (null: not scored)")
 
 
-CONVERGENCE = Metric(options=lambda sec: {},
+def _score_errors(tracks: Tracks, runs: list[BagData], o: ErrorOptions) -> dict:
+    return metrics.score_errors(tracks, skip_s=o.skip_s, position_threshold=o.position_threshold,
+                                velocity_threshold=o.velocity_threshold, hold_after_s=o.hold_after_s)
+
+
+CONVERGENCE = Metric(options=NoKeys,
                      score=lambda tracks, runs, options: metrics.score_convergence(tracks),
                      series=lambda tracks, runs, options: metrics.convergence_series(tracks))
-ERRORS = Metric(options=_error_options, score=lambda tracks, runs, options: metrics.score_errors(tracks, **options),
-                series=error_series)
+ERRORS = Metric(options=ErrorOptions, score=_score_errors, series=error_series)

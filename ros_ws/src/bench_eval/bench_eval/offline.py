@@ -17,12 +17,13 @@ The scorer runs each over every bag and scores its output like another filter's 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_engine.graph import resolve_estimators
+from bench_engine.settings import POSITIVE, NoKeys, Settings, at_least, setting
 from bench_eval.scoring import BagData, Estimates
 from tracker_filters.builders import build_filter_stack
 from tracker_filters.differentiation import newton_derivative, savgol_derivative
@@ -32,10 +33,11 @@ from tracker_filters.smoothing import smooth_estimates
 @dataclass(frozen=True)
 class OfflineEstimator:
     """``run(bag data, source estimator name, params) -> Estimates``; ``check(cfg, source, params)`` raises
-    ScenarioError naming a bad value before any run starts."""
+    ScenarioError naming a bad value before any run starts; ``params``: the Settings class of its parameters."""
 
-    run: Callable[[BagData, str, dict], Estimates]
-    check: Callable[[dict, str, dict], None]
+    run: Callable[[BagData, str, Any], Estimates]
+    check: Callable[[dict, str, Any], None]
+    params: type = NoKeys
 
 
 def _source_dynamics(cfg: dict, source: str):
@@ -44,15 +46,13 @@ def _source_dynamics(cfg: dict, source: str):
     return build_filter_stack(cfg, source).filter.dynamics
 
 
-def _rts_check(cfg: dict, source: str, params: dict) -> None:
-    if params:
-        raise ScenarioError(f"'scoring.offline' rts takes no params, got {sorted(params)}")
+def _rts_check(cfg: dict, source: str, params: NoKeys) -> None:
     dynamics = _source_dynamics(cfg, source)
     if not hasattr(dynamics, "transition_matrix") or not hasattr(dynamics, "process_noise"):
         raise ScenarioError(f"'scoring.offline': the dynamics of '{source}' give no transition matrix")
 
 
-def _rts_run(data: BagData, source: str, params: dict) -> Estimates:
+def _rts_run(data: BagData, source: str, params: NoKeys) -> Estimates:
     """Fixed-interval RTS smoothing (tracker_filters.smoothing) of ``source``'s estimates, with the source
     filter's own dynamics model between consecutive estimate times."""
     est = data.estimates[source]
@@ -70,58 +70,64 @@ def measurement_series(data: BagData, source: str) -> tuple[np.ndarray, np.ndarr
     return steps, np.array([data.truth[int(k)][0] for k in steps]), np.array([meas[int(k)] for k in steps])
 
 
-def _differentiation_check(keys: dict[str, type | tuple[type, ...]]) -> Callable[[dict, str, dict], None]:
-    def check(cfg: dict, source: str, params: dict) -> None:
-        names = list((cfg.get("sensors") or {})) + list((cfg.get("derived_measurements") or {}))
-        if source not in names:
-            raise ScenarioError(f"'scoring.offline': source '{source}' is not a measurement of the scenario "
-                                f"({names})")
-        unknown, missing = set(params) - set(keys) - {"labels", "max_gap"}, set(keys) - set(params)
-        if unknown or missing or not isinstance(params.get("labels"), list):
-            raise ScenarioError(f"'scoring.offline' numerical differentiation of '{source}' takes params "
-                                f"{sorted(keys)}, labels (positions then velocities) and optionally max_gap "
-                                f"(s), got {sorted(params)}")
-        gap = params.get("max_gap", 1.0)
-        if isinstance(gap, bool) or not isinstance(gap, (int, float)) or not gap > 0:
-            raise ScenarioError(f"'scoring.offline' params.max_gap must be a positive number of seconds, got {gap!r}")
-        for key, kind in keys.items():
-            if not isinstance(params[key], kind) or isinstance(params[key], bool) or params[key] < 1:
-                raise ScenarioError(f"'scoring.offline' params.{key} must be a positive "
-                                    f"{'integer' if kind is int else 'number'}, got {params[key]!r}")
-    return check
+@dataclass(frozen=True, kw_only=True)
+class Differentiation(Settings):
+    """The parameters every numerical differentiation takes."""
+
+    labels: list[str] = setting(doc="the labels of the result: the source's positions, then their velocities")
+    max_gap: float = setting(float("inf"), unit="s", check=POSITIVE, doc="no window spans a longer gap")
 
 
-def _differentiated(data: BagData, source: str, params: dict, derivative) -> Estimates:
+@dataclass(frozen=True, kw_only=True)
+class NewtonParameters(Differentiation):
+    """``newton``: Newton's divided-difference polynomial."""
+
+    order: int = setting(check=at_least(1), doc="the polynomial's degree")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SavgolParameters(Differentiation):
+    """``savgol``: Savitzky-Golay."""
+
+    window_s: float = setting(unit="s", check=at_least(1, "a number"), doc="the window's length in time")
+    polyorder: int = setting(check=at_least(1), doc="the least-squares polynomial's degree")
+
+
+def _differentiation_check(cfg: dict, source: str, params: Differentiation) -> None:
+    names = list((cfg.get("sensors") or {})) + list((cfg.get("derived_measurements") or {}))
+    if source not in names:
+        raise ScenarioError(f"'scoring.offline': source '{source}' is not a measurement of the scenario ({names})")
+
+
+def _differentiated(data: BagData, source: str, params: Differentiation, derivative) -> Estimates:
     """Positions as measured with their numerical derivative; no covariance (NaN): these are not filters."""
     steps, t, z = measurement_series(data, source)
     x = np.hstack([z, derivative(t, z)])
-    if x.shape[1] != len(params["labels"]):
-        raise ScenarioError(f"'scoring.offline': {len(params['labels'])} labels for {x.shape[1]} components "
+    if x.shape[1] != len(params.labels):
+        raise ScenarioError(f"'scoring.offline': {len(params.labels)} labels for {x.shape[1]} components "
                             f"(positions of '{source}' and their derivatives)")
     P = np.full((len(t), x.shape[1], x.shape[1]), np.nan)
-    return Estimates(steps, t, x, P, list(params["labels"]), {})
+    return Estimates(steps, t, x, P, list(params.labels), {})
 
 
-def _newton_run(data: BagData, source: str, params: dict) -> Estimates:
+def _newton_run(data: BagData, source: str, params: NewtonParameters) -> Estimates:
     """Newton's divided-difference polynomial of degree ``order`` (paper 002's "Newton" method); windows never
     span a gap longer than ``max_gap`` seconds, and are one-sided at the ends of the day and of every gap."""
-    gap = float(params.get("max_gap", np.inf))
-    return _differentiated(data, source, params, lambda t, z: newton_derivative(t, z, params["order"], gap))
+    return _differentiated(data, source, params, lambda t, z: newton_derivative(t, z, params.order, params.max_gap))
 
 
-def _savgol_run(data: BagData, source: str, params: dict) -> Estimates:
+def _savgol_run(data: BagData, source: str, params: SavgolParameters) -> Estimates:
     """Savitzky-Golay: least-squares polynomial of ``polyorder`` over a window of ``window_s`` seconds (the
     largest odd number of samples it holds at the series' median spacing, at least polyorder + 2), so the
     window keeps its length in time whatever the sampling interval."""
-    gap = float(params.get("max_gap", np.inf))
 
     def derivative(t: np.ndarray, z: np.ndarray) -> np.ndarray:
         spacing = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-        n = int(params["window_s"] / spacing) + 1
-        window = max(n if n % 2 else n - 1, params["polyorder"] + 2 + params["polyorder"] % 2)
-        return savgol_derivative(t, z, window, params["polyorder"], gap)
+        n = int(params.window_s / spacing) + 1
+        window = max(n if n % 2 else n - 1, params.polyorder + 2 + params.polyorder % 2)
+        return savgol_derivative(t, z, window, params.polyorder, params.max_gap)
     return _differentiated(data, source, params, derivative)
 
 
-NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check({"order": int}))
-SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check({"window_s": (int, float), "polyorder": int}))
+NEWTON = OfflineEstimator(run=_newton_run, check=_differentiation_check, params=NewtonParameters)
+SAVGOL = OfflineEstimator(run=_savgol_run, check=_differentiation_check, params=SavgolParameters)

@@ -18,58 +18,60 @@ from bench_engine import plugins, yamlio
 from bench_engine.bag_errors import BagDamaged
 from bench_engine.bag_reader import BagReader
 from bench_engine.columns import Table
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_eval import metrics
+from bench_engine.settings import SectionReader, Settings, read, setting, variant
 from bench_eval.claims import diverged
 from bench_eval.consistency import innovation_scores
-from bench_eval.bounds import compute_bounds, read_bounds, score_bounds
+from bench_eval.bounds import BoundRun, compute_bounds, score_bounds
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
 from bench_models.states import error_labels
 
 
 
-@dataclass
-class OfflineRun:
-    """One offline estimator of the scoring section: ``estimator`` (registered in tracking_bench.offline) run
-    over the recorded estimates of ``source`` with ``params``; scored under its own name."""
+@dataclass(frozen=True, kw_only=True)
+class OfflineRun(Settings):
+    """One entry of ``scoring.offline``: the offline ``estimator`` (registered in tracking_bench.offline) run over
+    the recorded estimates or measurements of ``source`` with its ``params``; scored under its own name."""
 
-    estimator: str
-    source: str
-    params: dict
+    estimator: str = setting(doc="a registered offline estimator (entry-point group tracking_bench.offline)",
+                             choices=lambda: plugins.names("offline"))
+    source: str = setting(doc="the estimator or measurement of the run it runs over")
+    params: Settings = variant("estimator", lambda: plugins.names("offline"),
+                               lambda name: plugins.load("offline", name).params, inline=False,
+                               doc="the offline estimator's parameters")
 
 
-@dataclass
-class ScoringOptions:
-    metric: str
-    """A registered metric family (entry-point group tracking_bench.metrics)."""
-    options: dict
-    offline: dict[str, OfflineRun]
-    bounds: dict = field(default_factory=dict)
-    """Lower bounds to score the estimators against: name -> bench_eval.bounds.BoundRun."""
+@dataclass(frozen=True, kw_only=True)
+class ScoringOptions(Settings):
+    """The scenario's ``scoring`` section: the metric family with its options, offline estimators and bounds."""
+
+    metric: str = setting(doc="a registered metric family (entry-point group tracking_bench.metrics)",
+                          choices=lambda: plugins.names("metrics"))
+    offline: dict[str, OfflineRun] = setting({}, doc="offline estimators run over every bag and scored under "
+                                                     "their names (bench_eval.offline)")
+    bounds: dict[str, BoundRun] = setting({}, doc="lower bounds to score the estimators against (bench_eval.bounds)")
+    options: Settings = variant("metric", lambda: plugins.names("metrics"),
+                                lambda name: plugins.load("metrics", name).options)
+
 
 
 def scoring_options(cfg: dict) -> ScoringOptions:
-    """The scenario's ``scoring`` section, read strictly: ``metric`` (a registered family) and its options,
-    ``offline: {NAME: {estimator, source, params}}`` and ``bounds: {NAME: {bound, params, from_s}}``
-    (bench_eval.bounds)."""
-    sec = Section(cfg.get("scoring"), "scoring")
-    metric = sec.choice("metric", plugins.names("metrics"))
-    options = plugins.load("metrics", metric).options(sec)
-    offline = {}
-    off = sec.section("offline")
-    for name in off.keys():
-        entry = off.section(name)
-        offline[name] = OfflineRun(entry.choice("estimator", plugins.names("offline")), entry.get("source", str),
-                                   dict(entry.get("params", dict, {})))
-        entry.finish()
-        plugins.load("offline", offline[name].estimator).check(cfg, offline[name].source, offline[name].params)
-    off.finish()
-    bounds = read_bounds(sec.section("bounds"), cfg)
-    sec.finish()
-    return ScoringOptions(metric, options, offline, bounds)
+    """The scenario's ``scoring`` section, read strictly; each offline estimator and bound then checks its
+    source and parameters against the scenario."""
+    opts = read(ScoringOptions, cfg.get("scoring"), "scoring")
+    for job in opts.offline.values():
+        plugins.load("offline", job.estimator).check(cfg, job.source, job.params)
+    for run in opts.bounds.values():
+        plugins.load("bounds", run.bound).check(cfg, run.params)
+    return opts
+
+
+SCORING = SectionReader("scoring", ScoringOptions, "how the bags are scored: the metric family, offline "
+                        "estimators and bounds (bench_eval.scoring)", scoring_options)
 
 
 @dataclass

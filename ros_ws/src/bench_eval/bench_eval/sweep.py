@@ -42,7 +42,7 @@ from bench_engine.config import (ScenarioError, Section, apply_overrides, load_s
                                  select_variant)
 from bench_engine.graph import resolve_estimators
 from bench_engine.launcher import prepare_run
-from tracker_filters.filter_settings import filter_config
+from tracker_filters.filter_settings import filter_config, filter_key
 from bench_eval.metrics import json_ready
 from bench_eval.report import Section as ReportSection
 from bench_eval.report import generic_sections, render
@@ -227,8 +227,9 @@ def cell_record(grid: Grid, cell: Cell) -> dict:
     model and sigma_accel (for a filter; None for the others)."""
     estimators = {}
     for name in resolve_estimators(cell.cfg, None):
-        dyn = filter_config(cell.cfg, name).get("dynamics") or {}
-        estimators[name] = {"model": dyn.get("model"), "sigma_accel": dyn.get("sigma_accel")}
+        dyn = filter_key(cell.cfg, name, "dynamics") if "dynamics" in filter_config(cell.cfg, name) else None
+        estimators[name] = {"model": dyn.model if dyn else None,
+                            "sigma_accel": getattr(dyn.options, "sigma_accel", None) if dyn else None}
     found = study(grid.scenario)
     paper = found.sweep_case(cell.cfg) if found and found.sweep_case else None
     return {"id": cell.id, "labels": cell.labels, "values": cell.values, "variants": cell.variants,

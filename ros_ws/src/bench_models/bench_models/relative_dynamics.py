@@ -17,12 +17,11 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.linalg import expm
 
-from bench_engine.labels import ORBIT
+from bench_engine.labels import BIAS, ORBIT
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.hill import cw_matrix
 from bench_models.orbit_dynamics import white_acceleration_q
 
-BIAS = ("bx", "by", "bz")
 _CACHE_SIZE = 32
 """Steps T remembered per model (the oldest is dropped beyond that)."""
 

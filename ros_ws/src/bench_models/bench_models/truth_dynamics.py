@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
 from orbit_sim import cowell, gravity, relative
-from orbit_sim.truth import build_earth, orbit_state
+from orbit_sim.truth import build_earth, read_truth
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWDynamics
 
@@ -76,12 +76,12 @@ class RelativeOrbitDynamics:
 def truth_dynamics(cfg: dict):
     """The dynamics of the scenario's ``truth`` section (module docstring); ScenarioError for a truth model
     without one here."""
-    truth = cfg.get("truth") or {}
-    model, earth = truth.get("model"), build_earth(cfg)
+    truth, earth = read_truth(cfg), build_earth(cfg)
+    model = truth.model
     if model in ("cowell_j2", "cowell_twobody", "sgp4"):
         return OrbitJ2Dynamics(0.0, earth.mu, earth.j2 if model != "cowell_twobody" else 0.0, earth.re)
     if model in ("hill_cw", "formation_j2", "formation_twobody"):
-        chief0 = orbit_state(Section(dict(truth.get("chief") or {}), "truth.chief"), earth.mu)
+        chief0 = truth.options.chief.state(earth.mu)
         if model == "hill_cw":
             return CWDynamics(float(np.sqrt(earth.mu / np.linalg.norm(chief0[:3]) ** 3)), 0.0)
         return RelativeOrbitDynamics(chief0, earth.mu, earth.j2 if model == "formation_j2" else 0.0, earth.re)

@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 from sgp4.api import WGS72, Satrec
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
 from bench_engine.timegrid import TimeGrid
 from orbit_sim.frames import julian_date
-from orbit_sim.truth import Truth
+from orbit_sim.truth import Sgp4, Truth
 
 LINE_LENGTH = 69
 MAX_FILE_BYTES = 64 * 1024
@@ -156,21 +156,18 @@ def read_tle_file(path: str | Path) -> ElementSet:
     return read_tle(text.splitlines(), str(path))
 
 
-def element_set(sec: Section) -> ElementSet:
-    """The element set of a ``truth`` section: ``tle`` (its lines) or ``tle_file`` (a path), exactly one."""
-    if ("tle" in sec.data) == ("tle_file" in sec.data):
-        raise ScenarioError(f"'{sec.path}' needs exactly one of 'tle' (the element set's lines) or 'tle_file'")
+def element_set(sec: Sgp4) -> ElementSet:
+    """The element set of the ``truth`` section's keys (orbit_sim.truth.Sgp4): ``tle`` (its lines) or
+    ``tle_file`` (a path)."""
     try:
-        if "tle" in sec.data:
-            sec.mark("tle_file")
-            return read_tle(sec.get("tle", list), f"'{sec.path}.tle'")
-        sec.mark("tle")
-        return read_tle_file(sec.get("tle_file", str))
+        if sec.tle is not None:
+            return read_tle(sec.tle, f"'{sec.where('tle')}'")
+        return read_tle_file(sec.tle_file)
     except TleError as err:
         raise ScenarioError(str(err)) from None
 
 
-def tle_truth(sec: Section, model: str, earth, grid: TimeGrid) -> Truth:
+def tle_truth(sec: Sgp4, model: str, earth, grid: TimeGrid, seed: int = 0) -> Truth:
     """The ``sgp4`` truth model: the element set's TEME states on the grid (frame ``eci``)."""
     tle = element_set(sec)
     if grid.epoch is None:

@@ -21,12 +21,33 @@ import numpy as np
 
 from orbit_sim import cowell, frames, gravity, hill, kepler, relative
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
 from bench_engine.scenario import scenario_seed
+from bench_engine.settings import (POSITIVE, Builder, Check, SectionReader, Settings, read, setting,
+                                   variant)
 from bench_engine.timegrid import TimeGrid, build_time
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
+
+
+@dataclass(frozen=True, kw_only=True)
+class EarthSettings(Settings):
+    """The scenario's ``earth`` section: the Earth model shared by truth, sensors and filters (they must agree
+    on ECI <-> ECEF)."""
+
+    mu: float = setting(MU_EARTH, unit="m^3/s^2", doc="gravitational parameter GM", check=POSITIVE)
+    j2: float = setting(J2_EARTH, doc="second zonal harmonic (oblateness), unnormalised")
+    re: float = setting(R_EARTH, unit="m", doc="equatorial radius", check=POSITIVE)
+    rotation_rate: float = setting(OMEGA_EARTH, unit="rad/s", doc="rotation rate of ECEF about ECI's z axis")
+    theta0_deg: float | None = setting(None, unit="deg", doc="Earth rotation angle (ECI x to ECEF x) at t = 0, "
+                                                             "without a calendar epoch (with time.epoch: the "
+                                                             "Greenwich mean sidereal time of the epoch)",
+                                       default_text="0, or the sidereal time of time.epoch")
+    ut1_minus_utc_s: float | None = setting(None, unit="s", doc="UT1 - UTC at the epoch (with time.epoch only)",
+                                            check=Check(lambda v: abs(v) < 1.0,
+                                                        "in (-1, 1) s (IERS keeps |UT1 - UTC| < 0.9 s)"),
+                                            default_text="0")
 
 
 @dataclass(frozen=True)
@@ -49,27 +70,26 @@ class Truth:
 
 
 def build_earth(cfg: dict) -> Earth:
-    """The ``earth`` section. The Earth rotation angle at t = 0 is ``theta0_deg`` or, when the scenario has a
-    calendar epoch (``time.epoch``), the Greenwich mean sidereal time of the epoch (frames.gmst82, of UT1 = UTC +
-    ``ut1_minus_utc_s``, default 0; |UT1 - UTC| < 0.9 s): ``eci`` is then TEME and ECEF PEF (orbit_sim.frames).
-    Giving both is an error: they would disagree."""
-    sec = Section(cfg.get("earth"), "earth")
+    """The Earth of the scenario's ``earth`` section (:class:`EarthSettings`). The Earth rotation angle at t = 0 is
+    ``theta0_deg`` or, when the scenario has a calendar epoch (``time.epoch``), the Greenwich mean sidereal time of
+    the epoch (frames.gmst82, of UT1 = UTC + ``ut1_minus_utc_s``, default 0; |UT1 - UTC| < 0.9 s): ``eci`` is then
+    TEME and ECEF PEF (orbit_sim.frames). Giving both is an error: they would disagree."""
+    sec = read(EarthSettings, cfg.get("earth"), "earth")
     epoch = build_time(cfg).epoch if isinstance(cfg.get("time"), dict) and "epoch" in cfg["time"] else None
-    dut1 = sec.get("ut1_minus_utc_s", float, 0.0, lambda v: abs(v) < 1.0, "in (-1, 1) s (IERS keeps |UT1 - UTC| < 0.9 s)")
     if epoch is None:
-        if "ut1_minus_utc_s" in sec.data:
+        if sec.ut1_minus_utc_s is not None:
             raise ScenarioError("'earth.ut1_minus_utc_s' needs a calendar epoch, 'time.epoch'")
-        theta0 = np.radians(sec.get("theta0_deg", float, 0.0))
-    elif sec.get("theta0_deg", float, None) is not None:
+        theta0 = np.radians(sec.theta0_deg or 0.0)
+    elif sec.theta0_deg is not None:
         raise ScenarioError("'earth.theta0_deg' and 'time.epoch' both fix the Earth's orientation at t = 0: with an "
                             "epoch, theta0 is the sidereal time of the epoch; remove theta0_deg (or set it to null)")
     else:
+        dut1 = sec.ut1_minus_utc_s or 0.0
         theta0 = frames.gmst82(*frames.julian_date(epoch + datetime.timedelta(seconds=dut1)))
-    earth = Earth(mu=sec.positive("mu", MU_EARTH), j2=sec.get("j2", float, J2_EARTH),
-                  re=sec.positive("re", R_EARTH), rotation_rate=sec.get("rotation_rate", float, OMEGA_EARTH),
-                  theta0=float(theta0))
-    sec.finish()
-    return earth
+    return Earth(mu=sec.mu, j2=sec.j2, re=sec.re, rotation_rate=sec.rotation_rate, theta0=float(theta0))
+
+
+EARTH = SectionReader("earth", EarthSettings, "the Earth model every truth, sensor and filter shares", build_earth)
 
 
 A_RANGE_M = (1.0e6, 1.0e10)
@@ -77,33 +97,118 @@ A_RANGE_M = (1.0e6, 1.0e10)
 motion) to beyond the Moon; outside, a typo is likelier than intent."""
 
 
-def semi_major_axis(sec: Section, mu: float) -> float:
-    """``a`` [m], or ``period_s`` converted with Kepler's third law (exactly one of them), in A_RANGE_M."""
-    if ("a" in sec.data) == ("period_s" in sec.data):
-        raise ScenarioError(f"'{sec.path}' needs exactly one of 'a' (m) or 'period_s' (s)")
-    if "a" in sec.data:
-        sec.mark("period_s")
-        a, key = sec.positive("a"), "a"
-    else:
-        sec.mark("a")
-        period, key = sec.positive("period_s"), "period_s"
-        if not all(2.0 * np.pi * np.sqrt(lim**3 / mu) * f <= period * f for lim, f in zip(A_RANGE_M, (1, -1))):
-            raise ScenarioError(f"'{sec.path}.period_s' is {period:g} s; it must give a semi-major axis between "
+@dataclass(frozen=True, kw_only=True)
+class OrbitElements(Settings):
+    """One spacecraft's Keplerian elements at the epoch: ``a`` or ``period_s`` (exactly one), the rest default 0."""
+
+    a: float | None = setting(None, unit="m", doc="semi-major axis (exactly one of a and period_s)",
+                              check=POSITIVE)
+    period_s: float | None = setting(None, unit="s", doc="orbital period, converted to a with Kepler's third law "
+                                                         "(exactly one of a and period_s)", check=POSITIVE)
+    e: float = setting(0.0, doc="eccentricity", check=Check(lambda v: 0.0 <= v < 1.0, "in [0, 1)"))
+    i_deg: float = setting(0.0, unit="deg", doc="inclination")
+    raan_deg: float = setting(0.0, unit="deg", doc="right ascension of the ascending node")
+    argp_deg: float = setting(0.0, unit="deg", doc="argument of perigee")
+    M_deg: float = setting(0.0, unit="deg", doc="mean anomaly at the epoch")
+
+    def validate(self, path: str) -> None:
+        if (self.a is None) == (self.period_s is None):
+            raise ScenarioError(f"'{path}' needs exactly one of 'a' (m) or 'period_s' (s)")
+
+    def semi_major_axis(self, mu: float) -> float:
+        """``a`` [m], or ``period_s`` converted with Kepler's third law, in A_RANGE_M."""
+        a = self.a if self.a is not None else float((mu * (self.period_s / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
+        if not A_RANGE_M[0] <= a <= A_RANGE_M[1]:
+            key = self.where("a" if self.a is not None else "period_s")
+            raise ScenarioError(f"'{key}' gives a semi-major axis of {a:.4g} m; it must be between "
                                 f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m")
-        a = float((mu * (period / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
-    if not A_RANGE_M[0] <= a <= A_RANGE_M[1]:
-        raise ScenarioError(f"'{sec.path}.{key}' gives a semi-major axis of {a:.4g} m; it must be between "
-                            f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m")
-    return a
+        return a
+
+    def state(self, mu: float) -> np.ndarray:
+        """ECI state at the epoch."""
+        angles = np.radians([self.i_deg, self.raan_deg, self.argp_deg, self.M_deg])
+        return kepler.kepler_to_cartesian(self.semi_major_axis(mu), self.e, *angles, mu=mu)
 
 
-def orbit_state(sec: Section, mu: float) -> np.ndarray:
-    """ECI state at the epoch from Keplerian elements (angles in degrees; ``a`` in metres or ``period_s``)."""
-    a = semi_major_axis(sec, mu)
-    e = sec.get("e", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1)")
-    angles = [np.radians(sec.get(k, float, 0.0)) for k in ("i_deg", "raan_deg", "argp_deg", "M_deg")]
-    sec.finish()
-    return kepler.kepler_to_cartesian(a, e, *angles, mu=mu)
+@dataclass(frozen=True, kw_only=True)
+class SingleOrbit(Settings):
+    """``cowell_j2`` / ``cowell_twobody``: one spacecraft in ECI."""
+
+    orbit: OrbitElements = setting(doc="the spacecraft's orbit")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProjectedCircularOrbit(Settings):
+    """A deputy on a projected circular orbit about the chief, bounded under CW."""
+
+    size: float = setting(unit="m", doc="diameter of the circle in the along-track/cross-track plane",
+                          check=POSITIVE)
+    phase_deg: float = setting(0.0, unit="deg", doc="phase of the deputy on it at the epoch")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Deputy(Settings):
+    """The deputy's initial state relative to the chief: ``pco``, or ``position`` (and ``velocity``) in the axes
+    of ``convention``."""
+
+    pco: ProjectedCircularOrbit | None = setting(None, doc="a projected circular orbit (instead of position)")
+    position: list[float] | None = setting(None, unit="m", doc="relative position, LVLH (instead of pco)")
+    velocity: list[float] = setting([0.0, 0.0, 0.0], unit="m/s", doc="relative velocity as seen in LVLH")
+    convention: str = setting("radial_along_normal", choices=relative.CONVENTIONS,
+                              doc="the axes of position and velocity: radial_along_normal (x radial, y along-track, "
+                                  "z orbit normal) or along_radial")
+    drift_free: bool = setting(False, doc="correct the deputy's along-track velocity so that its mean motion "
+                                          "equals the chief's (no secular drift; two-body or J2 truths)")
+
+    def validate(self, path: str) -> None:
+        if (self.pco is None) == (self.position is None):
+            raise ScenarioError(f"'{path}' needs exactly one of 'pco' or 'position'")
+        if self.position is not None and (len(self.position) != 3 or len(self.velocity) != 3):
+            raise ScenarioError(f"'{path}.position' and '.velocity' must have 3 components each")
+
+    def state(self, n: float) -> np.ndarray:
+        """Initial relative state, internal LVLH axes. A projected circular orbit of diameter ``size``:
+        x = size/4 sin, y = size/2 cos, z = size/2 sin of n t + phase."""
+        if self.pco is not None:
+            rho, phase = self.pco.size / 2.0, np.radians(self.pco.phase_deg)
+            s, c = np.sin(phase), np.cos(phase)
+            return np.array([rho / 2 * s, rho * c, rho * s, rho / 2 * n * c, -2 * rho / 2 * n * s, rho * n * c])
+        return relative.from_convention(np.array(self.position + self.velocity, dtype=float), self.convention)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Formation(Settings):
+    """``formation_j2`` / ``formation_twobody`` / ``hill_cw``: a deputy relative to a chief, in the chief's LVLH
+    frame."""
+
+    chief: OrbitElements = setting(doc="the chief's orbit")
+    deputy: Deputy = setting(doc="the deputy's initial state relative to the chief")
+
+
+@dataclass(frozen=True)
+class TruthModel(Builder):
+    """A registered truth model (``tracking_bench.truth_models``): its keys of the ``truth`` section besides
+    ``model`` (``settings``), ``build(settings, model name, earth, grid, seed) -> Truth`` (a ``module:function``)
+    and the labels and frame of the state it publishes. ``seeded``: it draws from the run's seed."""
+
+    labels: tuple[str, ...] = ()
+    frame: str = ""
+    seeded: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class TruthSection(Settings):
+    """The scenario's ``truth`` section: a registered model and its keys."""
+
+    model: str = setting(doc="a registered truth model (tracking_bench.truth_models)",
+                         choices=lambda: plugins.names("truth_models"))
+    options: Settings = variant("model", lambda: plugins.names("truth_models"),
+                                lambda name: plugins.load("truth_models", name).settings)
+
+
+def read_truth(cfg: dict) -> TruthSection:
+    """The scenario's ``truth`` section, read (nothing integrated: :func:`build_truth`)."""
+    return read(TruthSection, cfg.get("truth"), "truth")
 
 
 @dataclass(frozen=True)
@@ -122,57 +227,39 @@ def reference_orbit(cfg: dict, mean_radius: bool = False) -> ReferenceOrbit:
     under the truth's gravity (two-body + J2 for ``formation_j2``): the reference radius the
     Schweighart-Sedwick model is derived for, which differs from the osculating a by kilometres under J2.
     """
-    earth = build_earth(cfg)
-    chief = (cfg.get("truth") or {}).get("chief")
-    if not isinstance(chief, dict):
+    earth, truth = build_earth(cfg), read_truth(cfg)
+    if not isinstance(truth.options, Formation):
         raise ScenarioError("relative-motion models need the chief's orbit in 'truth.chief'")
-    a = semi_major_axis(Section(chief, "truth.chief"), earth.mu)
+    chief = truth.options.chief
+    a = chief.semi_major_axis(earth.mu)
     if mean_radius:
-        x0 = orbit_state(Section(chief, "truth.chief"), earth.mu)
-        j2 = earth.j2 if (cfg.get("truth") or {}).get("model") == "formation_j2" else 0.0
+        j2 = earth.j2 if truth.model == "formation_j2" else 0.0
         times = np.linspace(0.0, 2.0 * np.pi * np.sqrt(a**3 / earth.mu), 721)
-        radii = np.linalg.norm(cowell.propagate(x0, times, earth.mu, j2, earth.re)[:, :3], axis=1)
+        radii = np.linalg.norm(cowell.propagate(chief.state(earth.mu), times, earth.mu, j2, earth.re)[:, :3], axis=1)
         a = float(np.mean(radii[:-1]))
-    inclination = np.radians(Section(chief, "truth.chief").get("i_deg", float, 0.0))
-    return ReferenceOrbit(a, inclination, float(np.sqrt(earth.mu / a**3)))
+    return ReferenceOrbit(a, np.radians(chief.i_deg), float(np.sqrt(earth.mu / a**3)))
 
 
-def _relative_initial_state(sec: Section, n: float) -> np.ndarray:
-    """Initial relative state, internal LVLH axes, from ``truth.deputy``.
-
-    Either ``position``/``velocity`` given in the axes of ``convention`` ("radial_along_normal" = internal,
-    "along_radial" = paper 001), or ``pco: {size, phase_deg}``: a projected circular orbit of diameter
-    ``size`` in the along-track/cross-track plane, bounded under CW (x = size/4 sin, y = size/2 cos,
-    z = size/2 sin of n t + phase).
-    """
-    if "pco" in sec.data:
-        pco = sec.section("pco")
-        rho, phase = pco.positive("size") / 2.0, np.radians(pco.get("phase_deg", float, 0.0))
-        pco.finish()
-        sec.mark("position", "velocity", "convention")
-        s, c = np.sin(phase), np.cos(phase)
-        return np.array([rho / 2 * s, rho * c, rho * s, rho / 2 * n * c, -2 * rho / 2 * n * s, rho * n * c])
-    convention = sec.choice("convention", relative.CONVENTIONS, "radial_along_normal")
-    vec = sec.get("position", list) + sec.get("velocity", list, [0.0, 0.0, 0.0])
-    if len(vec) != 6:
-        raise ScenarioError(f"'{sec.path}.position' and '.velocity' must have 3 components each")
-    return relative.from_convention(np.array(vec, dtype=float), convention)
+def _sampled(states: np.ndarray, grid: TimeGrid) -> np.ndarray:
+    return states[1:] if grid.start_ns > 0 else states
 
 
-def formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> Truth:
+def _times(grid: TimeGrid) -> np.ndarray:
+    """The epoch (t = 0) and the grid's times: integrations start at the epoch."""
+    return np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
+
+
+def formation_truth(sec: Formation, model: str, earth: Earth, grid: TimeGrid, seed: int = 0) -> Truth:
     """Relative LVLH states on the grid (nonlinear two-body (+ J2) of both spacecraft, or exact CW)."""
-    chief0 = orbit_state(sec.section("chief", default_empty=False), earth.mu)
+    chief0 = sec.chief.state(earth.mu)
     n = float(np.sqrt(earth.mu / np.linalg.norm(chief0[:3]) ** 3))
-    dep = sec.section("deputy", default_empty=False)
-    correct = dep.get("drift_free", bool, False)
-    rel0 = _relative_initial_state(dep, n)
-    dep.finish()
-    times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
+    rel0 = sec.deputy.state(n)
+    times = _times(grid)
     if model == "hill_cw":
         states = hill.cw_propagate(rel0, times, n)
     else:
         j2 = earth.j2 if model == "formation_j2" else 0.0
-        if correct:
+        if sec.deputy.drift_free:
             rel0 = relative.drift_free(chief0, rel0, earth.mu, j2, earth.re)
         a0 = gravity.acceleration(chief0[:3], earth.mu, j2, earth.re)
         deputy0 = relative.lvlh_to_eci(chief0, rel0, a0)
@@ -180,46 +267,56 @@ def formation_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> T
         deputy = cowell.propagate(deputy0, times, mu=earth.mu, j2=j2, re=earth.re)
         accel = gravity.acceleration(chief[:, :3], earth.mu, j2, earth.re)
         states = relative.eci_to_lvlh(chief, deputy, accel)
-    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT, "lvlh")
+    return Truth(grid, _sampled(states, grid), ORBIT, "lvlh")
 
 
-def single_orbit_truth(sec: Section, model: str, earth: Earth, grid: TimeGrid) -> Truth:
+def single_orbit_truth(sec: SingleOrbit, model: str, earth: Earth, grid: TimeGrid, seed: int = 0) -> Truth:
     """One spacecraft in ECI from ``truth.orbit`` (Keplerian elements), two-body (+ J2 for ``cowell_j2``)."""
-    x0 = orbit_state(sec.section("orbit", default_empty=False), earth.mu)
     j2 = earth.j2 if model == "cowell_j2" else 0.0
-    times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
-    states = cowell.propagate(x0, times, mu=earth.mu, j2=j2, re=earth.re)
-    return Truth(grid, states[1:] if grid.start_ns > 0 else states, ORBIT, "eci")
+    states = cowell.propagate(sec.orbit.state(earth.mu), _times(grid), mu=earth.mu, j2=j2, re=earth.re)
+    return Truth(grid, _sampled(states, grid), ORBIT, "eci")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sgp4(Settings):
+    """``sgp4``: a real satellite from its two-line element set, propagated by SGP4 in TEME (orbit_sim.tle); needs
+    ``time.epoch``."""
+
+    tle: list[str] | None = setting(None, doc="the element set's two lines (or a title line and the two; exactly "
+                                              "one of tle and tle_file)")
+    tle_file: str | None = setting(None, doc="a file holding one element set (exactly one of tle and tle_file)")
+
+    def validate(self, path: str) -> None:
+        if (self.tle is None) == (self.tle_file is None):
+            raise ScenarioError(f"'{path}' needs exactly one of 'tle' (the element set's lines) or 'tle_file'")
+
+
+SINGLE_ORBIT = TruthModel(SingleOrbit, "orbit_sim.truth:single_orbit_truth", ORBIT, "eci")
+FORMATION = TruthModel(Formation, "orbit_sim.truth:formation_truth", ORBIT, "lvlh")
+SGP4 = TruthModel(Sgp4, "orbit_sim.tle:tle_truth", ORBIT, "eci")
+"""Registered here, with its settings, so the graph reads them without loading the SGP4 propagator."""
 
 
 def build_truth(cfg: dict) -> Truth:
     """Integrate the scenario's truth and sample it on the step grid (cached per truth configuration).
 
-    ``truth.model`` names a registered truth model (entry-point group ``tracking_bench.truth_models``): a
-    function (section, model name, earth, grid) -> Truth. A model with random parts (attribute ``seeded``)
-    also receives ``seed=`` the run's seed, so Monte Carlo runs draw them anew."""
+    ``truth.model`` names a registered :class:`TruthModel` (entry-point group ``tracking_bench.truth_models``).
+    A model with random parts (``seeded``) draws from the run's seed, so Monte Carlo runs draw them anew."""
     fields = {k: cfg.get(k) for k in ("earth", "time", "truth")}
-    if getattr(_model_function(cfg), "seeded", False):
-        fields["seed"] = scenario_seed(cfg)
+    model = read_truth(cfg).model
+    fields["seed"] = scenario_seed(cfg) if plugins.load("truth_models", model).seeded else 0
     return _build_truth(json.dumps(fields, sort_keys=True, default=str))
 
 
-def _model_function(cfg: dict):
-    """The registered function of ``truth.model``, or None when the name is unknown (reported by Section)."""
-    truth = cfg.get("truth")
-    model = truth.get("model") if isinstance(truth, dict) else None
-    return plugins.load("truth_models", model) if model in plugins.names("truth_models") else None
+TRUTH = SectionReader("truth", TruthSection, "the ground truth of the run: a registered model and its keys",
+                      build_truth)
 
 
 @lru_cache(maxsize=4)
 def _build_truth(key: str) -> Truth:
     cfg = json.loads(key)
-    earth = build_earth(cfg)
-    grid = build_time(cfg)
-    sec = Section(cfg.get("truth"), "truth")
-    model = sec.choice("model", plugins.names("truth_models"))
-    seed = {"seed": cfg["seed"]} if "seed" in cfg else {}
-    truth = plugins.load("truth_models", model)(sec, model, earth, grid, **seed)
-    sec.finish()
-    truth.states.setflags(write=False)
-    return truth
+    truth = read_truth(cfg)
+    model = plugins.load("truth_models", truth.model)
+    states = model(truth.options, truth.model, build_earth(cfg), build_time(cfg), cfg["seed"])
+    states.states.setflags(write=False)
+    return states

@@ -18,12 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.scenario import scenario_seed
+from bench_engine.settings import Check, SectionReader, read_entries, setting
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import DetectionSet, Outputs, TruthSample, python_log
 from orbit_sim.truth import build_earth
 from radar_sensor.sensor import every_n_steps
+from radar_sensor.sensor_types import SensorSettings
 
 SECTION = "cluttered_sensors"
 DETECTION_SET_TYPE = "bench_msgs/msg/DetectionSet"
@@ -56,35 +58,45 @@ class ClutteredSensor:
         return Z[rng.permutation(len(Z))]
 
 
+@dataclass(frozen=True, kw_only=True)
+class ClutteredSettings(SensorSettings):
+    """One entry of ``cluttered_sensors``: a registered sensor type's keys plus the clutter's."""
+
+    clutter_rate: float = setting(doc="mean number of false detections per sample (Poisson)",
+                                  check=Check(lambda v: 0.0 <= v < float("inf"), "finite and >= 0"))
+    clutter_halfwidth: list[float] = setting(doc="half-width of the box around the true measurement the false "
+                                                 "detections fall in, one per measurement component [its units]",
+                                             check=Check(lambda v: all(np.isfinite(v)) and all(w > 0 for w in v),
+                                                         "values > 0"))
+
+
+def read_section(cfg: dict) -> dict[str, ClutteredSettings]:
+    """The ``cluttered_sensors`` section, read strictly."""
+    return read_entries(ClutteredSettings, cfg.get(SECTION), SECTION)
+
+
 def names(cfg: dict) -> list[str]:
-    """The scenario's cluttered sensors, in section order (ScenarioError if the section is not a mapping)."""
-    return Section(cfg.get(SECTION), SECTION).keys()
+    """The scenario's cluttered sensors, in section order."""
+    return list(read_section(cfg))
 
 
 def build_cluttered(cfg: dict, name: str) -> ClutteredSensor:
     """Build ``cluttered_sensors.NAME``: a registered sensor type's keys plus clutter_rate, clutter_halfwidth."""
-    sections = Section(cfg.get(SECTION), SECTION)
-    if name not in sections.keys():
-        raise ScenarioError(f"unknown cluttered sensor '{name}'; the scenario has: {sorted(sections.keys())}")
-    sec = sections.section(name, default_empty=False)
-    kind = sec.choice("type", plugins.names("sensors"))
-    rate = sec.get("clutter_rate", float, check=lambda v: 0.0 <= v < float("inf"), expect="finite and >= 0")
-    values = sec.get("clutter_halfwidth", list)
-    try:
-        halfwidth = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ScenarioError(f"'{sec.path}.clutter_halfwidth' must be a list of numbers, got {values!r}") from None
-    sensor = plugins.load("sensors", kind).build(sec, name, build_earth(cfg), every_n_steps(sec, cfg))
-    sec.finish()
-    if halfwidth.shape != (len(sensor.model.labels),) or not np.all(np.isfinite(halfwidth) & (halfwidth > 0)):
-        raise ScenarioError(f"'{sec.path}.clutter_halfwidth' must hold {len(sensor.model.labels)} values > 0 "
+    sections = read_section(cfg)
+    if name not in sections:
+        raise ScenarioError(f"unknown cluttered sensor '{name}'; the scenario has: {sorted(sections)}")
+    s = sections[name]
+    sensor = plugins.load("sensors", s.type).build(s, name, build_earth(cfg), every_n_steps(s, cfg))
+    halfwidth = np.asarray(s.clutter_halfwidth, dtype=float)
+    if halfwidth.shape != (len(sensor.model.labels),):
+        raise ScenarioError(f"'{s.where('clutter_halfwidth')}' must hold {len(sensor.model.labels)} values > 0 "
                             f"({', '.join(sensor.model.labels)}), got {halfwidth.tolist()}")
-    return ClutteredSensor(sensor, rate, halfwidth)
+    return ClutteredSensor(sensor, s.clutter_rate, halfwidth)
 
 
-def read_section(cfg: dict) -> dict[str, ClutteredSensor]:
-    """The scenario's ``cluttered_sensors`` section, every entry built (registered section reader)."""
-    return {name: build_cluttered(cfg, name) for name in names(cfg)}
+CLUTTERED_SENSORS = SectionReader(SECTION, dict[str, ClutteredSettings],
+                                  "sensors whose samples are sets of detections with clutter (node kind "
+                                  "cluttered_sensor; a tracker associates them)", read_section)
 
 
 class ClutteredSensorStage:

@@ -15,11 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
+from bench_engine.settings import NON_NEGATIVE, POSITIVE, PROBABILITY, Check, Settings, setting
 from bench_models.labelled import ComponentModel, RangeRateModel
 from orbit_sim.truth import Earth
 from radar_sensor.sensor import Sensor
-from radar_sensor.sensor_types import SensorType
+from radar_sensor.sensor_types import SensorSettings, SensorType
 
 
 @dataclass
@@ -48,46 +49,70 @@ class GnssReceiver(Sensor):
         return e
 
 
-def _components(sec: Section, key: str, n: int | None = None) -> list[str]:
-    names = sec.get(key, list)
-    if not names or not all(isinstance(c, str) for c in names) or (n is not None and len(names) != n):
-        size = f"{n} " if n else ""
-        raise ScenarioError(f"'{sec.path}.{key}' must be a list of {size}state labels, got {names!r}")
-    return names
+def _labels(n: int) -> Check:
+    return Check(lambda names: len(names) == n, f"a list of {n} state labels")
 
 
-def _outages(sec: Section) -> tuple[tuple[float, float], ...]:
-    spans = sec.get("outages", list, [])
-    if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(v, (int, float)) for v in s) and s[0] <= s[1]
-               for s in spans):
-        raise ScenarioError(f"'{sec.path}.outages' must be a list of [start, end] times in s (start <= end), "
-                            f"got {spans!r}")
-    return tuple((float(a), float(b)) for a, b in spans)
+@dataclass(frozen=True, kw_only=True)
+class Gnss(Settings):
+    """``gnss``: kinematic position fixes of one satellite, white or Gauss-Markov noise, outliers, outages."""
+
+    position: list[str] = setting(doc="the truth's components it measures (e.g. x1 y1 z1)", check=_labels(3))
+    sigma_position: float = setting(unit="m", doc="noise per axis (1σ, stationary)", check=POSITIVE)
+    correlation_time: float = setting(0.0, unit="s", doc="Gauss-Markov correlation time of the noise (0: white)",
+                                      check=Check(lambda v: v >= 0.0, ">= 0 (s; 0 = white noise)"))
+    outages: list = setting([], unit="s", doc="[start, end] spans since the epoch without fixes")
+    outlier_probability: float = setting(0.0, doc="probability that a fix carries a gross error", check=PROBABILITY)
+    outlier_sigma: float = setting(30.0, unit="m", doc="a gross error's size per axis (1σ); R does not know it",
+                                   check=NON_NEGATIVE)
+    frame_id: str = setting("eci", doc="header.frame_id of the measurements")
+
+    def validate(self, path: str) -> None:
+        if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(v, (int, float)) for v in s)
+                   and s[0] <= s[1] for s in self.outages):
+            raise ScenarioError(f"'{path}.outages' must be a list of [start, end] times in s (start <= end), "
+                                f"got {self.outages!r}")
 
 
-def _gnss(sec: Section, name: str, earth: Earth, every: int) -> Sensor:
+def _gnss(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
     """Kinematic GNSS position fix of one satellite: ``position`` names its truth components (e.g. x1 y1 z1)."""
-    model = ComponentModel(_components(sec, "position", 3))
-    R = sec.positive("sigma_position") ** 2 * np.eye(3)
-    tau = sec.get("correlation_time", float, 0.0, lambda v: v >= 0.0, ">= 0 (s; 0 = white noise)")
-    outages = _outages(sec)
-    return GnssReceiver(name, "gnss", model, R, sec.probability("p_detect", 1.0), every,
-                        sec.get("frame_id", str, "eci"), lambda x, t: not any(a <= t <= b for a, b in outages),
-                        correlation_time=tau, outlier_probability=sec.probability("outlier_probability", 0.0),
-                        outlier_sigma=sec.non_negative("outlier_sigma", 30.0), outages=outages)
+    g = s.model
+    outages = tuple((float(a), float(b)) for a, b in g.outages)
+    return GnssReceiver(name, "gnss", ComponentModel(g.position), g.sigma_position**2 * np.eye(3), s.p_detect, every,
+                        g.frame_id, lambda x, t: not any(a <= t <= b for a, b in outages),
+                        correlation_time=g.correlation_time, outlier_probability=g.outlier_probability,
+                        outlier_sigma=g.outlier_sigma, outages=outages)
 
 
-def _kbr(sec: Section, name: str, earth: Earth, every: int) -> Sensor:
+@dataclass(frozen=True, kw_only=True)
+class Kbr(Settings):
+    """``kbr``: K-band ranging, range and/or range rate between two satellites from their baseline."""
+
+    components: list[str] = setting(["range_rate"], doc="what it measures: range and/or range_rate",
+                                    check=Check(lambda c: bool(c) and all(x in ("range", "range_rate") for x in c),
+                                                "a list of 'range' and/or 'range_rate'"))
+    position: list[str] = setting(doc="the truth's baseline position components (e.g. bx by bz)", check=_labels(3))
+    velocity: list[str] = setting(doc="the truth's baseline velocity components (e.g. bvx bvy bvz)",
+                                  check=_labels(3))
+    sigma_range: float | None = setting(None, unit="m", doc="range noise (1σ); when range is measured",
+                                        check=POSITIVE)
+    sigma_range_rate: float | None = setting(None, unit="m/s", doc="range-rate noise (1σ); when range_rate is measured",
+                                             check=POSITIVE)
+    frame_id: str = setting("eci", doc="header.frame_id of the measurements")
+
+    def validate(self, path: str) -> None:
+        for c in ("range", "range_rate"):
+            if (c in self.components) != (getattr(self, f"sigma_{c}") is not None):
+                raise ScenarioError(f"'{path}.sigma_{c}' is needed when {c} is measured (components), and only then")
+
+
+def _kbr(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
     """K-band ranging: range and/or range rate between two satellites from their baseline components."""
-    components = sec.get("components", list, ["range_rate"])
-    if not components or any(c not in ("range", "range_rate") for c in components):
-        raise ScenarioError(f"'{sec.path}.components' must be a list of 'range' and/or 'range_rate', "
-                            f"got {components!r}")
-    model = RangeRateModel(_components(sec, "position", 3), _components(sec, "velocity", 3), components)
-    sigmas = [sec.positive(f"sigma_{c}") for c in components]
-    return Sensor(name, "kbr", model, np.diag(np.square(sigmas)),
-                  sec.probability("p_detect", 1.0), every, sec.get("frame_id", str, "eci"), lambda x, t: True)
+    k = s.model
+    model = RangeRateModel(k.position, k.velocity, k.components)
+    sigmas = [getattr(k, f"sigma_{c}") for c in k.components]
+    return Sensor(name, "kbr", model, np.diag(np.square(sigmas)), s.p_detect, every, k.frame_id, lambda x, t: True)
 
 
-GNSS = SensorType("bench_msgs/msg/VectorMeasurement", _gnss)
-KBR = SensorType("bench_msgs/msg/VectorMeasurement", _kbr)
+GNSS = SensorType("bench_msgs/msg/VectorMeasurement", Gnss, _gnss)
+KBR = SensorType("bench_msgs/msg/VectorMeasurement", Kbr, _kbr)

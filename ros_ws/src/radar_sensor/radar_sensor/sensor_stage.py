@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError
 from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
 from radar_sensor.sensor import build_sensor
-from radar_sensor.sensor_types import SensorType, sensor_names, sensor_type
+from radar_sensor.sensor_types import sensor_names, sensor_type
 
 
 class SensorStage:
@@ -47,18 +46,6 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 def _check(cfg: dict, name: str) -> None:
     build_sensor(cfg, name)
-
-
-def read_sensors(cfg: dict) -> dict[str, SensorType]:
-    """The ``sensors`` section (its registered reader): each sensor's registered type by name. The sensors'
-    own keys are checked when each is built (radar_sensor.sensor.build_sensor)."""
-    sensors = cfg.get("sensors") or {}
-    if not isinstance(sensors, dict):
-        raise ScenarioError(f"'sensors' must be a mapping of sensor names to settings, got {sensors!r}")
-    for name in sensors:
-        if not str(name).replace("_", "").isalnum():
-            raise ScenarioError(f"sensor name '{name}' must be letters, digits and underscores")
-    return {name: sensor_type(cfg, name) for name in sensors}
 
 
 SENSOR = NodeKind("sensor", "sensor", "bench_engine.stage_node:StageNode",

@@ -8,8 +8,10 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from bench_engine import plugins
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.labels import AZIMUTHS
+from bench_engine.settings import (POSITIVE, PROBABILITY, SectionReader, Settings, read_entries, read_key, setting,
+                                   variant)
 from bench_models.models import MeasurementModel, check_angles
 
 if TYPE_CHECKING:
@@ -65,13 +67,28 @@ class Sensor:
         return z
 
 
+@dataclass(frozen=True, kw_only=True)
+class SensorSettings(Settings):
+    """One entry of ``sensors`` (or of ``cluttered_sensors``): a registered sensor type with its sampling, and
+    the type's own keys (its :class:`SensorType`'s ``settings``)."""
+
+    type: str = setting(doc="a registered sensor type (entry-point group tracking_bench.sensors)",
+                        choices=lambda: plugins.names("sensors"))
+    interval: float = setting(unit="s", doc="time between two samples: a whole multiple of time.dt", check=POSITIVE)
+    p_detect: float = setting(1.0, doc="probability that a sample where the target is visible gives a measurement",
+                              check=PROBABILITY)
+    model: Settings = variant("type", lambda: plugins.names("sensors"),
+                              lambda name: plugins.load("sensors", name).settings)
+
+
 @dataclass(frozen=True)
 class SensorType:
-    """A registered sensor type: the ROS message type it publishes and how to build it from its section
-    (section, sensor name, Earth model, sample every n steps) -> Sensor."""
+    """A registered sensor type: the ROS message type it publishes, its keys (a Settings class: ``settings``)
+    and its builder (sensor settings, sensor name, Earth model, sample every n steps) -> Sensor."""
 
     message_type: str
-    build: Callable[[Section, str, Earth, int], Sensor]
+    settings: type
+    build: Callable[[SensorSettings, str, Earth, int], Sensor]
 
 
 def sensor_names(cfg: dict) -> list[str]:
@@ -79,10 +96,20 @@ def sensor_names(cfg: dict) -> list[str]:
     return list((cfg.get("sensors") or {}).keys())
 
 
+def read_sensors(cfg: dict) -> dict[str, SensorSettings]:
+    """The ``sensors`` section, read strictly (each sensor's keys; building it checks the rest:
+    radar_sensor.sensor.build_sensor)."""
+    return read_entries(SensorSettings, cfg.get("sensors"), "sensors")
+
+
 def sensor_type(cfg: dict, name: str) -> SensorType:
     """The registered type of sensor ``name`` (ScenarioError naming the key and the registered types)."""
     sensors = cfg.get("sensors") or {}
     if name not in sensors:
         raise ScenarioError(f"unknown sensor '{name}'; the scenario has: {sorted(sensors)}")
-    section = sensors[name] if isinstance(sensors[name], dict) else {}
-    return plugins.load("sensors", Section(section, f"sensors.{name}").choice("type", plugins.names("sensors")))
+    return plugins.load("sensors", read_key(SensorSettings, sensors[name], "type", f"sensors.{name}"))
+
+
+SENSORS = SectionReader("sensors", dict[str, SensorSettings], "the sensors (node kind sensor): each a registered "
+                                                              "type with its noise, sampling and visibility",
+                        read_sensors)

@@ -30,55 +30,47 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.scenario import scenario_seed
+from bench_engine.settings import Check, SectionReader, Settings, between, read_entries, setting
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
+from orbit_sim.truth import read_truth
 from star_tracker.messages import STAR_CENTROIDS_TYPE, star_truth_topic
 
 SECTION = "star_cameras"
 
 
-@dataclass(frozen=True)
-class CameraConfig:
-    name: str
-    fov_deg: float
-    width: int
-    height: int
-    magnitude_limit: float
-    epoch: float
-    merge_arcsec: float
-    sigma_px: float
-    p_detect: float
-    false_stars: int
-    false_rate: float
-    mag_sigma: float
-    cache_dir: str | None
+@dataclass(frozen=True, kw_only=True)
+class CameraConfig(Settings):
+    """One entry of ``star_cameras`` (the module docstring)."""
+
+    fov_deg: float = setting(20.0, unit="deg", check=between(0.5, 90.0, "deg"), doc="full field across the width")
+    width: int = setting(1024, check=between(16, 16384, "px", what="an integer in"), doc="image width [px]")
+    height: int = setting(1024, check=between(16, 16384, "px", what="an integer in"), doc="image height [px]")
+    magnitude_limit: float = setting(6.0, check=between(2.0, 9.0, "(Hipparcos)"),
+                                     doc="the on-board catalogue's and the camera's detection limit [mag]")
+    epoch: float = setting(2025.0, check=between(1900.0, 2100.0, what="a year in"),
+                           doc="proper motion applied to this epoch [year] (catalogue.py)")
+    merge_arcsec: float = setting(140.0, unit="arcsec", check=between(0.0, 3600.0, "arcsec"),
+                                  doc="catalogue pairs closer than this are one entry (unresolved by the camera)")
+    sigma_px: float = setting(0.2, unit="px", check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
+                              doc="centroid noise per axis (1σ)")
+    p_detect: float = setting(0.95, check=Check(lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
+                              doc="probability that each star in view is detected")
+    false_stars: int = setting(0, check=between(0, 1000, what="an integer in"), doc="false stars per frame (a fixed "
+                                                                                     "number) ...")
+    false_rate: float = setting(0.0, check=between(0.0, 1000.0, "per frame"),
+                                doc="... plus a Poisson number of false stars with this mean per frame")
+    mag_sigma: float = setting(0.1, check=between(0.0, 2.0, "mag"), doc="instrument magnitude noise [mag]")
+    cache_dir: str | None = setting(None, doc="the catalogue cache", default_text="catalogue.default_cache_dir()")
 
 
 def read_cameras(cfg: dict) -> dict[str, CameraConfig]:
-    """The ``star_cameras`` section, read strictly (registered section reader)."""
-    sec = Section(cfg.get(SECTION), SECTION)
-    out = {}
-    for name in sec.keys():
-        if not str(name).replace("_", "").isalnum():
-            raise ScenarioError(f"star camera name '{name}' must be letters, digits and underscores")
-        e = sec.section(name)
-        out[name] = CameraConfig(
-            name, e.get("fov_deg", float, 20.0, lambda v: 0.5 <= v <= 90.0, "in [0.5, 90] deg"),
-            e.get("width", int, 1024, lambda v: 16 <= v <= 16384, "in [16, 16384] px"),
-            e.get("height", int, 1024, lambda v: 16 <= v <= 16384, "in [16, 16384] px"),
-            e.get("magnitude_limit", float, 6.0, lambda v: 2.0 <= v <= 9.0, "in [2, 9] (Hipparcos)"),
-            e.get("epoch", float, 2025.0, lambda v: 1900.0 <= v <= 2100.0, "a year in [1900, 2100]"),
-            e.get("merge_arcsec", float, 140.0, lambda v: 0.0 <= v <= 3600.0, "in [0, 3600] arcsec"),
-            e.get("sigma_px", float, 0.2, lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
-            e.get("p_detect", float, 0.95, lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-            e.get("false_stars", int, 0, lambda v: 0 <= v <= 1000, "an integer in [0, 1000]"),
-            e.get("false_rate", float, 0.0, lambda v: 0.0 <= v <= 1000.0, "in [0, 1000] per frame"),
-            e.get("mag_sigma", float, 0.1, lambda v: 0.0 <= v <= 2.0, "in [0, 2] mag"),
-            e.get("cache_dir", str, None))
-        e.finish()
-    sec.finish()
-    return out
+    """The ``star_cameras`` section, read strictly."""
+    return read_entries(CameraConfig, cfg.get(SECTION), SECTION)
+
+
+CAMERAS = SectionReader(SECTION, dict[str, CameraConfig], "the star cameras (node kind star_camera)")
 
 
 def camera_config(cfg: dict, name: str) -> CameraConfig:
@@ -96,7 +88,7 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 def _check(cfg: dict, name: str) -> None:
     camera_config(cfg, name)
-    truth = (cfg.get("truth") or {}).get("model")
+    truth = read_truth(cfg).model
     if truth != "lvlh_camera":
         raise ScenarioError(f"star camera '{name}' needs the attitude truth 'truth.model: lvlh_camera', got {truth!r}")
 
@@ -106,7 +98,7 @@ def _star_camera(cfg: dict, name: str, run: dict | None = None):
     from star_tracker.star_camera import StarCameraStage  # catalogue, camera, frames: scipy, not for every node
     seed = int((run or {}).get("seed", scenario_seed(cfg)))
     rng = np.random.default_rng([seed, 3000 + sorted(read_cameras(cfg)).index(name)])
-    return StarCameraStage(camera_config(cfg, name), rng, cfg.get("truth") or {})
+    return StarCameraStage(name, camera_config(cfg, name), rng, read_truth(cfg))
 
 
 STAR_CAMERA = NodeKind("star_camera", "sensor", "bench_engine.stage_node:StageNode",

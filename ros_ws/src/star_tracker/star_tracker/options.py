@@ -7,5 +7,8 @@ SOLVERS = ("wahba", "triad")
 """Attitude from the tracked stars: all stars (SVD Wahba) or TRIAD on two."""
 MOTIONS = ("constant_velocity", "coordinated_turn")
 """The JPDAF's image-plane motion model."""
+BORESIGHTS = ("zenith", "normal")
+"""The camera's boresight in LVLH (sky_motion.py): zenith (a straight drift across the sky) or orbit normal (a
+rotation about the boresight)."""
 AIDS = ("rate", "jitter", "none")
 """What the body rate compensates in the JPDAF's prediction (pipeline.StarTrackerPipeline.motion_for)."""

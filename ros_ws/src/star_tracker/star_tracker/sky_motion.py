@@ -30,8 +30,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from orbit_sim.constants import MU_EARTH, R_EARTH
+from star_tracker.options import BORESIGHTS
 
-BORESIGHTS = ("zenith", "normal")
 
 
 @dataclass(frozen=True)

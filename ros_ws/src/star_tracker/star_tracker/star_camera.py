@@ -8,7 +8,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from bench_engine.config import Section
 from bench_engine.graph import measurement_topic
 from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.stage import Outputs, TruthSample, python_log
@@ -17,6 +16,7 @@ from star_tracker.camera import Camera
 from star_tracker.catalogue import StarCatalogue, load_catalogue
 from star_tracker.frames import FALSE_STAR, simulate_frame
 from star_tracker.messages import StarFrame, star_truth_topic
+from orbit_sim.truth import TruthSection
 from star_tracker.truth_model import orbit_of
 
 
@@ -36,21 +36,21 @@ def _catalogue(magnitude_limit: float, epoch: float, merge_arcsec: float, cache_
     return load_catalogue(magnitude_limit, epoch, merge_arcsec, cache_dir=cache_dir)
 
 
-def lvlh_boresight_rate(truth: dict) -> float:
-    """The boresight component of the LVLH mount's own rate (rad/s) for the scenario's ``truth`` section: n for
-    an orbit-normal boresight, 0 for the zenith one (sky_motion.py); the rest of ω_z is jitter."""
-    if truth.get("model") != "lvlh_camera" or truth.get("boresight", "zenith") != "normal":
+def lvlh_boresight_rate(truth: TruthSection) -> float:
+    """The boresight component of the LVLH mount's own rate (rad/s) for the scenario's ``truth`` section
+    (orbit_sim.truth.read_truth): n for an orbit-normal boresight, 0 for the zenith one (sky_motion.py); the rest
+    of ω_z is jitter."""
+    if truth.model != "lvlh_camera" or truth.options.boresight != "normal":
         return 0.0
-    return orbit_of(Section(dict(truth), "truth")).mean_motion
+    return orbit_of(truth.options).mean_motion
 
 
 class StarCameraStage:
-    """Simulated star camera (camera_stage.py's docstring) of the settings ``conf``, drawing from ``rng``, on the
-    scenario's ``truth``."""
+    """Simulated star camera ``name`` (camera_stage.py's docstring) of the settings ``conf``, drawing from ``rng``,
+    on the scenario's ``truth`` section (orbit_sim.truth.read_truth)."""
 
-    def __init__(self, conf, rng: np.random.Generator, truth: dict) -> None:
-        self.conf = conf
-        name = self.name = conf.name
+    def __init__(self, name: str, conf, rng: np.random.Generator, truth: TruthSection) -> None:
+        self.conf, self.name = conf, name
         self.camera, self.catalogue = camera_of(conf), catalogue_of(conf)
         self.rng = rng
         self.mount_rate = lvlh_boresight_rate(truth)

@@ -30,8 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section, merge
+from bench_engine.config import ScenarioError, merge
 from bench_engine.labels import QUATERNION
+from bench_engine.settings import Check, SectionReader, Settings, between, read_entries, replaced, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from star_tracker.camera_stage import camera_config, read_cameras
@@ -47,60 +48,61 @@ def stars_topic(tracker: str) -> str:
     return f"/{tracker}/stars"
 
 
-@dataclass(frozen=True)
-class TrackerConfig:
-    name: str
-    camera: str
-    tracker: str
-    solver: str
-    motion: str
-    aid: str
-    sigma_px: float | None
-    sigma_a: float
-    p_detect: float
-    clutter_per_frame: float | None
-    gate: float | None
-    min_stars: int
-    verify_sigmas: float
-    max_misses: int
+@dataclass(frozen=True, kw_only=True)
+class TrackerConfig(Settings):
+    """One entry of ``star_trackers``, over ``star_tracker_defaults`` (the module docstring)."""
 
-
-def _read_one(name: str, data: dict, cameras: list[str]) -> TrackerConfig:
-    e = Section(data, f"{SECTION}.{name}")
-    if not cameras:
-        raise ScenarioError(f"star tracker '{name}' needs a camera: the scenario has no 'star_cameras'")
-    camera = e.choice("camera", cameras, cameras[0] if len(cameras) == 1 else ...)
-    conf = TrackerConfig(
-        name, camera, e.choice("tracker", TRACKERS), e.choice("solver", SOLVERS),
-        e.choice("motion", MOTIONS, "constant_velocity"), e.choice("aid", AIDS, "rate"),
-        e.get("sigma_px", float, None, lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
-        e.get("sigma_a", float, 0.05, lambda v: 0.0 < v <= 1e4, "in (0, 1e4] px/s^2"),
-        e.get("p_detect", float, 0.95, lambda v: 0.0 < v < 1.0, "in (0, 1)"),
-        e.get("clutter_per_frame", float, None, lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
-        e.get("gate", float, None, lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
-        e.get("min_stars", int, 3, lambda v: 3 <= v <= 100, "an integer in [3, 100]"),
-        e.get("verify_sigmas", float, 6.0, lambda v: 1.0 <= v <= 100.0, "in [1, 100]"),
-        e.get("max_misses", int, 3, lambda v: 0 <= v <= 100, "an integer in [0, 100]"))
-    e.finish()
-    return conf
+    camera: str | None = setting(None, doc="the star_cameras entry whose frames it reads",
+                                 default_text="the only camera")
+    tracker: str = setting(choices=TRACKERS, doc="star tracking: SNA or JPDAF")
+    solver: str = setting(choices=SOLVERS, doc="attitude from the tracked stars: SVD Wahba or TRIAD")
+    motion: str = setting("constant_velocity", choices=MOTIONS, doc="the JPDAF's image-plane motion model "
+                                                                     "(paper eqs. 14-16)")
+    aid: str = setting("rate", choices=AIDS, doc="what the body rate compensates in the JPDAF's prediction "
+                                                  "(pipeline.StarTrackerPipeline.motion_for)")
+    sigma_px: float | None = setting(None, unit="px", check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
+                                     doc="the centroid σ the identifier, the SNA gate and the JPDAF's R assume",
+                                     default_text="the camera's sigma_px")
+    sigma_a: float = setting(0.05, unit="px/s^2", check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4] px/s^2"),
+                             doc="the JPDAF's process noise")
+    p_detect: float = setting(0.95, check=Check(lambda v: 0.0 < v < 1.0, "in (0, 1)"), doc="the JPDA's P_D")
+    clutter_per_frame: float | None = setting(None, check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+                                              doc="the JPDA's false-star density times the image area",
+                                              default_text="the camera's false stars per frame, at least 0.1")
+    gate: float | None = setting(None, check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+                                 doc="the JPDA's gate δ on d²", default_text="the JPDA's")
+    min_stars: int = setting(3, check=between(3, 100, what="an integer in"), doc="stars an attitude needs")
+    verify_sigmas: float = setting(6.0, check=between(1.0, 100.0), doc="the identification's verification "
+                                                                       "threshold [σ]")
+    max_misses: int = setting(3, check=between(0, 100, what="an integer in"),
+                              doc="frames a tracked star may miss before it is dropped")
 
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
-    """``star_trackers`` merged over ``star_tracker_defaults``, read strictly (registered section reader of
-    both keys)."""
+    """``star_trackers`` merged over ``star_tracker_defaults``, read strictly (the reader of both keys)."""
     defaults = cfg.get(DEFAULTS) or {}
-    trackers = Section(cfg.get(SECTION), SECTION)
     if not isinstance(defaults, dict):
         raise ScenarioError(f"'{DEFAULTS}' must be a mapping of settings, got {defaults!r}")
     cameras = list(read_cameras(cfg))
-    out = {}
-    for name in trackers.keys():
-        if not str(name).replace("_", "").isalnum():
-            raise ScenarioError(f"star tracker name '{name}' must be letters, digits and underscores")
-        own = trackers.section(name).data
-        out[name] = _read_one(name, merge(defaults, own), cameras)
-    trackers.finish()
-    return out
+    own = cfg.get(SECTION) or {}
+    if not isinstance(own, dict):
+        raise ScenarioError(f"'{SECTION}' must be a mapping of keys, got {type(own).__name__}")
+    trackers = read_entries(TrackerConfig, {n: merge(defaults, e or {}) for n, e in own.items()}, SECTION)
+    for name, conf in trackers.items():
+        if not cameras:
+            raise ScenarioError(f"star tracker '{name}' needs a camera: the scenario has no 'star_cameras'")
+        if conf.camera is None and len(cameras) > 1:
+            raise ScenarioError(f"missing key '{conf.where('camera')}' (the scenario has cameras {cameras})")
+        if conf.camera is not None and conf.camera not in cameras:
+            raise ScenarioError(f"'{conf.where('camera')}' must be one of {cameras}, got {conf.camera!r}")
+        trackers[name] = replaced(conf, camera=conf.camera or cameras[0])
+    return trackers
+
+
+TRACKERS_SECTION = SectionReader(SECTION, dict[str, TrackerConfig],
+                                 "the star trackers (node kind star_tracker: estimators)", read_trackers)
+TRACKER_DEFAULTS = SectionReader(DEFAULTS, TrackerConfig, "defaults of every star_trackers entry: any of its keys",
+                                 read_trackers, defaults_of=SECTION)
 
 
 def tracker_config(cfg: dict, name: str) -> TrackerConfig:

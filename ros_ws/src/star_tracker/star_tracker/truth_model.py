@@ -1,6 +1,6 @@
-"""The star tracker's truth model (registered as ``lvlh_camera`` in ``tracking_bench.truth_models``): the attitude
-of a camera fixed in LVLH on the paper's circular orbit, with its boresight jitter (sky_motion.py), on the
-scenario's time grid (one frame per step).
+"""The star tracker's truth model ``lvlh_camera`` (its keys and registration: truth_settings.py): the attitude of a
+camera fixed in LVLH on the paper's circular orbit, with its boresight jitter (sky_motion.py), on the scenario's
+time grid (one frame per step).
 
     truth:
       model: lvlh_camera
@@ -23,36 +23,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import Section
-from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.timegrid import TimeGrid
 from orbit_sim.truth import Truth
-from star_tracker.sky_motion import BORESIGHTS, CircularOrbit, orbit_truth
-
-LABELS = QUATERNION + ANGULAR_RATE
-FRAME = "icrs"
+from star_tracker.sky_motion import CircularOrbit, orbit_truth
+from star_tracker.truth_settings import FRAME, LABELS, CameraTruth
 
 
-def orbit_of(sec: Section):
-    """The CircularOrbit of the truth section's orbit keys."""
-    return CircularOrbit(altitude_m=sec.get("altitude_m", float, 700e3, lambda v: 0.0 < v < 1e8, "in (0, 1e8) m"),
-                         inclination_deg=sec.get("inclination_deg", float, 30.0, lambda v: 0.0 <= v <= 180.0,
-                                                 "in [0, 180]"),
-                         raan_deg=sec.get("raan_deg", float, 30.0),
-                         arg_latitude0_deg=sec.get("arg_latitude0_deg", float, 50.0))
+def orbit_of(sec: CameraTruth) -> CircularOrbit:
+    """The circular orbit of the truth's keys."""
+    return CircularOrbit(altitude_m=sec.altitude_m, inclination_deg=sec.inclination_deg, raan_deg=sec.raan_deg,
+                         arg_latitude0_deg=sec.arg_latitude0_deg)
 
 
-def camera_truth(sec: Section, model: str, earth, grid: TimeGrid, seed: int = 0):
-    """Truth (orbit_sim.truth.Truth) of the module docstring's section; ``seed`` is the run's seed."""
-    boresight = sec.choice("boresight", BORESIGHTS, "zenith")
-    jitter = sec.get("jitter_deg_s", float, 0.0, lambda v: 0.0 <= v <= 90.0, "in [0, 90] deg/s")
-    hold = sec.get("jitter_hold", int, 10, lambda v: v >= 1, "an integer >= 1")
-    fixed = sec.get("jitter_seed", int, None, lambda v: v >= 0, "an integer >= 0 or null (the run's seed)")
-    seed = seed if fixed is None else fixed
-    orbit = orbit_of(sec)
-    truth = orbit_truth(orbit, grid.steps, grid.dt, boresight, jitter, np.random.default_rng([seed, 7]), hold)
-    states = np.hstack([truth.quaternions, truth.rate])
-    return Truth(grid, states, LABELS, FRAME)
-
-
-camera_truth.seeded = True  # orbit_sim.truth.build_truth passes the run's seed
+def camera_truth(sec: CameraTruth, model: str, earth, grid: TimeGrid, seed: int = 0) -> Truth:
+    """Truth of the module docstring's section; ``seed`` is the run's seed (``jitter_seed`` overrides it)."""
+    seed = seed if sec.jitter_seed is None else sec.jitter_seed
+    truth = orbit_truth(orbit_of(sec), grid.steps, grid.dt, sec.boresight, sec.jitter_deg_s,
+                        np.random.default_rng([seed, 7]), sec.jitter_hold)
+    return Truth(grid, np.hstack([truth.quaternions, truth.rate]), LABELS, FRAME)

@@ -1,25 +1,19 @@
 """Scenario -> filter objects: dynamics model, filter, initialiser and the sensors a filter consumes.
 
-A filter node's behaviour comes entirely from ``filter_defaults`` merged with ``filters.NAME``:
-
-    type: ukf                 # a registered estimator (entry-point group tracking_bench.estimators)
-    sensors: [radar]          # measurement topics it consumes
-    dynamics: {model: orbit_j2, sigma_accel: 0.5}
-    init: {method: first_scan, velocity_sigma: 8000.0}
-    params: {alpha: 1.0}      # constructor parameters of the filter type
-    gate_probability: 0.9999  # optional NIS gate: reject measurements beyond this chi-square quantile
-    gate_reinit_after: 3      # that many consecutive gated measurements: lock lost, restart from the next one
+A filter node's behaviour comes entirely from its settings (tracker_filters.filter_settings: ``filter_defaults``
+merged with ``filters.NAME``, declared and read there); the registered dynamics models and initialisers
+(filter_settings' Builders) build here.
 """
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Callable
 
 import numpy as np
 
 from orbit_sim import relative
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
 from bench_engine.scenario import scenario_seed
 from bench_engine import plugins
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
@@ -28,7 +22,9 @@ from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
 from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
-from tracker_filters.filter_settings import filter_config
+from tracker_filters.filter_settings import (Cw, CwBias, DynamicsSettings, FirstScan, Given,
+                                             InitSettings, OrbitJ2, PositionFix, RelativeMotion, Ss, TruthScaled,
+                                             WhiteJerk, filter_settings)
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.models import DynamicsModel, ScanPositionModel
@@ -54,72 +50,49 @@ class FilterStack:
     """Consecutive gated measurements after which the filter has lost lock and restarts from the next one."""
 
 
-def orbit_j2(sec: Section, cfg: dict) -> DynamicsModel:
+def orbit_j2(sec: OrbitJ2, cfg: dict) -> DynamicsModel:
     earth = build_earth(cfg)
-    return OrbitJ2Dynamics(sec.non_negative("sigma_accel"), mu=earth.mu, j2=earth.j2, re=earth.re)
+    return OrbitJ2Dynamics(sec.sigma_accel, mu=earth.mu, j2=earth.j2, re=earth.re)
 
 
-def _sigma_accel(sec: Section) -> float | list[float]:
-    """``sigma_accel`` [m/s^1.5, square root of the white-acceleration spectral density]: one value, or one
-    per LVLH axis (internal axes: radial, along, normal)."""
-    value = sec.get("sigma_accel", (float, list))
-    values = np.atleast_1d(np.asarray(value, dtype=float))
-    if values.shape not in ((1,), (3,)) or np.any(values < 0):
-        raise ScenarioError(f"'{sec.path}.sigma_accel' must be >= 0, one value or three, got {value!r}")
-    return value
-
-
-def _reference(sec: Section, cfg: dict):
+def _reference(sec: RelativeMotion, cfg: dict):
     """The chief's reference orbit: ``reference: stated`` (the scenario's a) or ``mean`` (orbit-averaged)."""
-    return reference_orbit(cfg, sec.choice("reference", ("stated", "mean"), "stated") == "mean")
+    return reference_orbit(cfg, sec.reference == "mean")
 
 
-def cw(sec: Section, cfg: dict) -> DynamicsModel:
-    return CWDynamics(_reference(sec, cfg).n, _sigma_accel(sec),
-                      sec.choice("discretisation", ("exact", "euler"), "exact"))
+def cw(sec: Cw, cfg: dict) -> DynamicsModel:
+    return CWDynamics(_reference(sec, cfg).n, sec.sigma_accel, sec.discretisation)
 
 
-def cw_bias(sec: Section, cfg: dict) -> DynamicsModel:
-    return CWBiasDynamics(_reference(sec, cfg).n, _sigma_accel(sec), sec.non_negative("sigma_bias"))
+def cw_bias(sec: CwBias, cfg: dict) -> DynamicsModel:
+    return CWBiasDynamics(_reference(sec, cfg).n, sec.sigma_accel, sec.sigma_bias)
 
 
-def ss(sec: Section, cfg: dict) -> DynamicsModel:
+def ss(sec: Ss, cfg: dict) -> DynamicsModel:
     ref, earth = _reference(sec, cfg), build_earth(cfg)
-    return SchweighartSedwickDynamics(ref.a, ref.inclination, _sigma_accel(sec), earth.mu, earth.j2, earth.re)
+    return SchweighartSedwickDynamics(ref.a, ref.inclination, sec.sigma_accel, earth.mu, earth.j2, earth.re)
 
 
-def white_jerk(sec: Section, cfg: dict) -> DynamicsModel:
+def white_jerk(sec: WhiteJerk, cfg: dict) -> DynamicsModel:
     """Paper 002's kinematic model: ``q`` [m^2/s^5] white-jerk density, ``labels`` (positions, velocities,
     accelerations), ``frame``."""
-    labels = sec.get("labels", list)
-    if len(labels) != 9 or not all(isinstance(s, str) for s in labels) or len(set(labels)) != 9:
-        raise ScenarioError(f"'{sec.path}.labels' must name 9 distinct components (3 positions, 3 velocities, "
-                            f"3 accelerations), got {labels!r}")
-    return WhiteJerkDynamics(sec.non_negative("q"), labels, sec.get("frame", str, "eci"))
+    return WhiteJerkDynamics(sec.q, sec.labels, sec.frame)
 
 
-def _given_q(sec: Section, dynamics: DynamicsModel) -> DynamicsModel:
-    """Optional ``q_diagonal`` (per-step discrete Q at ``q_reference_dt``, in ``q_convention`` axes)."""
-    q = sec.get("q_diagonal", list, None)
-    convention = sec.choice("q_convention", relative.CONVENTIONS, "radial_along_normal")
-    reference_dt = sec.positive("q_reference_dt", 1.0)
+def build_dynamics(sec: DynamicsSettings, cfg: dict) -> DynamicsModel:
+    """The dynamics model of a filter's ``dynamics`` (with its given process noise, ``q_diagonal``)."""
+    dynamics = plugins.load("dynamics", sec.model)(sec.options, cfg)
+    q = sec.q_diagonal
     if q is None:
         return dynamics
-    if len(q) != len(dynamics.labels) or any(float(v) < 0 for v in q):
-        raise ScenarioError(f"'{sec.path}.q_diagonal' must hold {len(dynamics.labels)} values >= 0, got {q}")
-    M = np.kron(np.eye(len(q) // 3), relative.convention_matrix(convention).T)  # convention -> internal
-    return GivenProcessNoise(dynamics, M @ np.diag(np.asarray(q, dtype=float)) @ M.T, reference_dt)
+    if len(q) != len(dynamics.labels):
+        raise ScenarioError(f"'{sec.where('q_diagonal')}' must hold {len(dynamics.labels)} values >= 0, got {q}")
+    M = np.kron(np.eye(len(q) // 3), relative.convention_matrix(sec.q_convention).T)  # convention -> internal
+    return GivenProcessNoise(dynamics, M @ np.diag(np.asarray(q, dtype=float)) @ M.T, sec.q_reference_dt)
 
 
-def build_dynamics(sec: Section, cfg: dict) -> DynamicsModel:
-    model = sec.choice("model", plugins.names("dynamics"))
-    dynamics = _given_q(sec, plugins.load("dynamics", model)(sec, cfg))
-    sec.finish()
-    return dynamics
-
-
-def first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
-    velocity_sigma = sec.positive("velocity_sigma")
+def first_scan(sec: FirstScan, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+    velocity_sigma = sec.velocity_sigma
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
         return initial_state_from_scan(z, R, sensor.model, t, velocity_sigma)
@@ -127,50 +100,44 @@ def first_scan(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     return initialise
 
 
-def _padded(values: np.ndarray, sec: Section, key: str, n: int) -> np.ndarray:
-    """6 relative-state values, extended with ``key`` (e.g. the bias) for longer states (CW+bias: 9)."""
-    extra = sec.get(key, list, [0.0] * (n - len(values)))  # read even for 6 states: shared defaults
+def _padded(values: np.ndarray, extra: list[float] | None, key: str, n: int) -> np.ndarray:
+    """6 relative-state values, extended with ``extra`` (e.g. the bias; zeros if None) for longer states
+    (CW+bias: 9)."""
     if n == len(values):
         return values
+    extra = [0.0] * (n - len(values)) if extra is None else extra
     if len(values) + len(extra) != n:
-        raise ScenarioError(f"'{sec.path}.{key}' must have {n - len(values)} values for a {n}-state filter")
+        raise ScenarioError(f"'{key}' must have {n - len(values)} values for a {n}-state filter")
     return np.concatenate([values, np.asarray(extra, dtype=float)])
 
 
-def given(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def given(sec: Given, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     """Initial estimate and standard deviations stated by the paper, in ``convention`` axes."""
     n = len(dynamics.labels)
-    convention = sec.choice("convention", relative.CONVENTIONS, "radial_along_normal")
-    mean, sigma = np.asarray(sec.get("mean", list), float), np.asarray(sec.get("sigma", list), float)
-    if mean.shape != (6,) or sigma.shape != (6,) or np.any(sigma <= 0):
-        raise ScenarioError(f"'{sec.path}.mean' and '.sigma' must have 6 values (sigma > 0)")
-    x0 = _padded(relative.from_convention(mean, convention), sec, "bias_mean", n)
-    s0 = _padded(np.abs(relative.from_convention(sigma, convention)), sec, "bias_sigma", n)
+    mean, sigma = np.asarray(sec.mean, float), np.asarray(sec.sigma, float)
+    x0 = _padded(relative.from_convention(mean, sec.convention), sec.bias_mean, sec.where("bias_mean"), n)
+    s0 = _padded(np.abs(relative.from_convention(sigma, sec.convention)), sec.bias_sigma, sec.where("bias_sigma"), n)
     return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
 
 
-def truth_scaled(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def truth_scaled(sec: TruthScaled, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     """Paper 004: initial estimate = true initial state with a relative error (2 %), diagonal P0."""
     n = len(dynamics.labels)
-    fraction = sec.get("error_fraction", float, check=lambda v: v >= 0, expect=">= 0")
-    sp, sv = sec.positive("sigma_position"), sec.positive("sigma_velocity")
-    sb = sec.positive("sigma_bias", 1e-6)  # CW+bias only
     x_true = build_truth(cfg).states[0]
-    x0 = _padded(x_true * (1.0 + fraction), sec, "bias_mean", n)
-    s0 = np.array([sp] * 3 + [sv] * 3 + [sb] * (n - 6))
+    x0 = _padded(x_true * (1.0 + sec.error_fraction), sec.bias_mean, sec.where("bias_mean"), n)
+    s0 = np.array([sec.sigma_position] * 3 + [sec.sigma_velocity] * 3 + [sec.sigma_bias] * (n - 6))
     return lambda z, R, sensor, t: (x0.copy(), np.diag(s0**2))
 
 
-def position_fix(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+def position_fix(sec: PositionFix, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
     """From the first measurement of components of a kinematic state ordered in three equal blocks
     (positions, velocities, accelerations; bench_models.white_jerk): the measured components take z and R,
     the others zero mean with ``sigma_velocity`` or ``sigma_acceleration`` [SI]."""
-    sv, sa = sec.positive("sigma_velocity"), sec.positive("sigma_acceleration")
     n = len(dynamics.labels)
     if n % 3:
-        raise ScenarioError(f"'{sec.path}': position_fix needs a state of positions, velocities and "
+        raise ScenarioError(f"'{sec.where()}': position_fix needs a state of positions, velocities and "
                             f"accelerations in three equal blocks, got {list(dynamics.labels)}")
-    prior = np.repeat([np.inf, sv, sa], n // 3)
+    prior = np.repeat([np.inf, sec.sigma_velocity, sec.sigma_acceleration], n // 3)
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
         H = sensor.model.jacobian(np.zeros(n), t)
@@ -184,36 +151,28 @@ def position_fix(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialise
     return initialise
 
 
-def build_initialiser(sec: Section, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
-    method = sec.choice("method", plugins.names("initialisers"))
-    init = plugins.load("initialisers", method)(sec, cfg, dynamics)
-    sec.finish()
-    return init
+def build_initialiser(sec: InitSettings, cfg: dict, dynamics: DynamicsModel) -> Initialiser:
+    return plugins.load("initialisers", sec.method)(sec.options, cfg, dynamics)
 
 
 def build_filter_stack(cfg: dict, name: str) -> FilterStack:
     """Build filter node ``name``; every bad key or value raises ScenarioError naming it."""
-    sec = Section(filter_config(cfg, name), f"filters.{name}")
-    kind = sec.choice("type", registry.filter_names())
-    inputs = sec.get("sensors", list, sensor_names(cfg))
-    dynamics = build_dynamics(sec.section("dynamics", default_empty=False), cfg)
-    init = build_initialiser(sec.section("init", default_empty=False), cfg, dynamics)
-    params = dict(sec.get("params", dict, {}))
-    gate = sec.get("gate_probability", float, 0.0, lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = no gate)")
-    reinit = sec.get("gate_reinit_after", int, 3, lambda v: v >= 1, "an integer >= 1")
-    sec.finish()
-    if "seed" in registry.filter_parameters(kind) and "seed" not in params:
+    sec = filter_settings(cfg, name)
+    dynamics = build_dynamics(sec.dynamics, cfg)
+    init = build_initialiser(sec.init, cfg, dynamics)
+    params = {f.name: getattr(sec.params, f.name) for f in fields(sec.params)}
+    if params.get("seed", 0) is None:
         # random filters (particle filters) draw from the run's seed, distinct per filter name
         params["seed"] = [scenario_seed(cfg), zlib.crc32(name.encode())]
     try:
-        flt = registry.make_filter(kind, dynamics, **params)
+        flt = registry.make_filter(sec.type, dynamics, **params)
     except (TypeError, ValueError) as err:
         raise ScenarioError(f"'filters.{name}.params': {err}") from err
     flt.name = name
-    flt.gate_probability = gate
-    sources = {s: measurement_source(cfg, s, dynamics.labels) for s in inputs}
+    flt.gate_probability = sec.gate_probability
+    sources = {s: measurement_source(cfg, s, dynamics.labels) for s in sec.sensors or sensor_names(cfg)}
     _check_initialiser(init, sources, f"filters.{name}.init")
-    return FilterStack(name, flt, sources, init, reinit)
+    return FilterStack(name, flt, sources, init, sec.gate_reinit_after)
 
 
 def _check_initialiser(init: Initialiser, sources: dict, path: str) -> None:

@@ -21,7 +21,7 @@ from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
 from radar_sensor.sensor_types import sensor_names
 from tracker_filters.derived import read_derived
-from tracker_filters.filter_settings import filter_config
+from tracker_filters.filter_settings import filter_config, filter_key
 
 
 def build_stack(cfg: dict, name: str):
@@ -86,9 +86,7 @@ class FilterStage:
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
     sensors = sensor_names(cfg) + list(read_derived(cfg))
-    inputs = filter_config(cfg, name).get("sensors") or sensor_names(cfg)
-    if not isinstance(inputs, list) or not all(isinstance(s, str) for s in inputs):
-        raise ScenarioError(f"'filters.{name}.sensors' must be a list of sensor or derived measurement names, got {inputs!r}")
+    inputs = filter_key(cfg, name, "sensors") or sensor_names(cfg)
     unknown = [s for s in inputs if s not in sensors]
     if unknown:
         raise ScenarioError(f"'filters.{name}.sensors' names unknown sensor(s) {unknown}; allowed: {sorted(sensors)}")

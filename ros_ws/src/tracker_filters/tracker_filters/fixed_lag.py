@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
+from bench_engine.settings import POSITIVE, SectionReader, Settings, read_entries, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from tracker_filters.filter_stage import build_stack
@@ -28,33 +29,33 @@ from tracker_filters.filter_stage import build_stack
 SECTION = "fixed_lag_smoothers"
 
 
-@dataclass(frozen=True)
-class FixedLagConfig:
-    name: str
-    source: str
-    lag_s: float
+@dataclass(frozen=True, kw_only=True)
+class FixedLagConfig(Settings):
+    """One entry of ``fixed_lag_smoothers``."""
+
+    source: str = setting(doc="the filter (an entry of filters) whose estimates it smooths")
+    lag_s: float = setting(unit="s", doc="each step's estimate is published once this much later data is in",
+                           check=POSITIVE)
 
 
 def read_fixed_lag(cfg: dict) -> dict[str, FixedLagConfig]:
-    """The ``fixed_lag_smoothers`` section, read strictly (registered section reader)."""
-    sec = Section(cfg.get(SECTION), SECTION)
-    out = {}
-    for name in sec.keys():
-        entry = sec.section(name, default_empty=False)
-        source = entry.get("source", str)
-        if source not in (cfg.get("filters") or {}):
-            raise ScenarioError(f"'{SECTION}.{name}.source' must name a filter of the scenario, got {source!r}")
-        out[name] = FixedLagConfig(name, source, entry.positive("lag_s"))
-        entry.finish()
-    sec.finish()
+    """The ``fixed_lag_smoothers`` section, read strictly; each ``source`` is a filter of the scenario."""
+    out = read_entries(FixedLagConfig, cfg.get(SECTION), SECTION)
+    for conf in out.values():
+        if conf.source not in (cfg.get("filters") or {}):
+            raise ScenarioError(f"'{conf.where('source')}' must name a filter of the scenario, got {conf.source!r}")
     return out
+
+
+FIXED_LAG_SMOOTHERS = SectionReader(SECTION, dict[str, FixedLagConfig], "fixed-lag smoothers of filters' "
+                                    "estimates in the graph (node kind fixed_lag: estimators)", read_fixed_lag)
 
 
 class FixedLagSmoother:
     """The node's core: a window of the source filter's estimates, smoothed backwards on every arrival."""
 
     def __init__(self, cfg: dict, name: str, run: dict | None = None) -> None:
-        self.conf = read_fixed_lag(cfg)[name]
+        self.name, self.conf = name, read_fixed_lag(cfg)[name]
         self.dynamics = build_stack(cfg, self.conf.source).filter.dynamics
         self.window: deque[Estimate] = deque()
         self.topic = estimate_topic(name)
@@ -79,7 +80,7 @@ class FixedLagSmoother:
         x_s, P_s = smooth_estimates(self.dynamics, dts, np.array([e.x for e in items]),
                                     np.array([e.P for e in items]))
         oldest = items[0]
-        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.conf.name, list(oldest.labels), x_s[0],
+        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.name, list(oldest.labels), x_s[0],
                         P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
 
 

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
+from bench_engine.settings import Check, SectionReader, Settings, at_least, read_entries, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import DetectionSet, Estimate, Outputs, python_log
 from radar_sensor.clutter import DETECTION_SET_TYPE, build_cluttered, detections_topic
@@ -29,29 +30,33 @@ from tracker_filters.filter_stage import build_stack
 SECTION = "trackers"
 
 
-@dataclass(frozen=True)
-class TrackerConfig:
-    filter: str
-    detections: str
-    gate_probability: float
-    max_misses: int | None
+@dataclass(frozen=True, kw_only=True)
+class TrackerConfig(Settings):
+    """One entry of ``trackers`` (the module docstring)."""
+
+    filter: str = setting(doc="an entry of the filters section: each track's filter (type, dynamics, initialiser, "
+                              "parameters)")
+    detections: str = setting(doc="a cluttered sensor (an entry of cluttered_sensors); its measurement model is "
+                                  "used")
+    gate_probability: float = setting(0.999, check=Check(lambda v: 0.0 < v < 1.0, "in (0, 1)"),
+                                      doc="P_G of the chi-square gate")
+    max_misses: int | None = setting(None, check=at_least(1), doc="delete the track after this many consecutive "
+                                                                  "misses (null: never)")
 
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
-    """The ``trackers`` section, read strictly (registered section reader)."""
-    sec = Section(cfg.get(SECTION), SECTION)
-    filters = Section(cfg.get("filters"), "filters").keys()
-    cluttered = cluttered_names(cfg)
-    out = {}
-    for name in sec.keys():
-        entry = sec.section(name, default_empty=False)
-        out[name] = TrackerConfig(
-            entry.choice("filter", filters), entry.choice("detections", cluttered),
-            entry.get("gate_probability", float, 0.999, lambda v: 0.0 < v < 1.0, "in (0, 1)"),
-            entry.get("max_misses", int, None, lambda v: v >= 1, "an integer >= 1"))
-        entry.finish()
-    sec.finish()
+    """The ``trackers`` section, read strictly: ``filter`` names a filter, ``detections`` a cluttered sensor."""
+    out = read_entries(TrackerConfig, cfg.get(SECTION), SECTION)
+    filters, cluttered = list(cfg.get("filters") or {}), cluttered_names(cfg) if out else []
+    for conf in out.values():
+        for key, allowed in (("filter", filters), ("detections", cluttered)):
+            if getattr(conf, key) not in allowed:
+                raise ScenarioError(f"'{conf.where(key)}' must be one of {allowed}, got {getattr(conf, key)!r}")
     return out
+
+
+TRACKERS = SectionReader(SECTION, dict[str, TrackerConfig], "trackers of sets of detections (node kind tracker: "
+                         "estimators)", read_trackers)
 
 
 def tracker_config(cfg: dict, name: str) -> TrackerConfig:

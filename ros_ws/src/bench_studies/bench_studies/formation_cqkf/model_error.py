@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section, apply_overrides
+from bench_engine.config import ScenarioError, apply_overrides
 from bench_engine.graph import resolve_estimators
 from tracker_filters.builders import build_dynamics
-from tracker_filters.filter_settings import filter_config
+from tracker_filters.filter_settings import filter_key
 from orbit_sim.truth import build_truth
 
 INTERVALS_S = (1.0, 10.0)
@@ -36,8 +36,7 @@ def relative_truth(cfg: dict, dt: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
 
 def filter_dynamics(cfg: dict) -> dict[str, object]:
     """Each default filter's dynamics model, built exactly as the filter node builds it."""
-    return {name: build_dynamics(Section(filter_config(cfg, name).get("dynamics"), f"filters.{name}.dynamics"), cfg)
-            for name in resolve_estimators(cfg, None)}
+    return {name: build_dynamics(filter_key(cfg, name, "dynamics"), cfg) for name in resolve_estimators(cfg, None)}
 
 
 def truth_acceleration(t: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -71,7 +70,7 @@ def model_error_rows(label: str, cfg: dict, intervals: tuple[float, ...] = INTER
     rows = []
     for name, model in filter_dynamics(cfg).items():
         residual, extra = model_residual(model, t, states)
-        rows.append({"case": label, "filter": name, "model": filter_config(cfg, name)["dynamics"]["model"],
+        rows.append({"case": label, "filter": name, "model": filter_key(cfg, name, "dynamics").model,
                      "rms": dict(zip(AXES, np.sqrt(np.mean(residual ** 2, axis=0)).tolist())),
                      "max": dict(zip(AXES, np.max(np.abs(residual), axis=0).tolist())),
                      "prediction_rms_m": {f"{T:g}": prediction_error(model, t, states, extra, T) for T in intervals}})

@@ -58,7 +58,7 @@ def tabulate(run_dir: Path, settle_s: float) -> dict[str, dict]:
         tracks = [track_of(d, name) for d in runs]
         diags = [d.estimates[name].diagnostics for d in runs]
         out[name] = filter_figures(tracks, diags, scored["estimators"][name], settle_s,
-                                   opts["position_threshold"], opts["velocity_threshold"])
+                                   opts.position_threshold, opts.velocity_threshold)
     return out
 
 

@@ -20,30 +20,30 @@ from bench_engine.labels import ORBIT
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData, Estimates
 from bench_studies.grace_velocity.metrics import BASELINE, range_rate_bound, range_rate_sd
-from bench_studies.grace_velocity.pair_fit import pair_force_model
+from bench_engine.settings import NoKeys
+from bench_studies.grace_velocity.pair_fit import PairFitParameters, pair_force_model
 from orbit_sim.orbit_fit import information
+from orbit_sim.truth import read_truth
+from radar_sensor.sensor_types import read_sensors
 
-TRUTH_MODEL = {"zonal_degree": 6, "drag": True}
-"""pair_hifi's force model as the fit's params (the scenario's truth.zonal_degree replaces the degree)."""
 
 
 def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) -> BoundSeries:
     """Bound (b) on the baseline [bx by bz bvx bvy bvz] at the truth steps of the fixes' span: P_1 + P_2, each
     satellite's Cramer-Rao bound mapped from its orbit's parameters (module docstring)."""
     cfg = data.scenario
-    truth = cfg["truth"]
-    params = {**TRUTH_MODEL, "zonal_degree": int(truth.get("zonal_degree", 6))}
-    model = pair_force_model(cfg, params)
+    truth, gnss = read_truth(cfg).options, read_sensors(cfg)
+    model = pair_force_model(cfg, PairFitParameters(second=sensors[1], zonal_degree=truth.zonal_degree, drag=True))
     labels = data.truth_labels
     steps = np.array(sorted(data.truth))
     t_all = np.array([data.truth[int(k)][0] for k in steps])
     P = []
-    for sat, (name, ballistic) in enumerate(zip(sensors, truth["ballistic"])):
+    for sat, (name, ballistic) in enumerate(zip(sensors, truth.ballistic)):
         fix_steps = np.array(sorted(data.measurements[name]))
         t = np.array([data.truth[int(k)][0] for k in fix_steps])
         cols = [labels.index(f"{c}{sat + 1}") for c in ORBIT]
-        fit = information(model, data.truth[int(fix_steps[0])][1][cols], float(ballistic), t,
-                          float(cfg["sensors"][name]["sigma_position"]))
+        fit = information(model, data.truth[int(fix_steps[0])][1][cols], ballistic, t,
+                          gnss[name].model.sigma_position)
         keep = (t_all >= t[0]) & (t_all <= t[-1])
         P.append(fit.states(t_all[keep])[1])
     return BoundSeries(steps[keep], t_all[keep], list(BASELINE), P[0] + P[1])
@@ -55,10 +55,8 @@ def dynamic_bound(data: BagData) -> tuple[np.ndarray, np.ndarray]:
     return series.t, range_rate_bound(data, series)
 
 
-def _orbit_crb_check(cfg: dict, params: dict) -> None:
-    if params:
-        raise ScenarioError(f"'scoring.bounds' orbit_crb takes no params, got {sorted(params)}")
-    if (cfg.get("truth") or {}).get("model") != "pair_hifi":
+def _orbit_crb_check(cfg: dict, params: NoKeys) -> None:
+    if read_truth(cfg).model != "pair_hifi":
         raise ScenarioError("'scoring.bounds' orbit_crb needs the pair_hifi truth (its force model is the bound's)")
 
 

@@ -14,10 +14,13 @@ satellite's estimator, first's]: a baseline formed from two single-satellite est
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)
 
-from bench_engine.config import ScenarioError, Section
+from bench_engine.config import ScenarioError
+from bench_engine.settings import NON_NEGATIVE, Check, Settings, setting
 from bench_eval.metric_families import Metric, Tracks
 from bench_eval.metrics import effective_samples
 from bench_eval.scoring import BagData
@@ -25,16 +28,21 @@ from bench_eval.scoring import BagData
 STATS = ("std", "mean", "max", "min", "rms")
 
 
-def _options(sec: Section) -> dict:
-    baseline = sec.get("baseline", list)
-    if len(baseline) != 6 or not all(isinstance(b, str) for b in baseline):
-        raise ScenarioError(f"'scoring.baseline' must list 6 labels (position, velocity), got {baseline!r}")
-    pairs = sec.get("pairs", dict, {})
-    for name, members in pairs.items():
-        if not isinstance(members, list) or len(members) != 2:
-            raise ScenarioError(f"'scoring.pairs.{name}' must name two estimators [second, first]")
-    return {"kbr": sec.get("kbr", str, "kbr"), "baseline": baseline, "skip_s": sec.non_negative("skip_s", 0.0),
-            "pairs": {k: list(v) for k, v in pairs.items()}}
+@dataclass(frozen=True, kw_only=True)
+class RangeRateOptions(Settings):
+    """The ``range_rate`` family's keys of the ``scoring`` section."""
+
+    kbr: str = setting("kbr", doc="the K-band ranging sensor the range rates are compared with")
+    baseline: list[str] = setting(doc="the baseline's labels: position, then velocity",
+                                  check=Check(lambda v: len(v) == 6, "6 labels (position, velocity)"))
+    skip_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the start of each run not scored")
+    pairs: dict = setting({}, doc="NAME: [second, first]: the difference of two estimators' satellite states, "
+                                  "scored as the baseline estimate NAME")
+
+    def validate(self, path: str) -> None:
+        for name, members in self.pairs.items():
+            if not isinstance(members, list) or len(members) != 2:
+                raise ScenarioError(f"'{path}.pairs.{name}' must name two estimators [second, first]")
 
 
 BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
@@ -59,41 +67,41 @@ def _columns(labels: list[str], wanted: list[str]) -> list[int] | None:
     return [labels.index(w) for w in wanted] if all(w in labels for w in wanted) else None
 
 
-def baseline_states(data: BagData, name: str, options: dict) -> tuple | None:
+def baseline_states(data: BagData, name: str, options: RangeRateOptions) -> tuple | None:
     """(steps, t, [b w] (K, 6), covariance (K, 6, 6) or None) of estimator ``name`` (or of a pair's
     difference, without covariance), None when it has no baseline."""
-    if name in options["pairs"]:
-        second, first = (data.estimates.get(n) for n in options["pairs"][name])
+    if name in options.pairs:
+        second, first = (data.estimates.get(n) for n in options.pairs[name])
         if second is None or first is None:
             return None
         common, i2, i1 = np.intersect1d(second.steps, first.steps, return_indices=True)
-        cols = [_columns(e.labels, [lab.replace("b", "", 1) + suffix for lab in options["baseline"]])
+        cols = [_columns(e.labels, [lab.replace("b", "", 1) + suffix for lab in options.baseline])
                 for e, suffix in ((second, "2"), (first, "1"))]
         if None in cols:
             return None
         return common, second.t[i2], second.x[i2][:, cols[0]] - first.x[i1][:, cols[1]], None
     est = data.estimates.get(name)
-    cols = None if est is None else _columns(est.labels, options["baseline"])
+    cols = None if est is None else _columns(est.labels, options.baseline)
     if cols is None:
         return None
     P = est.P[:, cols][:, :, cols]
     return est.steps, est.t, est.x[:, cols], (P if np.all(np.isfinite(P)) else None)
 
 
-def residuals(data: BagData, name: str, options: dict) -> dict[str, np.ndarray] | None:
+def residuals(data: BagData, name: str, options: RangeRateOptions) -> dict[str, np.ndarray] | None:
     """Per KBR step with an estimate (after skip_s): t, rho_dot_est - rho_dot_KBR, rho_dot_est - rho_dot_true,
     baseline velocity error (K, 3) and, for an estimator with a covariance, the baseline NEES (K,) (6 dof:
     position and velocity)."""
     states = baseline_states(data, name, options)
-    kbr = data.measurements.get(options["kbr"], {})
+    kbr = data.measurements.get(options.kbr, {})
     if states is None or not kbr:
         return None
     steps, t, bw, P = states
     t0 = min(tt for tt, _ in data.truth.values())
-    keep = [i for i, k in enumerate(steps) if int(k) in kbr and t[i] - t0 >= options["skip_s"]]
+    keep = [i for i, k in enumerate(steps) if int(k) in kbr and t[i] - t0 >= options.skip_s]
     if not keep:
         return None
-    truth_cols = _columns(data.truth_labels, options["baseline"])
+    truth_cols = _columns(data.truth_labels, options.baseline)
     truth = np.array([data.truth[int(steps[i])][1][truth_cols] for i in keep])
     rr = range_rate(bw[keep, :3], bw[keep, 3:])
     z = np.array([kbr[int(steps[i])][-1] for i in keep])
@@ -130,12 +138,12 @@ def _score_one(per_run: list[dict]) -> dict:
     return out
 
 
-def _names(tracks: Tracks, runs: list[BagData], options: dict) -> list[str]:
-    names = list(tracks) + [p for p in options["pairs"] if p not in tracks]
+def _names(tracks: Tracks, runs: list[BagData], options: RangeRateOptions) -> list[str]:
+    names = list(tracks) + [p for p in options.pairs if p not in tracks]
     return [n for n in names if baseline_states(runs[0], n, options) is not None]
 
 
-def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+def _score(tracks: Tracks, runs: list[BagData], options: RangeRateOptions) -> dict:
     scores = {}
     for name in _names(tracks, runs, options):
         per_run = [r for r in (residuals(d, name, options) for d in runs) if r is not None]
@@ -147,10 +155,10 @@ def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     return scores
 
 
-def _kbr_noise(data: BagData, options: dict) -> float | None:
+def _kbr_noise(data: BagData, options: RangeRateOptions) -> float | None:
     """The std of the KBR's own error (KBR minus the true range rate): the floor of any residual against it."""
-    kbr = data.measurements.get(options["kbr"], {})
-    cols = _columns(data.truth_labels, options["baseline"])
+    kbr = data.measurements.get(options.kbr, {})
+    cols = _columns(data.truth_labels, options.baseline)
     if not kbr or cols is None:
         return None
     truth = np.array([data.truth[k][1][cols] for k in kbr])
@@ -175,7 +183,7 @@ def range_rate_bounds(data: BagData) -> dict[str, dict[str, np.ndarray]]:
             for name, series in (data.bounds or {}).items() if list(series.labels) == BASELINE}
 
 
-def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+def _series(tracks: Tracks, runs: list[BagData], options: RangeRateOptions) -> dict:
     """First run's residual time series per estimator (plots over the day), each with the first run's bounds
     on the range rate (``rr_bounds``: the same for every estimator)."""
     out = {}
@@ -187,4 +195,4 @@ def _series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     return out
 
 
-RANGE_RATE = Metric(options=_options, score=_score, series=_series)
+RANGE_RATE = Metric(options=RangeRateOptions, score=_score, series=_series)

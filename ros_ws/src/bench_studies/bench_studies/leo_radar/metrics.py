@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from bench_engine.settings import NoKeys
 from bench_eval import metrics
 from bench_eval.metric_families import CONVERGENCE, Metric, Tracks
 from bench_eval.scoring import BagData
@@ -92,7 +93,7 @@ def score_radar_convergence(tracks: Tracks, radar: dict[str, RadarSamples]) -> d
     return scored
 
 
-def _score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+def _score(tracks: Tracks, runs: list[BagData], options: NoKeys) -> dict:
     radar: dict[str, RadarSamples] = {}
     per_run: dict[str, dict] = {}
     for name in tracks:

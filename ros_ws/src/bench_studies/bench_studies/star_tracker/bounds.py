@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.config import ScenarioError, Section
+from dataclasses import dataclass
+
+from bench_engine.config import ScenarioError
 from bench_engine.labels import ANGULAR_RATE, QUATERNION, ROTATION
+from bench_engine.settings import Settings, setting
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData
+from orbit_sim.truth import read_truth
 from star_tracker.attitude import matrix_from_quaternion
 from star_tracker.attitude_bound import attitude_information
 from star_tracker.camera_stage import camera_config
@@ -29,45 +33,57 @@ from star_tracker.tracker_stage import tracker_config
 from tracker_filters.pcrb import information_to_covariance
 
 
-def _wahba_check(cfg: dict, params: dict) -> None:
-    sec = Section(params, "scoring.bounds.params")
-    camera_config(cfg, sec.get("camera", str))
-    sec.finish()
+@dataclass(frozen=True, kw_only=True)
+class WahbaParameters(Settings):
+    """The wahba bound's ``params``."""
+
+    camera: str = setting(doc="the star camera (an entry of star_cameras) whose recorded centroids it bounds")
 
 
-def _wahba_run(data: BagData, params: dict) -> BoundSeries:
+def _wahba_check(cfg: dict, params: WahbaParameters) -> None:
+    camera_config(cfg, params.camera)
+
+
+def _wahba_run(data: BagData, params: WahbaParameters) -> BoundSeries:
     """Per frame of star camera ``camera``, the inverse Fisher information of the attitude error (rx ry rz,
     camera frame) from the frame's recorded centroids and the camera's centroid noise (sigma_px over the focal
     length); NaN for a frame with fewer than two stars. A bound per frame, without the trackers' motion model."""
-    conf = camera_config(data.scenario, params["camera"])
+    conf = camera_config(data.scenario, params.camera)
     sigma = conf.sigma_px * camera_of(conf).ifov
-    frames = data.measurements.get(params["camera"], {})
+    frames = data.measurements.get(params.camera, {})
     steps = np.array(sorted(frames), dtype=np.int64)
     J = np.array([attitude_information(frames[int(k)], sigma) for k in steps]).reshape(-1, 3, 3)
     return BoundSeries(steps, np.array([data.truth[int(k)][0] for k in steps]), list(ROTATION),
                        information_to_covariance(J))
 
 
-WAHBA = Bound(run=_wahba_run, check=_wahba_check)
+WAHBA = Bound(run=_wahba_run, check=_wahba_check, params=WahbaParameters)
 
 
-def _tracked_settings(cfg: dict, params: dict):
+@dataclass(frozen=True, kw_only=True)
+class TrackedParameters(Settings):
+    """The wahba_tracked bound's ``params``."""
+
+    tracker: str = setting(doc="a JPDAF star tracker of the scenario (an entry of star_trackers)")
+    dynamics: str = setting("tracker", choices=("tracker", "truth"),
+                            doc="tracker: the bound under the tracker's motion model, its σ_a and velocity prior; "
+                                "truth: the truth's (the rate is exact: a lower bound for any estimator)")
+
+
+def _tracked_settings(cfg: dict, params: TrackedParameters):
     """(tracker config, camera config, dynamics) of the params: ``tracker``, a JPDAF star tracker of the
     scenario (its motion model, aid and σ_a: _tracker_model); ``dynamics``: ``tracker`` (default: the bound
     under the trackers' model, its σ_a and velocity prior) or ``truth`` (the truth's: the rate is exact, so a star's centroid is its first position
     carried by the known turn, no residual velocity, Q = 0: the information of n detections is n/σ², a lower
     bound for any estimator on this truth)."""
-    sec = Section(params, "scoring.bounds.params")
-    conf = tracker_config(cfg, sec.get("tracker", str))
-    dynamics = sec.choice("dynamics", ("tracker", "truth"), "tracker")
-    sec.finish()
+    conf = tracker_config(cfg, params.tracker)
     if conf.tracker != "jpdaf":
-        raise ScenarioError(f"'scoring.bounds.params.tracker': '{conf.name}' must be a JPDAF (tracker: jpdaf), "
+        raise ScenarioError(f"'{params.where('tracker')}': '{params.tracker}' must be a JPDAF (tracker: jpdaf), "
                             f"got {conf.tracker}")
-    return conf, camera_config(cfg, conf.camera), dynamics
+    return conf, camera_config(cfg, conf.camera), params.dynamics
 
 
-def _tracked_check(cfg: dict, params: dict) -> None:
+def _tracked_check(cfg: dict, params: TrackedParameters) -> None:
     _tracked_settings(cfg, params)
 
 
@@ -90,7 +106,7 @@ def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mo
     return F, Q, np.diag([sigma_px ** 2, velocity, sigma_px ** 2, velocity])
 
 
-def _tracked_run(data: BagData, params: dict) -> BoundSeries:
+def _tracked_run(data: BagData, params: TrackedParameters) -> BoundSeries:
     """Per frame of the tracker's camera, the attitude bound (rx ry rz, camera frame) of
     star_tracker.tracked_bound: the stars' frames chained with the truth's attitudes, each star's centroid PCRB
     under the tracker's model (_tracker_model; R = σ² with the tracker's σ), mapped to the attitude; ``dynamics: truth``
@@ -108,7 +124,7 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
     if dynamics == "tracker":
         w = [data.truth_labels.index(lab) for lab in ANGULAR_RATE]
         rates = np.array([data.truth[int(k)][1][w] for k in steps[:-1]]).reshape(-1, 3)
-        F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(data.scenario.get("truth") or {}))
+        F, Q, P0 = _tracker_model(conf, sigma_px, np.diff(t), rates, lvlh_boresight_rate(read_truth(data.scenario)))
         H = CENTROID
     else:
         F, Q = np.broadcast_to(np.eye(2), (max(len(t) - 1, 0), 2, 2)), np.zeros((max(len(t) - 1, 0), 2, 2))
@@ -118,4 +134,4 @@ def _tracked_run(data: BagData, params: dict) -> BoundSeries:
     return BoundSeries(steps, t, list(ROTATION), P)
 
 
-WAHBA_TRACKED = Bound(run=_tracked_run, check=_tracked_check)
+WAHBA_TRACKED = Bound(run=_tracked_run, check=_tracked_check, params=TrackedParameters)

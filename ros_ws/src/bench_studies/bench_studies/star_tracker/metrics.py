@@ -22,20 +22,25 @@ Options (``scoring`` section): ``camera`` (the star camera whose truth topic is 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from bench_engine.bag_reader import BagReader
-from bench_engine.config import Section
+from bench_engine.settings import NON_NEGATIVE, Settings, setting
 from bench_eval.metric_families import Metric, Tracks
 from bench_eval.scoring import BagData
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 
 
-def _options(sec: Section) -> dict:
-    return {"camera": sec.get("camera", str, "camera"), "skip_s": sec.non_negative("skip_s", 0.0)}
+@dataclass(frozen=True, kw_only=True)
+class StarAttitudeOptions(Settings):
+    """The ``star_attitude`` family's keys of the ``scoring`` section."""
+
+    camera: str = setting("camera", doc="the star camera whose star_truth scores the identification")
+    skip_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the start of each run not scored")
 
 
 def _errors(track, t_from: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,13 +97,13 @@ def _identification(stars: dict, name: str, skip_steps: int) -> tuple[float, flo
     return rate, (wrong / frames if frames else float("nan")), centroid
 
 
-def _run_block(track, data: BagData, name: str, stars: dict, options: dict) -> dict:
+def _run_block(track, data: BagData, name: str, stars: dict, options: StarAttitudeOptions) -> dict:
     t0, dt, frames = _start(data), _dt(data), len(data.truth)
-    t, e, P = _errors(track, t0 + options["skip_s"])
+    t, e, P = _errors(track, t0 + options.skip_s)
     est = data.estimates[name]
     angle = np.linalg.norm(e, axis=1)
     nees = [float(ei @ np.linalg.solve(Pi, ei)) for ei, Pi in zip(e, P) if np.all(np.isfinite(Pi))]
-    rate, false_ids, centroid = _identification(stars, name, int(round(options["skip_s"] / dt)))
+    rate, false_ids, centroid = _identification(stars, name, int(round(options.skip_s / dt)))
     last = {k: float(v[np.isfinite(v)][-1]) if np.isfinite(v).any() else float("nan")
             for k, v in est.diagnostics.items()}
     return {"rms_arcsec": _rms(angle) / ARCSEC, "cross_arcsec": _rms(np.hypot(e[:, 0], e[:, 1])) / ARCSEC,
@@ -117,13 +122,13 @@ KEYS = ("rms_arcsec", "cross_arcsec", "roll_arcsec", "max_arcsec", "nees", "solv
         "reacquisitions", "filter_resets", "identification_rate", "false_ids", "centroid_arcsec")
 
 
-def _per_run(tracks: Tracks, runs: list[BagData], options: dict) -> dict[str, list[dict]]:
+def _per_run(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict[str, list[dict]]:
     names = list(tracks)
     out: dict[str, list[dict]] = {n: [] for n in names}
     index = {n: 0 for n in names}
     for data in runs:
         present = [n for n in names if n in data.estimates]
-        stars = _stars(data, options["camera"], present)
+        stars = _stars(data, options.camera, present)
         for n in present:
             out[n].append(_run_block(tracks[n][index[n]], data, n, stars, options))
             index[n] += 1
@@ -137,7 +142,7 @@ def _case(cfg: dict) -> dict:
             "sigma_px": camera.get("sigma_px")}
 
 
-def score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+def score(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict:
     per_run = _per_run(tracks, runs, options)
     scored = {}
     for name, blocks in per_run.items():
@@ -162,7 +167,7 @@ def score(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     return scored
 
 
-def series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
+def series(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict:
     """Per estimator: frame index, its time ``t`` and the attitude error (arcsec) per frame, RMS over the runs.
     ``t`` has the origin of the bound series (bench_eval.bounds.score_bounds: the first estimate of any
     estimator), so that √bound can be drawn on the same axis."""
@@ -181,4 +186,4 @@ def series(tracks: Tracks, runs: list[BagData], options: dict) -> dict:
     return out
 
 
-STAR_ATTITUDE = Metric(_options, score, series)
+STAR_ATTITUDE = Metric(StarAttitudeOptions, score, series)
