@@ -4,6 +4,7 @@ parameters files the launcher writes as the values written (types included)."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 import rclpy
@@ -12,8 +13,10 @@ from rclpy.node import Node
 
 from bench_engine.config import ScenarioError, load_scenario
 from bench_engine.graph import build_graph, node_kinds, resolve_estimators
-from bench_engine.parameters import YAML_SUFFIX, flatten, node_settings, parameters_file, unflatten
+from bench_engine.parameters import YAML_SUFFIX, flatten, node_parameters, node_settings, parameters_file, unflatten
 from bench_engine import plugins
+from bench_engine.scenario import coerce_scenario
+from bench_engine.settings_reference import entries
 
 KEYS = st.from_regex(r"[a-z][a-z0-9_]{0,8}", fullmatch=True).filter(lambda k: not k.endswith(YAML_SUFFIX))
 SCALAR = st.one_of(st.booleans(), st.integers(-2**62, 2**62), st.floats(allow_nan=False, width=64),
@@ -77,7 +80,7 @@ def test_every_node_of_every_study_gets_its_kinds_settings_back(scenario: str) -
     graph = build_graph(cfg, resolve_estimators(cfg, None))
     for spec in graph.nodes:
         assert node_settings(cfg, spec.kind, spec.name) == _numbers_as_floats(
-            node_kinds()[spec.kind].settings(cfg, spec.name)), spec.name
+            coerce_scenario(node_kinds()[spec.kind].settings(cfg, spec.name))), spec.name
 
 
 def test_a_filter_is_given_its_own_settings_and_the_models_it_reads_only() -> None:
@@ -96,14 +99,13 @@ def test_rcl_reads_the_parameters_files_as_written(tmp_path, scenario: str) -> N
     files = []
     for spec in graph.nodes:
         path = tmp_path / f"{spec.name}.yaml"
-        flat = flatten(node_kinds()[spec.kind].settings(cfg, spec.name))
-        path.write_text(parameters_file(flat, node=spec.name))
+        path.write_text(parameters_file(node_parameters(cfg, spec.kind, spec.name), node=spec.name))
         files += ["--params-file", str(path)]
     rclpy.init(args=["test", "--ros-args", *files], context=context)
     try:
         for spec in graph.nodes:
             node = Node(spec.name, context=context, automatically_declare_parameters_from_overrides=True)
-            flat = flatten(node_kinds()[spec.kind].settings(cfg, spec.name))
+            flat = node_parameters(cfg, spec.kind, spec.name)
             for name, value in flat.items():
                 got = node.get_parameter(name).value
                 assert type(got if not isinstance(got, (list, tuple)) else got[0]) is type(
@@ -113,5 +115,43 @@ def test_rcl_reads_the_parameters_files_as_written(tmp_path, scenario: str) -> N
                 else:
                     assert (list(got) if isinstance(got, (list, tuple)) else got) == value, name
             node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
+NUMBERS = [re.compile("^" + re.escape(e.path).replace(re.escape("<name>"), "[A-Za-z0-9_]+") + "$")
+           for e in entries() if e.type.startswith("number")]
+"""Key paths the settings declare as numbers (``float``)."""
+
+
+@pytest.mark.parametrize("scenario", sorted(plugins.names("scenarios")))
+def test_a_key_declared_a_number_is_a_double_parameter(scenario: str) -> None:
+    """Whatever the YAML writes (an integer, or 3.986004418e14, which YAML 1.1 reads as text), a key declared as
+    a number is a double parameter: ``ros2 param get`` shows it as one."""
+    cfg = load_scenario(scenario)
+    checked = 0
+    for spec in build_graph(cfg, resolve_estimators(cfg, None)).nodes:
+        for name, value in node_parameters(cfg, spec.kind, spec.name).items():
+            if any(p.match(name) for p in NUMBERS) and value is not None:
+                values = value if isinstance(value, list) else [value]
+                assert all(type(v) is float for v in values), (spec.name, name, value)
+                checked += 1
+    assert checked > 0
+
+
+def test_earth_mu_is_a_double_whatever_yaml_1_1_reads(tmp_path) -> None:
+    cfg = load_scenario("leo_radar", ["earth.mu=3.986004418e14"])   # YAML 1.1: a string
+    assert cfg["earth"]["mu"] == "3.986004418e14"
+    flat = node_parameters(cfg, "filter", "ukf")
+    assert flat["earth.mu"] == 3.986004418e14 and type(flat["earth.mu"]) is float
+    path = tmp_path / "ukf.yaml"
+    path.write_text(parameters_file(flat, node="ukf"))
+    context = rclpy.Context()
+    rclpy.init(args=["test", "--ros-args", "--params-file", str(path)], context=context)
+    try:
+        node = Node("ukf", context=context, automatically_declare_parameters_from_overrides=True)
+        parameter = node.get_parameter("earth.mu")
+        assert parameter.type_ == rclpy.Parameter.Type.DOUBLE and parameter.value == 3.986004418e14
+        node.destroy_node()
     finally:
         rclpy.shutdown(context=context)

@@ -18,12 +18,12 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bench_msgs.msg import RangeAzEl, StateEstimate
+from rcl_interfaces.msg import ParameterType
 from bench_engine.config import apply_overrides, load_scenario
 from bench_engine.domains import reserve
-from bench_engine.graph import node_kinds
 from bench_engine.inprocess import run_in_process
 from bench_engine.launcher import _file_parameters, prepare_run
-from bench_engine.parameters import flatten, parameters_file
+from bench_engine.parameters import node_parameters, parameters_file
 from bench_engine.stage_node import StageNode
 from radar_sensor.messages import RANGE_AZ_EL
 
@@ -46,7 +46,7 @@ def ros(tmp_path: Path, reference):
     """A free ROS domain with the standalone UKF running on it and a test node of ours."""
     cfg = reference[0]
     params = tmp_path / "ukf.yaml"
-    params.write_text(parameters_file(flatten(node_kinds()["filter"].settings(cfg, "ukf"))))
+    params.write_text(parameters_file(node_parameters(cfg, "filter", "ukf")))
     reservation = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(reservation.domain))
     log = open(tmp_path / "ukf.log", "w")
@@ -131,13 +131,15 @@ def test_a_running_filter_node_shows_its_type_and_tuning_as_read_only_parameters
     client = AsyncParameterClient(node, "ukf")
     assert client.wait_for_services(timeout_sec=20.0)
     names = ["kind", "filters.ukf.type", "filters.ukf.params.alpha", "filters.ukf.dynamics.model",
-             "sensors.radar.sigma_range", "qos.reliability"]
+             "sensors.radar.sigma_range", "qos.reliability", "earth.mu"]
     future = client.get_parameters(names)
     executor.spin_until_future_complete(future, timeout_sec=10.0)
     values = dict(zip(names, (v.string_value or v.double_value for v in future.result().values)))
     assert values == {"kind": "filter", "filters.ukf.type": "ukf", "filters.ukf.params.alpha": 1.0,
                       "filters.ukf.dynamics.model": "orbit_j2", "sensors.radar.sigma_range": 31.6227766,
-                      "qos.reliability": "best_effort"}
+                      "qos.reliability": "best_effort", "earth.mu": 3.986004418e14}
+    types = {name: v.type for name, v in zip(names, future.result().values)}
+    assert types["earth.mu"] == types["filters.ukf.params.alpha"] == ParameterType.PARAMETER_DOUBLE
     listed = client.list_parameters(prefixes=["filters.ukf"])
     executor.spin_until_future_complete(listed, timeout_sec=10.0)
     assert "filters.ukf.init.velocity_sigma" in listed.result().result.names

@@ -22,7 +22,7 @@ from bench_engine import phases, yamlio
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
 from bench_engine.domains import DomainInUse, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
-from bench_engine.parameters import flatten, node_settings, parameters_file
+from bench_engine.parameters import node_parameters, node_settings, parameters_file
 from bench_engine.process import exit_now
 from bench_engine.bag_errors import BagUnrecoverable
 from bench_engine.recovery import ensure_complete
@@ -91,7 +91,7 @@ def write_parameters(plan: "RunPlan") -> None:
     cfg = plan.run["scenario"]
     plan.parameters_file("x").parent.mkdir(exist_ok=True)
     for spec in plan.graph.nodes:
-        flat = {"kind": spec.kind, **flatten(node_kinds()[spec.kind].settings(cfg, spec.name))}
+        flat = {"kind": spec.kind, **node_parameters(cfg, spec.kind, spec.name)}
         plan.parameters_file(spec.name).write_text(parameters_file(flat))
 
 

@@ -6,7 +6,8 @@ YAML, the launcher's overrides, a ``ros__parameters`` file and ``ros2 param get`
 part of the scenario its core reads (``NodeKind.reads``); the launcher writes that part as the node's
 parameters file, the node declares every parameter read-only and rebuilds its configuration from them alone.
 
-ROS parameters hold booleans, integers, doubles, strings and non-empty arrays of one of those types. A
+A parameter has the type the scenario key is declared with (bench_engine.settings: a ``float`` key is a
+double). ROS parameters hold booleans, integers, doubles, strings and non-empty arrays of one of those types. A
 value that is none of these (null, an empty list, a list of lists or mappings, a list mixing strings and
 numbers) and a mapping whose keys are not parameter-name tokens are stored as a string parameter holding
 their YAML, named with the suffix :data:`YAML_SUFFIX` (``sensors.gnss1.outages__yaml: "[[3600, 4200]]"``). A
@@ -24,6 +25,7 @@ import yaml
 from bench_engine import yamlio
 from bench_engine.config import ScenarioError
 from bench_engine.graph import node_kinds
+from bench_engine.scenario import coerce_scenario
 
 YAML_SUFFIX = "__yaml"
 """Suffix of a parameter whose string value is the YAML of a value ROS parameters cannot hold."""
@@ -99,10 +101,17 @@ def _load_yaml(name: str, text: Any) -> Any:
         raise ScenarioError(f"parameter '{name}' holds no valid YAML: {str(err).splitlines()[0]}") from None
 
 
+def node_parameters(cfg: dict, kind: str, name: str) -> dict[str, Any]:
+    """Node ``name``'s ROS parameters: its kind's part of the scenario (``NodeKind.settings``), every declared key
+    of its declared type (bench_engine.scenario.coerce_scenario: a ``float`` key is a double even where the file
+    writes an integer or YAML 1.1 reads the number as text), flattened."""
+    return flatten(coerce_scenario(node_kinds()[kind].settings(cfg, name)))
+
+
 def node_settings(cfg: dict, kind: str, name: str) -> dict:
-    """Node ``name``'s settings (its kind's part of the scenario, ``NodeKind.settings``) as they reach it through
-    ROS parameters: flattened and read back, so validation and the in-process runner see what the node sees."""
-    return unflatten(flatten(node_kinds()[kind].settings(cfg, name)))
+    """Node ``name``'s settings as they reach it through ROS parameters (:func:`node_parameters`, read back), so
+    validation and the in-process runner see what the node sees."""
+    return unflatten(node_parameters(cfg, kind, name))
 
 
 class _Quoted(str):
