@@ -58,9 +58,9 @@ def test_graph_expects_every_subscriber_before_starting() -> None:
     assert graph.expected_subscribers("/radar/measurement") == 3  # ekf + ukf + recorder
     assert graph.expected_subscribers("/ukf/estimate") == 1
     assert set(graph.data_topics()) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate",
-                                        "/ukf/estimate", "/truth/odometry", "/truth/pose", "/truth/markers",
+                                        "/ukf/estimate", "/truth/odometry", "/truth/markers",
                                         *(f"/{n}/{v}" for n in ("ekf", "ukf")  # standard views (bench_engine.views)
-                                          for v in ("odometry", "pose", "attitude", "diagnostics", "markers"))}
+                                          for v in ("odometry", "diagnostics", "markers"))}
     assert graph.expected_subscribers("/ukf/odometry") == 1  # the recorder
 
 

@@ -17,8 +17,8 @@ from rclpy.serialization import deserialize_message
 from scipy.spatial.transform import Rotation
 
 from bench_engine import cdr, views
-from bench_engine.config import ScenarioError
-from bench_engine.graph import NodeSpec
+from bench_engine.config import ScenarioError, load_scenario
+from bench_engine.graph import NodeSpec, build_graph
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, TruthSample
 from bench_models.states import error_labels
@@ -49,6 +49,14 @@ def test_view_topics_follow_the_topic_contract():
     assert views.view_topics("/truth/state", "bench_msgs/msg/TruthState") == {
         "/truth/odometry": "nav_msgs/msg/Odometry", "/truth/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
         "/truth/markers": "visualization_msgs/msg/Marker"}
+    orbit, attitude = ("x", "y", "z", "vx", "vy", "vz"), ("qw", "qx", "qy", "qz")
+    assert sorted(views.view_topics("/ukf/estimate", "bench_msgs/msg/StateEstimate", orbit)) == [
+        "/ukf/diagnostics", "/ukf/markers", "/ukf/odometry"]                  # no attitude in an orbit state
+    assert sorted(views.view_topics("/st/estimate", "bench_msgs/msg/StateEstimate", attitude)) == [
+        "/st/attitude", "/st/diagnostics", "/st/pose"]                        # no position in an attitude
+    assert sorted(views.view_topics("/truth/state", "bench_msgs/msg/TruthState", ("x", "y", "z"))) == [
+        "/truth/markers"]
+    assert views.view_topics("/truth/state", "bench_msgs/msg/TruthState", ("x1", "bx")) == {}
     for topic, type_name in (("/radar/measurement", "bench_msgs/msg/RangeAzEl"), ("/clock", "rosgraph_msgs/msg/Clock"),
                              ("/ukf/stars", "bench_msgs/msg/StarCentroids"),
                              ("/ukf/estimate", "bench_msgs/msg/TruthState"),
@@ -67,6 +75,29 @@ def test_add_standard_views_adds_each_publisher_its_views():
     assert sorted(truth.publishes) == ["/clock", "/truth/markers", "/truth/odometry", "/truth/pose", "/truth/state"]
     assert list(radar.publishes) == ["/radar/measurement"]
     assert sorted(ukf.publishes) == sorted(["/ukf/estimate"] + [f"/ukf/{s}" for s in views.SUFFIXES])
+    kf = NodeSpec("kf", "filter", publishes={"/kf/estimate": "bench_msgs/msg/StateEstimate"},
+                  labels={"/kf/estimate": ("bx", "by", "bz")})
+    views.add_standard_views([kf], {})
+    assert sorted(kf.publishes) == ["/kf/diagnostics", "/kf/estimate"]
+
+
+@pytest.mark.parametrize("scenario, node, advertised", [
+    ("leo_radar", "ukf", ["diagnostics", "estimate", "markers", "odometry"]),
+    ("leo_radar", "truth", ["clock", "markers", "odometry", "state"]),
+    ("star_tracker", "jpdaf_wahba", ["attitude", "diagnostics", "estimate", "pose", "stars"]),
+    ("star_tracker", "truth", ["clock", "pose", "state"]),
+    ("grace_velocity", "kf_a", ["diagnostics", "estimate"]),
+    ("grace_velocity", "kf_a_lag", ["diagnostics", "estimate"]),
+    ("grace_velocity", "truth", ["clock", "state"]),
+    ("formation_cqkf", "cwb", ["diagnostics", "estimate", "markers", "odometry"]),
+    (str(Path(__file__).parent / "data" / "tracker_formation.yaml"), "gnn", ["diagnostics", "estimate", "markers",
+                                                                             "odometry"]),
+])
+def test_a_node_advertises_only_the_views_its_state_supports(scenario: str, node: str, advertised: list) -> None:
+    """The graph gives each estimate and truth topic the views its state's labels support (a leo_radar UKF's
+    orbit state has no attitude: no /ukf/pose, no /ukf/attitude), from the kinds' settings alone."""
+    graph = build_graph(load_scenario(scenario), None)
+    assert sorted(t.rsplit("/", 1)[1] for t in graph.node(node).publishes) == advertised
 
 
 def test_the_switch_is_a_bool():

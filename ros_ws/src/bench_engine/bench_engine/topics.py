@@ -55,3 +55,6 @@ class NodeSpec:
     publishes: dict[str, str] = field(default_factory=dict)
     subscribes: dict[str, str] = field(default_factory=dict)
     """Topic -> type; a kind may leave the type empty, the graph fills it from the topic's publisher."""
+    labels: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    """Published topic -> the state labels of its items, where the kind knows them: a topic gets the standard
+    views its state supports (bench_engine.views); one without labels here gets every view of its type."""

@@ -5,9 +5,11 @@ bench_msgs/TruthState) also publishes, on topics beside it, the standard message
 item's state holds what they need (selected by label, never by position). The topic suffixes are a contract
 (the constants below); :func:`add_standard_views` adds the topics to the graph (bench_engine.graph.build_graph),
 so the recorder records them and the pacing counts them, and :func:`item_publishers` is the node shells' one
-call that publishes them. A view topic whose message an item cannot fill gets nothing (a state without
-velocity gets no Odometry): pacing and the recorder count what was published, zero included. The scorer reads
-only ``/NAME/measurement``, ``/NAME/estimate`` and ``/truth/state``.
+call that publishes them. A node advertises only the views its state supports: each kind says the labels of the
+states it publishes (``NodeSpec.labels``: a leo_radar UKF's orbit state has no pose, no attitude). A view topic
+whose message an item cannot fill (a kind that says no labels) gets nothing: pacing and the recorder count what
+was published, zero included. The scorer reads only ``/NAME/measurement``, ``/NAME/estimate`` and
+``/truth/state``.
 
 Everything here is a pure conversion (item -> light message, bench_engine.cdr) except :func:`item_publishers`,
 which only calls the shell's own publisher methods; nothing imports rclpy. tests/test_views.py checks the
@@ -101,9 +103,19 @@ PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.
 
 # --- the graph --------------------------------------------------------------------------------------------
 
-def view_topics(topic: str, type_name: str) -> dict[str, str]:
+NEEDS = {ODOMETRY: POSITION + VELOCITY, POSE: QUATERNION, ATTITUDE: QUATERNION, MARKERS: POSITION, DIAGNOSTICS: ()}
+"""The state labels each view needs (an item without them gets none of that view: the functions below)."""
+
+
+def supported(labels: tuple[str, ...] | None) -> set[str]:
+    """The views a state with ``labels`` supports (None: unknown, every view)."""
+    return set(NEEDS) if labels is None else {view for view, need in NEEDS.items() if set(need) <= set(labels)}
+
+
+def view_topics(topic: str, type_name: str, labels: tuple[str, ...] | None = None) -> dict[str, str]:
     """The view topics (with their types) of a data topic: ``/NAME/estimate`` of StateEstimate gives
-    ESTIMATE_VIEWS, a TruthState topic ``/NAME/state`` TRUTH_VIEWS, anything else none."""
+    ESTIMATE_VIEWS, a TruthState topic ``/NAME/state`` TRUTH_VIEWS, anything else none; of those, the ones a
+    state with ``labels`` supports (None: unknown, all of them)."""
     parts = topic.split("/")
     if len(parts) != 3 or parts[0] or not parts[1]:
         return {}
@@ -113,7 +125,8 @@ def view_topics(topic: str, type_name: str) -> dict[str, str]:
         views = TRUTH_VIEWS
     else:
         return {}
-    return {f"/{parts[1]}/{suffix}": view_type for suffix, view_type in views.items()}
+    keep = supported(labels)
+    return {f"/{parts[1]}/{suffix}": view_type for suffix, view_type in views.items() if suffix in keep}
 
 
 SWITCH = "standard_views"
@@ -129,17 +142,18 @@ def standard_views(cfg: dict) -> bool:
 
 
 def add_standard_views(nodes: list[NodeSpec], cfg: dict) -> None:
-    """Add to each node's published topics the views of its estimate and truth topics, unless the scenario
-    turns them off (build_graph's one call): the recorder then records them, the readiness barrier waits for
-    their subscribers and the pacing counts them, like any data topic. A bag player (role ``replay``)
-    replays the recorded truth and measurements only, so a replayed run's bag has no truth views."""
+    """Add to each node's published topics the views of its estimate and truth topics that their state supports
+    (``NodeSpec.labels``), unless the scenario turns them off (build_graph's one call): the recorder then records
+    them, the readiness barrier waits for their subscribers and the pacing counts them, like any data topic. A
+    bag player (role ``replay``) replays the recorded truth and measurements only, so a replayed run's bag has
+    no truth views."""
     if not standard_views(cfg):
         return
     for node in nodes:
         if node.role == "replay":
             continue
         for topic, type_name in list(node.publishes.items()):
-            for view, view_type in view_topics(topic, type_name).items():
+            for view, view_type in view_topics(topic, type_name, node.labels.get(topic)).items():
                 node.publishes.setdefault(view, view_type)
 
 

@@ -7,9 +7,10 @@ kind.
 """
 from __future__ import annotations
 
+from bench_engine import plugins
 from bench_engine.graph import CLOCK_TOPIC, CLOCK_TYPE, TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import Outputs, TruthSample
-from orbit_sim.truth import build_truth
+from orbit_sim.truth import build_truth, read_truth
 
 
 class TruthSource:
@@ -27,8 +28,11 @@ class TruthSource:
         return [(TRUTH_TOPIC, TruthSample(k, self.t_ns(k), self.truth.frame, self._labels, self.truth.states[k]))]
 
 
-TRUTH = NodeKind(
-    "truth", "source", "bench_engine.source_node:CoreSourceNode",
-    instances=lambda cfg, requested: ["truth"],
-    spec=lambda cfg, name: NodeSpec(name, "truth", publishes={TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE}),
-    check=lambda cfg, name: TruthSource(cfg), stage=TruthSource)
+def _spec(cfg: dict, name: str) -> NodeSpec:
+    """/truth/state and /clock; the state's labels are the truth model's (its standard views: bench_engine.views)."""
+    labels = {TRUTH_TOPIC: plugins.load("truth_models", read_truth(cfg).model).labels} if cfg.get("truth") else {}
+    return NodeSpec(name, "truth", publishes={TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE}, labels=labels)
+
+
+TRUTH = NodeKind("truth", "source", "bench_engine.source_node:CoreSourceNode", instances=lambda cfg, requested: ["truth"],
+                 spec=_spec, check=lambda cfg, name: TruthSource(cfg), stage=TruthSource)

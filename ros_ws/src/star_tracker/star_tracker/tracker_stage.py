@@ -163,7 +163,7 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = tracker_config(cfg, name)
     return NodeSpec(name, "star_tracker", publishes={estimate_topic(name): ESTIMATE_TYPE,
                                                      stars_topic(name): STAR_CENTROIDS_TYPE},
-                    subscribes={measurement_topic(conf.camera): ""})
+                    subscribes={measurement_topic(conf.camera): ""}, labels={estimate_topic(name): QUATERNION})
 
 
 def _check(cfg: dict, name: str) -> None:

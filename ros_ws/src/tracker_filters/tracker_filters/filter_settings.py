@@ -123,10 +123,6 @@ class DynamicsSettings(Settings):
     options: Settings = variant("model", lambda: plugins.names("dynamics"),
                                 lambda name: plugins.load("dynamics", name).settings)
 
-    def state_labels(self) -> tuple[str, ...]:
-        """The state the model estimates."""
-        return self.options.state_labels()
-
 
 # --- initialisers ---------------------------------------------------------------------------------------------
 
@@ -252,6 +248,13 @@ def filter_key(cfg: dict, name: str, key: str) -> Any:
     """One key of filter ``name`` (e.g. its ``sensors`` or ``dynamics`` for the graph), read as
     :func:`filter_settings` reads it but without the rest (the estimator type's parameters load the filters)."""
     return read_key(FilterSettings, filter_config(cfg, name), key, f"filters.{name}")
+
+
+def state_labels(cfg: dict, name: str) -> tuple[str, ...] | None:
+    """The labels of filter ``name``'s state, from its dynamics settings (None for a registered model whose
+    settings do not say them)."""
+    options = filter_key(cfg, name, "dynamics").options
+    return options.state_labels() if hasattr(options, "state_labels") else None
 
 
 def read_filters(cfg: dict) -> dict[str, FilterSettings]:

@@ -21,7 +21,7 @@ from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Measurement, Outputs, python_log
 from radar_sensor.sensor_types import sensor_names
 from tracker_filters.derived import read_derived
-from tracker_filters.filter_settings import filter_config, filter_key
+from tracker_filters.filter_settings import filter_config, filter_key, state_labels
 
 
 def build_stack(cfg: dict, name: str):
@@ -91,7 +91,8 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
     if unknown:
         raise ScenarioError(f"'filters.{name}.sensors' names unknown sensor(s) {unknown}; allowed: {sorted(sensors)}")
     return NodeSpec(name, "filter", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={measurement_topic(s): "" for s in inputs})
+                    subscribes={measurement_topic(s): "" for s in inputs},
+                    labels={estimate_topic(name): state_labels(cfg, name)})
 
 
 FILTER_READS = ("scenario", "seed", "time", "earth", "truth", "sensors", "derived_measurements")

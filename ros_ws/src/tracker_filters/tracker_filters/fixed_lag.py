@@ -24,6 +24,7 @@ from bench_engine.config import ScenarioError
 from bench_engine.settings import POSITIVE, SectionReader, Settings, read_entries, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import Estimate, Outputs, python_log
+from tracker_filters.filter_settings import state_labels
 from tracker_filters.filter_stage import build_stack
 
 SECTION = "fixed_lag_smoothers"
@@ -87,7 +88,8 @@ class FixedLagSmoother:
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = read_fixed_lag(cfg)[name]
     return NodeSpec(name, "fixed_lag", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={estimate_topic(conf.source): ""})
+                    subscribes={estimate_topic(conf.source): ""},
+                    labels={estimate_topic(name): state_labels(cfg, conf.source)})
 
 
 FIXED_LAG = NodeKind("fixed_lag", "estimator", "bench_engine.stage_node:StageNode",

@@ -25,6 +25,7 @@ from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
 from bench_engine.stage import DetectionSet, Estimate, Outputs, python_log
 from radar_sensor.clutter import DETECTION_SET_TYPE, build_cluttered, detections_topic
 from radar_sensor.clutter import names as cluttered_names
+from tracker_filters.filter_settings import state_labels
 from tracker_filters.filter_stage import build_stack
 
 SECTION = "trackers"
@@ -116,8 +117,10 @@ class TrackerStage:
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
+    conf = tracker_config(cfg, name)
     return NodeSpec(name, "tracker", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={detections_topic(tracker_config(cfg, name).detections): DETECTION_SET_TYPE})
+                    subscribes={detections_topic(conf.detections): DETECTION_SET_TYPE},
+                    labels={estimate_topic(name): state_labels(cfg, conf.filter)})
 
 
 TRACKER = NodeKind("tracker", "estimator", "bench_engine.stage_node:StageNode",
