@@ -15,6 +15,8 @@ import sys
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
+from bench_engine.settings import read
+from bench_studies.grace_velocity.pair_fit import PairFitParameters
 from bench_studies.grace_velocity.tuning import (TUNING_SEED, measurements, orbit_fit_score, rts_score,
                                                  savgol_score)
 
@@ -51,8 +53,8 @@ def main(argv: list[str] | None = None) -> int:
         base = cfg["variants"]["dynamic"]["scoring.offline.orbit_fit_j2"]["params"]
         scores = {}
         for sigma in args.sigmas.split(","):
-            scores[sigma] = orbit_fit_score(cfg, {**base, "empirical_sigma": float(sigma)}, items, truth,
-                                            args.skip_s, args.span_s)
+            params = read(PairFitParameters, {**base, "empirical_sigma": float(sigma)}, "orbit_fit_j2.params")
+            scores[sigma] = orbit_fit_score(cfg, params, items, truth, args.skip_s, args.span_s)
             print(f"  orbit_fit_j2 empirical_sigma={sigma}: {scores[sigma] * 1e6:.3f}", flush=True)
         print(f"chosen orbit_fit_j2 empirical_sigma = {min(scores, key=scores.get)}", flush=True)
     return 0

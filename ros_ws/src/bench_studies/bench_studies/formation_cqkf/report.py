@@ -14,8 +14,11 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 from scipy.special import stdtrit  # Student t quantile: t.ppf(q, df) = stdtrit(df, q)
 
+from bench_engine.timegrid import build_time
 from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, paper_note, render
 from bench_eval.study import load_paper
+from orbit_sim.truth import Formation, read_truth
+from radar_sensor.sensor_types import read_sensors
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
 
@@ -31,15 +34,14 @@ def paper004_case(cfg: Mapping) -> dict | None:
     A case needs the chief's e and the relative orbit size of the table, nonlinear (range/angles)
     measurements every 1 s and a 1 s step.
     """
-    truth, sensors = cfg.get("truth") or {}, list((cfg.get("sensors") or {}).values())
-    e = float((truth.get("chief") or {}).get("e", 0.0))
-    size = ((truth.get("deputy") or {}).get("pco") or {}).get("size")
-    radio = [s for s in sensors if isinstance(s, Mapping) and s.get("type") == "isl_radio"]
-    if size is None or len(radio) != 1 or float(radio[0].get("interval", 0.0)) != 1.0 \
-            or float((cfg.get("time") or {}).get("dt", 0.0)) != 1.0:
+    truth = read_truth(cfg).options
+    radio = [s for s in read_sensors(cfg).values() if s.type == "isl_radio"]
+    if not isinstance(truth, Formation) or truth.deputy.pco is None or len(radio) != 1 or radio[0].interval != 1.0 \
+            or build_time(cfg).dt != 1.0:
         return None
-    return next((c for c in PAPER["cases"]
-                 if np.isclose(c["e"], e, atol=1e-9) and np.isclose(c["rho_m"], float(size))), None)
+    e, size = truth.chief.e, truth.deputy.pco.size
+    return next((c for c in PAPER["cases"] if np.isclose(c["e"], e, atol=1e-9) and np.isclose(c["rho_m"], size)),
+                None)
 
 
 def mean_se(values: Sequence[float]) -> tuple[float, float]:

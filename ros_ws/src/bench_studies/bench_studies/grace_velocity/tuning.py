@@ -22,6 +22,7 @@ from bench_studies.grace_velocity.metrics import range_rate
 from bench_studies.grace_velocity.pair_fit import pair_force_model
 from orbit_sim.orbit_fit import fit_orbit
 from orbit_sim.truth import build_truth
+from radar_sensor.sensor_types import read_sensors
 from tracker_filters.builders import build_filter_stack
 from tracker_filters.differentiation import savgol_derivative
 from tracker_filters.smoothing import smooth_estimates
@@ -137,16 +138,16 @@ def savgol_score(items: dict, truth, window_s: float, polyorder: int, skip_s: fl
     return _rr_truth_rms(np.array([m.step for m in meas]), np.hstack([z, w]), truth, skip_s)
 
 
-def orbit_fit_score(cfg: dict, params: dict, items: dict, truth, skip_s: float, span_s: float,
+def orbit_fit_score(cfg: dict, params, items: dict, truth, skip_s: float, span_s: float,
                     sensors: tuple[str, str] = ("gnss1", "gnss2")) -> float:
-    """Range-rate RMS against the truth of the pair's dynamic orbit fit (pair_fit.py's pair_orbit_fit params)
-    over the first ``span_s`` seconds of fixes."""
-    model = pair_force_model(cfg, params)
+    """Range-rate RMS against the truth of the pair's dynamic orbit fit (``params``: pair_fit.py's
+    PairFitParameters) over the first ``span_s`` seconds of fixes."""
+    model, gnss = pair_force_model(cfg, params), read_sensors(cfg)
     states = []
     for name in sensors:
         meas = [m for m in items[f"/{name}/measurement"] if m.t - truth.grid.times()[0] <= span_s]
         t, z = np.array([m.t for m in meas]), np.array([m.z for m in meas])
-        fit = fit_orbit(t, z, float(cfg["sensors"][name]["sigma_position"]), model, params.get("ballistic_guess", 0.0),
-                        params.get("empirical_sigma"))
+        fit = fit_orbit(t, z, gnss[name].model.sigma_position, model, params.ballistic_guess or 0.0,
+                        params.empirical_sigma)
         states.append(fit.states(t, with_covariance=False)[0])
     return _rr_truth_rms(np.array([m.step for m in meas]), states[1] - states[0], truth, skip_s)

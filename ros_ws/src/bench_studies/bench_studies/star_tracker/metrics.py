@@ -29,8 +29,11 @@ import numpy as np
 
 from bench_engine.bag_reader import BagReader
 from bench_engine.settings import NON_NEGATIVE, Settings, setting
+from bench_engine.timegrid import build_time
 from bench_eval.metric_families import Metric, Tracks
 from bench_eval.scoring import BagData
+from orbit_sim.truth import read_truth
+from star_tracker.camera_stage import read_cameras
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 
@@ -55,7 +58,7 @@ def _start(data: BagData) -> float:
 
 
 def _dt(data: BagData) -> float:
-    return float((data.scenario.get("time") or {}).get("dt", 0.1))
+    return build_time(data.scenario).dt
 
 
 def _rms(values) -> float:
@@ -135,11 +138,12 @@ def _per_run(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) 
     return out
 
 
-def _case(cfg: dict) -> dict:
-    truth = cfg.get("truth") or {}
-    camera = (cfg.get("star_cameras") or {}).get("camera") or {}
-    return {"boresight": truth.get("boresight", "zenith"), "jitter_deg_s": truth.get("jitter_deg_s", 0.0),
-            "sigma_px": camera.get("sigma_px")}
+def scenario_case(cfg: dict) -> dict:
+    """The scenario's case as the paper's tables name it: the truth's boresight and jitter, the camera's
+    sigma_px (None without a camera named ``camera``)."""
+    truth, cameras = read_truth(cfg).options, read_cameras(cfg)
+    return {"boresight": truth.boresight, "jitter_deg_s": truth.jitter_deg_s,
+            "sigma_px": cameras["camera"].sigma_px if "camera" in cameras else None}
 
 
 def score(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict:
@@ -155,7 +159,7 @@ def score(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> 
         angles = np.concatenate([b["series"][1] for b in blocks]) if blocks else np.zeros(0)
         block["rms_arcsec"] = _rms(angles) if angles.size else None
         block["runs"] = len(blocks)
-        block["case"] = _case(runs[0].scenario) if runs else {}
+        block["case"] = scenario_case(runs[0].scenario) if runs else {}
         scored[name] = block
     for name, block in scored.items():
         sna = scored.get(name.replace("jpdaf", "sna")) if "jpdaf" in name else None

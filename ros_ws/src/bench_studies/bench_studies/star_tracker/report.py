@@ -13,6 +13,7 @@ from bench_eval.report import (BOUND_STYLE, Plot, Section, Table, bound_curves, 
                                thin)
 from bench_eval.study import load_paper
 from bench_eval.sweep import sweep_intro
+from bench_studies.star_tracker.metrics import scenario_case
 
 PAPER, CLAIMS = load_paper(Path(__file__).with_name("paper.yaml"))
 ORDER = ("sna_triad", "jpdaf_triad", "sna_wahba", "jpdaf_wahba")
@@ -23,9 +24,8 @@ SIGMA_VARIANCE = {0.1732050808: "0.03", 0.1414213562: "0.02", 0.1303840481: "0.0
 
 def paper_case(cfg: Mapping) -> Mapping | None:
     """The paper's numbers for a resolved scenario (:func:`paper_numbers` of its boresight, jitter and sigma)."""
-    truth = cfg.get("truth") or {}
-    return paper_numbers(truth.get("boresight"), truth.get("jitter_deg_s", 0.0),
-                         ((cfg.get("star_cameras") or {}).get("camera") or {}).get("sigma_px"))
+    case = scenario_case(cfg)
+    return paper_numbers(case["boresight"], case["jitter_deg_s"], case["sigma_px"])
 
 
 def paper_numbers(boresight: str | None, jitter_deg_s: float, sigma_px: float | None) -> Mapping | None:
