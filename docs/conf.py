@@ -1,9 +1,10 @@
 """Sphinx configuration of the bench's documentation site (``make docs``).
 
 MyST Markdown pages; warnings are errors and every cross-reference is checked (``make docs`` runs
-``sphinx -n -W``). Two local extensions (``docs/_ext``): ``api_pages`` writes the API reference of the rclpy-free
-modules from their docstrings, and ``run_blocks`` runs the tutorials' shell and Python steps on shortened runs
-while the site is built, so that a step that stops working fails the build.
+``sphinx -n -W``). Three local extensions (``docs/_ext``): ``api_pages`` writes the API reference of the
+rclpy-free modules from their docstrings, ``settings_page`` the settings reference from the code that reads the
+settings, and ``run_blocks`` runs the tutorials' shell and Python steps on shortened runs while the site is
+built, so that a step that stops working fails the build.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ copyright = "the tracking bench contributors; Apache-2.0"
 release = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True,
                          text=True).stdout.strip() or "unknown"
 
-extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.mathjax", "api_pages", "run_blocks"]
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.mathjax", "api_pages", "settings_page", "run_blocks"]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}  # .rst: the generated API pages
 root_doc = "index"
 exclude_patterns = ["_build", "tables"]

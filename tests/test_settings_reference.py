@@ -4,9 +4,11 @@ grids set, and the defaults it states are the values the readers give a key a sc
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import re
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -164,6 +166,17 @@ def test_the_command_writes_the_reference(tmp_path: Path) -> None:
     res = subprocess.run([sys.executable, str(ROOT / "scripts" / "settings_reference.py"), "--help"],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0 and "--out" in res.stdout
+
+
+def test_the_docs_site_writes_the_reference_page_when_it_is_built(tmp_path: Path) -> None:
+    """docs/_ext/settings_page.py writes reference/settings.md from markdown() at builder-inited (`make docs`)."""
+    spec = importlib.util.spec_from_file_location("docs_ext_settings_page", ROOT / "docs/_ext/settings_page.py")
+    extension = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(extension)
+    (tmp_path / "reference").mkdir()
+    extension.write_page(types.SimpleNamespace(srcdir=str(tmp_path)))
+    assert (tmp_path / "reference" / "settings.md").read_text(encoding="utf-8") == markdown()
+    assert "reference/settings" in (ROOT / "docs/index.md").read_text()
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
