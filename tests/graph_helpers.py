@@ -1,12 +1,14 @@
 """Helpers for the headless graph tests: run the scripts as a user would, read bags with rosbags."""
 from __future__ import annotations
 
+import hashlib
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -60,3 +62,19 @@ def node_pid(out: Path, node: str) -> int:
     found = subprocess.run(["pgrep", "-f", "--", f"--name {node} --config {out.resolve()}"], capture_output=True,
                            text=True)
     return int(found.stdout.split()[0])
+
+
+def digests(bag: Path) -> dict[str, list]:
+    """topic -> [SHA-256 of its messages' CDR bytes in the recorder's order (16 hex digits), message count].
+
+    For comparing two runs made by the same test, on one machine with one set of libraries: the same seed run
+    another way (forked or fresh processes, one process, a batch, a retry after a killed node) must give the same
+    bytes, since the same code computes them with the same kernels. Never for a run against a stored digest: a
+    floating-point result's last bits depend on the CPU's kernels (test_bag_regression.py compares values)."""
+    found: dict[str, list] = {}
+    with open(next(Path(bag).glob("*.mcap")), "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            entry = found.setdefault(channel.topic, [hashlib.sha256(), 0])
+            entry[0].update(message.data)
+            entry[1] += 1
+    return {topic: [h.hexdigest()[:16], n] for topic, (h, n) in sorted(found.items())}

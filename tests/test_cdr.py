@@ -140,7 +140,8 @@ def test_serialize_gives_rclpys_bytes_and_deserialize_reads_them(type_name, data
     assert ours == exact + bytes(-len(exact) % 4)  # zero padding to a multiple of 4 bytes (cdr docstring)
     # serialize_message's bytes are not what a publisher sends: their padding is left uninitialised and their
     # length is rmw's size estimate (it may end in spare bytes). What is published is checked byte for byte by
-    # test_bag_digests. Here: rclpy reads ours as the message, and we read rclpy's as the message.
+    # test_run_overhead (node processes and one process record the same bytes: graph_helpers.digests). Here:
+    # rclpy reads ours as the message, and we read rclpy's as the message.
     assert _same(type_name, deserialize_message(ours, message_class(type_name)), ros)
     assert _same(type_name, lite, ros)  # serialize kept the values (it may have made arrays of lists)
     assert cdr.serialize(type_name, ros) == ours  # an rclpy message serialises the same

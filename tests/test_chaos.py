@@ -35,8 +35,7 @@ import pytest
 
 import bench_engine.batch_run as batch_run
 from bench_engine.batch_run import NODE_RETRIES, RunSpec, killed_from_outside, run_one
-from graph_helpers import script
-from test_bag_digests import digests
+from graph_helpers import digests, script
 
 RUNS = int(os.environ.get("BENCH_CHAOS_RUNS", "3"))
 KILLS = int(os.environ.get("BENCH_CHAOS_KILLS", "2"))

@@ -22,8 +22,7 @@ from dask.distributed import LocalCluster
 from bench_engine.batch import RunSpec, complete, run_batch
 from bench_engine.executors import run_dask, run_task
 from bench_eval.montecarlo import MonteCarlo
-from graph_helpers import SHORT_PASS, script
-from test_bag_digests import digests
+from graph_helpers import SHORT_PASS, digests, script
 from test_sweep import scenario_with
 
 RUNS = ["--runs", "2", "--jobs", "2", *SHORT_PASS]

@@ -56,6 +56,7 @@ ROSDEP_KEYS = {
     "hypothesis": ("python3-hypothesis",),
     "rosbags": ("python3-rosbags-pip",),
     "mcap_ros2": ("mcap-ros2-support",),
+    "threadpoolctl": ("python3-threadpoolctl-pip",),
 }
 UPSTREAM_PIP_KEYS = {"python3-rosbags-pip", "mcap-ros2-support"}
 """The pip keys ros/rosdistro's rosdep/python.yaml defines itself."""
@@ -63,7 +64,7 @@ OPTIONAL = {"tetra3rs", "stonesoup"}
 """Modules a package's own code may import with only a test_depend: star_tracker.crosscheck imports tetra3rs
 only when the tests or scripts/bench_star_id.py build its solver; tracker_filters.crosscheck (Stone Soup) is
 imported only by the tests and scripts/bench_stonesoup.py. Any other import of a package is exec_depend;
-the test suite's own (pytest, hypothesis, rosbags, mcap_ros2) are test_depend of a package."""
+the test suite's own (pytest, hypothesis, rosbags, mcap_ros2, threadpoolctl) are test_depend of a package."""
 RUNTIME_TAGS = ("depend", "exec_depend")
 MODULE_STRING = re.compile(rf"^({'|'.join(LAYERS)})(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$")
 

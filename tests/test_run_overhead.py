@@ -16,8 +16,7 @@ from bench_engine.batch import run_batch
 from bench_engine.launcher import NO_FORK_ENV
 from bench_engine.preload import WARM_ENV
 from bench_eval.montecarlo import MonteCarlo
-from graph_helpers import ROOT, SHORT_PASS, read_bag, script
-from test_bag_digests import digests
+from graph_helpers import ROOT, SHORT_PASS, digests, read_bag, script
 
 PHASE_ROWS = ("interpreter + imports", "validation", "process spawn", "node set-up", "discovery + readiness",
               "stepping", "drain", "bag close", "shutdown", "scoring", "exit")

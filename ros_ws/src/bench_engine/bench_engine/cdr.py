@@ -17,8 +17,8 @@ its reused buffer's bytes there), and a message is padded with zeros to a multip
 payload it sends to another process so, and without it a message of another length (one ending in a string or
 a bool, as a DiagnosticArray or a Marker) would reach the recorder with 1–3 more bytes from a node in another
 process than from one in the same process (``--single-process``). Readers ignore the bytes after a message.
-The bag digests of tests/test_bag_digests.py did not change when this module moved from a hand-written
-encoder to rosbags (the bench's own messages are multiples of 4 bytes long). tests/test_cdr.py checks both
+A seeded run's recorded bytes did not change when this module moved from a hand-written encoder to rosbags
+(the bench's own messages are multiples of 4 bytes long). tests/test_cdr.py checks both
 directions against rclpy on random messages of every type the bench sends, its standard views
 (nav_msgs/Odometry, geometry_msgs/PoseWithCovarianceStamped, diagnostic_msgs/DiagnosticArray with its arrays
 of messages, which the hand-written encoder did not cover, visualization_msgs/Marker) included.
