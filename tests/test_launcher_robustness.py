@@ -253,9 +253,9 @@ print("spin_nodes returned", bench_node.spin_nodes([Finished("finished")]), flus
 
 
 def test_a_process_whose_ros_teardown_hangs_ends_after_the_teardown_deadline(tmp_path: Path) -> None:
-    """A node closed, then stuck in rclpy's teardown (as Fast DDS's destroy_participant once spun for good): the
-    process ends after TEARDOWN_S with the stuck thread's traceback and exit code 1, instead of hanging a
-    single-process run, whose launcher process nothing outside would stop."""
+    """A node closed, then stuck in rclpy's teardown (as Fast DDS's destroy_participant once spun for good): where
+    nodes are torn down (a node process, a standalone node) the process ends after TEARDOWN_S with the stuck
+    thread's traceback and exit code 1, instead of hanging. (A single-process run tears nothing down: below.)"""
     domain = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain.domain))
     res = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN], env=env, capture_output=True, text=True,
@@ -263,3 +263,59 @@ def test_a_process_whose_ros_teardown_hangs_ends_after_the_teardown_deadline(tmp
     domain.release()
     assert res.returncode == 1 and "destroying" in res.stdout and "spin_nodes returned" not in res.stdout
     assert "Timeout (0:00:01)!" in res.stderr and "destroy_node" in res.stderr
+
+
+SPINNING_TEARDOWN = """
+import sys, time
+import rclpy, rclpy.context, rclpy.executors, rclpy.node
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+def spin_for_good(*args, **kwargs):  # as Fast DDS's destroy_participant once did, under load
+    print("teardown entered", flush=True)
+    while True:
+        time.sleep(1)
+
+for owner, names in [(rclpy.node.Node, ["destroy_node"]), (rclpy.executors.Executor, ["remove_node", "shutdown"]),
+                     (_rclpy.EventsExecutor, ["remove_node", "shutdown"]), (rclpy, ["shutdown", "try_shutdown"]),
+                     (rclpy.context.Context, ["shutdown", "try_shutdown"])]:
+    for name in names:
+        setattr(owner, name, spin_for_good)
+from bench_eval.cli.launch import command
+sys.argv = ["launch.py", *sys.argv[1:]]
+command()
+"""
+
+
+def test_a_single_process_run_ends_with_its_results_whatever_rclpy_teardown_would_do(tmp_path: Path) -> None:
+    """Every way rclpy tears down nodes, executors and the context spins for good here, as Fast DDS's
+    destroy_participant once did: a single-process run still records its complete bag, scores it, leaves no
+    shared-memory file of its own and exits 0, since nothing after the run's end waits on the teardown
+    (bench_engine.bench_node.spin_in_process). Before, the run hung in destroy_node until TEARDOWN_S ended it
+    with exit code 1; without any deadline it would hang for good (the subprocess's timeout here)."""
+    out = tmp_path / "spin"
+    before = {p.name for p in SHM.glob("fastrtps_*")} if SHM.is_dir() else set()
+    with open(tmp_path / "out.txt", "w+") as stdout, open(tmp_path / "err.txt", "w+") as stderr:
+        proc = subprocess.Popen([sys.executable, "-c", SPINNING_TEARDOWN, "leo_radar", "--single-process", "--out",
+                                 str(out), "--set", "time.duration=5", "--json"],
+                                env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), stdout=stdout,
+                                stderr=stderr, text=True)
+        ours: set[str] = set()
+        hung = time.monotonic() + 240.0  # a hang's limit, not a speed: the run takes a few seconds
+        try:
+            while proc.poll() is None:  # the files its participant maps or holds
+                if time.monotonic() > hung:
+                    raise subprocess.TimeoutExpired(proc.args, 240.0)
+                ours |= _shm_files_of([str(proc.pid)])
+                time.sleep(0.02)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        stdout.seek(0), stderr.seek(0)
+        out_text, err_text = stdout.read(), stderr.read()
+    assert proc.returncode == 0 and "teardown entered" not in out_text, err_text[-3000:]
+    assert json.loads(out_text)["runs"] == 1 and (out / "score.json").is_file()
+    steps = [m.step for _, m in read_bag(out / "bag")["/truth/state"]]
+    assert steps == list(range(51))
+    if SHM.is_dir():  # its participant was never destroyed; its files went with the run all the same
+        assert ours and {name for name in ours - before if (SHM / name).exists()} - _shm_files_of(_pids()) == set()

@@ -32,6 +32,7 @@ from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.launcher import NO_FORK_ENV
 from bench_engine.preload import WARM_ENV
+from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 
@@ -133,8 +134,7 @@ def _forked_run(argv: list[str], log: str) -> None:
     from bench_engine.run import main  # sets a node's environment when imported: only in the forked run
     code = main(argv)
     print(f"{EXIT_LINE}{code}", file=sys.stderr, flush=True)
-    sys.stdout.flush()
-    sys.exit(code)
+    exit_now(code)  # as bench_engine.run's own end: the run's ROS objects are left to it (launcher.run_single_process)
 
 
 def fork_context():

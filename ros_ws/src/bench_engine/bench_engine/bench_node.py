@@ -43,14 +43,14 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String, UInt64
 
 from bench_msgs.msg import StepAck
-from bench_engine import phases, yamlio
+from bench_engine import phases, shm, yamlio
 from bench_engine.config import ScenarioError
 from bench_engine.cdr import lite_class, serialize
 from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph,
                                 node_kinds)
 from bench_engine.parameters import description, unflatten
 from bench_engine.msg_schema import message_class
-from bench_engine.process import exit_now
+from bench_engine.process import exit_now, keep_until_exit
 from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_engine.timegrid import build_time
@@ -325,30 +325,43 @@ TEARDOWN_S = 30.0
 """How long rclpy's teardown of the nodes (destroy_node, the executor's shutdown) may take once every node is
 closed (its bag and files written) before the process ends anyway, with the hanging threads' tracebacks on stderr
 and exit code 1. Seen under load: Fast DDS's destroy_participant spinning for good (rmw_destroy_node ->
-DomainParticipant::set_listener). In a node process the launcher would stop it after LINGER_S; in a
-single-process run nothing outside would."""
+DomainParticipant::set_listener). Only where the nodes are torn down: a node process (the launcher would stop it
+after LINGER_S) and a standalone node; a single-process run tears nothing down (``teardown=False``)."""
 
 
 def spin_in_process(domain_id: int, make_nodes: Callable[[], list[BenchNode]], executor_kind: str = "events",
                     on_exit: Callable[[], None] = lambda: None) -> int:
     """rclpy initialised on ``domain_id`` (no signal handlers: :func:`spin_nodes` installs its own), the nodes
-    ``make_nodes`` creates spun in this process until they finish, ``on_exit`` called, then rclpy shut down;
-    an exit code."""
+    ``make_nodes`` creates spun in this process until they finish and closed, ``on_exit`` called; an exit code,
+    the run's. Nothing of ROS is torn down, and the caller ends the process with exit_now (a single-process run).
+
+    Why: once its nodes are closed (the bag complete and closed, timing.json written) all a run's process still
+    does is score the bag (launch.py) and exit, and none of that needs DDS; the teardown, on the other hand, may
+    spin for good (Fast DDS's destroy_participant, seen under load), and nothing outside would stop this process.
+    So no teardown stands between the run's end and the process's: the nodes and the executor are kept
+    (spin_nodes with ``teardown=False``), rclpy is not shut down, and exit_now ends the process with none of their
+    destructors run. The one thing the teardown did that outlives the process, removing the participant's files
+    in /dev/shm, is done here (bench_engine.shm.release_own); its peers, all in this process, need no goodbye."""
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     try:
-        code = spin_nodes(make_nodes(), executor_kind)
+        code = spin_nodes(make_nodes(), executor_kind, teardown=False)
         on_exit()
         return code
     finally:
-        rclpy.try_shutdown()
+        shm.release_own()
 
 
 def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,
-               shutdown_executor: bool = True) -> int:
+               shutdown_executor: bool = True, teardown: bool = True) -> int:
     """Spin until every node finished, SIGINT/SIGTERM, or (when ``parent_pid`` is given) the parent process
     went away; close nodes; return an exit code. ``shutdown_executor=False`` leaves the executor to the end of
     the process: a node process exits right after, and rclpy's EventsExecutor was seen spinning for good in
-    its shutdown once (a node process that never exited)."""
+    its shutdown once (a node process that never exited).
+
+    ``teardown=False`` destroys nothing: once closed, the nodes and the executor are handed to
+    bench_engine.process.keep_until_exit (a single-process run: :func:`spin_in_process` says why). With the
+    teardown (a node process, a standalone node) the nodes' participant says goodbye to its peers in other
+    processes, whose publishers then stop waiting for its acknowledgements."""
     stop = _StopFlag()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
@@ -383,23 +396,32 @@ def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid
             close = getattr(node, "close", None)
             if close is not None:
                 close()
-        if not orphaned:  # (an orphan's own deadline already runs)
-            faulthandler.dump_traceback_later(TEARDOWN_S, exit=True)
-        try:
-            for node in nodes:
-                executor.remove_node(node)
-                node.destroy_node()
-            if shutdown_executor:
-                executor.shutdown(timeout_sec=1.0)
-        finally:
-            if not orphaned:
-                faulthandler.cancel_dump_traceback_later()
+        if teardown:
+            _tear_down(executor, nodes, shutdown_executor, deadline=not orphaned)
+        else:
+            keep_until_exit(executor, *nodes)
     failed = [n for n in nodes if n.failed]
     for node in failed:
         print(f"[{names[id(node)]}] failed: {node.failed}", file=sys.stderr)
     if stop.signal:
         return 128 + stop.signal
     return 1 if failed else 0
+
+
+def _tear_down(executor, nodes: list[BenchNode], shutdown_executor: bool, deadline: bool) -> None:
+    """Destroy the nodes (and shut the executor down), within TEARDOWN_S when ``deadline`` (an orphaned node
+    process has its own deadline running already)."""
+    if deadline:
+        faulthandler.dump_traceback_later(TEARDOWN_S, exit=True)
+    try:
+        for node in nodes:
+            executor.remove_node(node)
+            node.destroy_node()
+        if shutdown_executor:
+            executor.shutdown(timeout_sec=1.0)
+    finally:
+        if deadline:
+            faulthandler.cancel_dump_traceback_later()
 
 
 def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:

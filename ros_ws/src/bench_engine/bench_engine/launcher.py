@@ -20,10 +20,10 @@ import setproctitle
 
 from bench_engine import phases, yamlio
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
-from bench_engine.domains import DomainInUse, reserve
+from bench_engine.domains import DomainInUse, Reservation, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_parameters, node_settings, parameters_file
-from bench_engine.process import exit_now
+from bench_engine.process import exit_now, keep_until_exit
 from bench_engine.bag_errors import BagUnrecoverable
 from bench_engine.recovery import ensure_complete
 from bench_engine.scenario import check_top_level, coerce_scenario, scenario_seed, section_readers
@@ -359,7 +359,8 @@ def _stop_all(procs: dict, grace_s: float = STOP_GRACE_S) -> None:
 
 def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
               tag: str = "launch", pin: bool = True, fork_nodes: bool = True) -> int:
-    """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it."""
+    """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it (a
+    single-process run's at the process's end: run_single_process)."""
     try:
         reservation = reserve(domain_id)
     except DomainInUse as err:
@@ -367,9 +368,9 @@ def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, execut
         return 2
     print(f"[{tag}] {plan.run['scenario'].get('scenario')}: nodes {[n.name for n in plan.graph.nodes]}, "
           f"ROS_DOMAIN_ID={reservation.domain}, out {plan.out}", file=sys.stderr)
+    if single_process:  # its DDS participant outlives the run, and so does the domain's reservation
+        return run_single_process(plan, reservation, executor, pin)
     try:
-        if single_process:
-            return run_single_process(plan, reservation.domain, executor, pin)
         return run_multiprocess(plan, reservation.domain, fork=fork_nodes)
     finally:
         reservation.release()
@@ -401,14 +402,19 @@ def pin_to_one_cpu(domain_id: int) -> int | None:
     return cpu
 
 
-def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", pin: bool = True) -> int:
-    """All nodes in this process on one executor; on one CPU unless ``pin`` is off (``pin_to_one_cpu``)."""
+def run_single_process(plan: RunPlan, reservation: Reservation, executor: str = "events", pin: bool = True) -> int:
+    """All nodes in this process on one executor; on one CPU unless ``pin`` is off (``pin_to_one_cpu``).
+
+    Nothing of ROS is torn down (bench_node.spin_in_process): the nodes' DDS participant lives until the process
+    ends with bench_engine.process.exit_now, as every command's does; the caller must end it so. The domain's
+    ``reservation`` is held as long (process.keep_until_exit), so no later run on this host meets the participant."""
     from bench_engine.bench_node import spin_in_process  # rclpy: planning runs (sweeps, Monte Carlo) loads no ROS
 
+    keep_until_exit(reservation)
     phases.mark("spawned", "launcher", plan.out)
     if pin:
-        pin_to_one_cpu(domain_id)
-    os.environ.update(local_dds_env(domain_id))
+        pin_to_one_cpu(reservation.domain)
+    os.environ.update(local_dds_env(reservation.domain))
 
     def make_nodes() -> list:
         phases.mark("rclpy_init", "launcher", plan.out)
@@ -417,5 +423,5 @@ def run_single_process(plan: RunPlan, domain_id: int, executor: str = "events", 
         phases.mark("node_created", "launcher", plan.out)
         return nodes
 
-    return spin_in_process(domain_id, make_nodes, executor,
+    return spin_in_process(reservation.domain, make_nodes, executor,
                            on_exit=lambda: phases.mark("nodes_exited", "launcher", plan.out))

@@ -27,6 +27,7 @@ from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run
 from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
+from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
 
 EPILOG = exit_codes(
@@ -85,5 +86,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def command() -> None:
-    """Console script ``bench_replay``: ``main`` with its failures told in one line (bench_engine.cli.guard)."""
-    sys.exit(run_main(main, expected={NothingToScore: 1}))
+    """Console script ``bench_replay``: ``main`` with its failures told in one line (bench_engine.cli.guard), then
+    exit without the interpreter's teardown (bench_engine.process.exit_now; a --single-process replay leaves its
+    ROS objects to it: bench_engine.launcher.run_single_process)."""
+    exit_now(run_main(main, expected={NothingToScore: 1}))
