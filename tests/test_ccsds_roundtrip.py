@@ -30,12 +30,17 @@ def original(tmp_path_factory):
     return run
 
 
-def _import(original, tmp_path, *extra: str):
+def _import(original, tmp_path, *extra: str, as_json: bool = True):
+    """Import the original run's TDM; the score as JSON, or (``as_json`` off) as the summary a user reads, with
+    the score taken from the run directory's score.json."""
     out = tmp_path / "import"
     result = script("import_tdm.py", str(original / "ccsds" / "radar.tdm"), "--scenario", "leo_radar", "--variant",
-                    "iss", *DURATION, "--out", str(out), "--json", *extra, timeout=240)
+                    "iss", *DURATION, "--out", str(out), *(["--json"] if as_json else []), *extra, timeout=240)
     assert result.returncode == 0, result.stderr[-2000:]
-    return out, json.loads(result.stdout)
+    if as_json:
+        return out, json.loads(result.stdout)
+    assert all(f"  {name}: NIS " in result.stdout for name in ("ekf", "ukf")), result.stdout
+    return out, json.loads((out / "score.json").read_text())
 
 
 def _estimates(bag, name):
@@ -43,7 +48,7 @@ def _estimates(bag, name):
 
 
 def test_an_imported_tdm_gives_the_original_runs_estimates(original, tmp_path):
-    out, score = _import(original, tmp_path)
+    out, score = _import(original, tmp_path, as_json=False)
     topics = read_bag(out / "bag")
     assert "/truth/state" not in topics and topics["/clock"], "no truth: the clock follows the measurements"
     for name in ("ekf", "ukf"):

@@ -70,6 +70,10 @@ def scoring_options(cfg: dict) -> ScoringOptions:
     return opts
 
 
+TRUTHLESS = "innovations (no truth)"
+"""The ``metric`` of a score without truth (_score_without_truth): no registered family, bench_eval.consistency's
+scores instead."""
+
 SCORING = SectionReader("scoring", ScoringOptions, "how the bags are scored: the metric family, offline "
                         "estimators and bounds (bench_eval.scoring)", scoring_options)
 
@@ -274,7 +278,7 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
 def _score_without_truth(scenario: str, runs: list[BagData], with_series: bool):
     """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
     innovations, post-fit residuals and the estimators' own convergence (bench_eval.consistency)."""
-    result = {"scenario": scenario, "runs": len(runs), "metric": "innovations (no truth)",
+    result = {"scenario": scenario, "runs": len(runs), "metric": TRUTHLESS,
               "estimators": innovation_scores(runs)}
     return (result, {}) if with_series else result
 
@@ -288,7 +292,8 @@ def score_run(out_dir: Path, as_json: bool = False) -> str:
 
 def print_summary(scored: dict) -> str:
     """A short human-readable table of the main numbers (the metric family's own parts: ``Metric.summary``)."""
-    family_summary = plugins.load("metrics", scored["metric"]).summary if "metric" in scored else None
+    family = scored.get("metric")
+    family_summary = plugins.load("metrics", family).summary if family not in (None, TRUTHLESS) else None
     lines = [f"{scored['scenario']} — {scored['runs']} run(s)"]
     for name, block in scored["estimators"].items():
         if diverged(block):
