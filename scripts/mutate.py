@@ -16,7 +16,8 @@ fail, no mutation result would mean anything, and the script stops.
     .venv/bin/python scripts/mutate.py --only cubature_radius --tests tests/test_cqkf.py::test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario
 
 Exit status: 0 when every mutation run was caught; 1 when one survived (or its snippet is gone or ambiguous,
-or its run errored); 2 on bad arguments or when the unmutated tests fail.
+or its run errored); 2 on bad arguments or when the unmutated tests fail. With ``--list``: 0 when every listed
+mutation can be applied here (its snippet found once, its test files present), else 1.
 """
 from __future__ import annotations
 
@@ -258,12 +259,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.tests:
         chosen = [replace(m, tests=tuple(args.tests)) for m in chosen]
     if args.list:
+        applicable = True
         for m in chosen:
             count = (ROOT / m.file).read_text().count(m.original) if (ROOT / m.file).is_file() else 0
+            missing = [t for t in m.tests if not (ROOT / t.split("::")[0]).is_file()]
             state = "" if count == 1 else f"  [cannot apply here: snippet found {count} times]"
+            state += f"  [no test file {', '.join(missing)}]" if missing else ""
+            applicable &= not state
             print(f"{m.name}{state}\n    {m.file}: {m.what}\n    - {m.original.strip()}\n"
                   f"    + {m.mutated.strip()}\n    tests: {' '.join(m.tests)}")
-        return 0
+        return 0 if applicable else 1
     scratch = Path(tempfile.mkdtemp(prefix="bench-mutate-"))
     try:
         pristine = scratch / "pristine"
