@@ -26,7 +26,7 @@ from bench_engine.graph import resolve_estimators
 from bench_engine.settings import POSITIVE, NoKeys, Settings, at_least, setting
 from bench_eval.scoring import BagData, Estimates
 from tracker_filters.builders import build_filter_stack
-from tracker_filters.differentiation import newton_derivative, savgol_derivative
+from tracker_filters.differentiation import newton_derivative, savgol_derivative, savgol_window_length
 from tracker_filters.smoothing import smooth_estimates
 
 
@@ -117,14 +117,13 @@ def _newton_run(data: BagData, source: str, params: NewtonParameters) -> Estimat
 
 
 def _savgol_run(data: BagData, source: str, params: SavgolParameters) -> Estimates:
-    """Savitzky-Golay: least-squares polynomial of ``polyorder`` over a window of ``window_s`` seconds (the
-    largest odd number of samples it holds at the series' median spacing, at least polyorder + 2), so the
-    window keeps its length in time whatever the sampling interval."""
+    """Savitzky-Golay: least-squares polynomial of ``polyorder`` over a window of ``window_s`` seconds (in samples
+    at the series' median spacing: tracker_filters.differentiation.savgol_window_length), so the window keeps its
+    length in time whatever the sampling interval."""
 
     def derivative(t: np.ndarray, z: np.ndarray) -> np.ndarray:
         spacing = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-        n = int(params.window_s / spacing) + 1
-        window = max(n if n % 2 else n - 1, params.polyorder + 2 + params.polyorder % 2)
+        window = savgol_window_length(params.window_s, spacing, params.polyorder)
         return savgol_derivative(t, z, window, params.polyorder, params.max_gap)
     return _differentiated(data, source, params, derivative)
 

@@ -6,7 +6,12 @@
   The derivative is linear in the samples, so it is a set of weights (``newton_weights``), which also
   propagates the samples' noise exactly.
 - ``savgol_derivative``: Savitzky-Golay, the derivative of a least-squares polynomial of degree
-  ``polyorder`` over ``window`` samples (scipy.signal.savgol_filter on each evenly sampled segment).
+  ``polyorder`` over ``window`` samples on each evenly sampled segment: centred inside, and at a segment's
+  ends the derivative of the first or last window's polynomial at the end samples (scipy's ``interp`` ends).
+  Its weights (``savgol_weights``) come from a QR solve in a Legendre basis over the window mapped onto
+  [-1, 1], well conditioned for any window and degree; scipy.signal.savgol_coeffs solves the same least
+  squares in powers of the unscaled sample index, an ill-conditioned Vandermonde matrix whose derivative weights
+  lose their digits at high degree over long windows.
 
 Both return NaN where a segment is too short to differentiate (a single isolated sample).
 """
@@ -15,7 +20,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.signal import savgol_filter
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.polynomial import legendre
 
 
 def divided_differences(t: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -93,9 +99,42 @@ def newton_derivative(t: np.ndarray, z: np.ndarray, order: int, max_gap: float =
     return v
 
 
+def savgol_weights(n: int, polyorder: int, at: np.ndarray) -> np.ndarray:
+    """Weights W (len(at), n): row i gives p'(at_i) = sum_k W_ik y_k, p the least-squares polynomial of degree
+    ``polyorder`` through samples y_k at the unit-spaced abscissae k = 0 .. n-1 (divide by the spacing for a
+    derivative in time).
+
+    The abscissae are mapped onto u in [-1, 1] and the polynomial written in Legendre polynomials, whose
+    Vandermonde matrix V (n, polyorder + 1) is well conditioned on evenly spaced points; with V = QR the
+    coefficients are R^-1 Q' y, so W = D R^-1 Q' with D the basis' derivatives at ``at`` (times du/dk)."""
+    if not 1 <= polyorder < n:
+        raise ValueError(f"Savitzky-Golay needs 1 <= polyorder < window, got {polyorder} and {n}")
+    half = (n - 1) / 2.0
+    q, r = np.linalg.qr(legendre.legvander((np.arange(n) - half) / half, polyorder))
+    basis_slope = legendre.legder(np.eye(polyorder + 1), axis=0)          # (polyorder, polyorder + 1)
+    D = legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T / half
+    return np.linalg.solve(r.T, D.T).T @ q.T
+
+
+@lru_cache(maxsize=64)
+def _savgol_table(n: int, polyorder: int) -> np.ndarray:
+    """``savgol_weights`` at every sample of an n-sample window (row (n - 1) / 2: the centred weights)."""
+    w = savgol_weights(n, polyorder, np.arange(n))
+    w.setflags(write=False)
+    return w
+
+
+def savgol_window_length(window_s: float, spacing: float, polyorder: int) -> int:
+    """Samples of a Savitzky-Golay window of ``window_s`` seconds at ``spacing``: the largest odd number it
+    holds, at least polyorder + 2 made odd, so the window keeps its length in time whatever the sampling."""
+    n = int(window_s / spacing) + 1
+    return max(n if n % 2 else n - 1, polyorder + 3 - polyorder % 2)
+
+
 def savgol_derivative(t: np.ndarray, z: np.ndarray, window_length: int, polyorder: int,
                       max_gap: float = np.inf) -> np.ndarray:
-    """Velocities (K, d) by Savitzky-Golay on each evenly sampled segment (scipy's ``interp`` ends).
+    """Velocities (K, d) by Savitzky-Golay on each evenly sampled segment: centred windows inside, the first
+    and last window's polynomial at the segment's ends.
 
     A segment shorter than the window uses the largest odd window it holds (at least polyorder + 2 samples);
     shorter still, Newton's polynomial through all of it."""
@@ -108,7 +147,13 @@ def savgol_derivative(t: np.ndarray, z: np.ndarray, window_length: int, polyorde
         n = len(ts)
         w = min(window_length, n if n % 2 else n - 1)
         if w >= polyorder + 2:
-            v[seg] = savgol_filter(zs, w, polyorder, deriv=1, delta=float(ts[1] - ts[0]), axis=0, mode="interp")
+            table = _savgol_table(w, polyorder) / float(ts[1] - ts[0])
+            h = w // 2
+            out = v[seg]
+            out[h:n - h] = np.einsum("k,i...k->i...", table[h], sliding_window_view(zs, w, axis=0))
+            out[:h] = np.einsum("ik,k...->i...", table[:h], zs[:w])
+            out[n - h:] = np.einsum("ik,k...->i...", table[w - h:], zs[n - w:])
+            v[seg] = out
         elif n >= 2:
             v[seg] = newton_derivative(ts, zs, n - 1)
     return v

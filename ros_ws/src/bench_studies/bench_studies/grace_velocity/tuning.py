@@ -24,7 +24,7 @@ from orbit_sim.orbit_fit import fit_orbit
 from orbit_sim.truth import build_truth
 from radar_sensor.sensor_types import read_sensors
 from tracker_filters.builders import build_filter_stack
-from tracker_filters.differentiation import savgol_derivative
+from tracker_filters.differentiation import savgol_derivative, savgol_window_length
 from tracker_filters.smoothing import smooth_estimates
 
 BASELINE = ["bx", "by", "bz", "bvx", "bvy", "bvz"]
@@ -129,11 +129,10 @@ def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s:
 def savgol_score(items: dict, truth, window_s: float, polyorder: int, skip_s: float, source: str = "baseline",
                  max_gap: float = 300.0) -> float:
     """Range-rate RMS against the truth of Savitzky-Golay differentiation of the ``source`` positions (the
-    window in samples as bench_eval.offline's savgol makes it)."""
+    window in samples by tracker_filters.differentiation.savgol_window_length, as bench_eval.offline's savgol)."""
     meas = items[f"/{source}/measurement"]
     t, z = np.array([m.t for m in meas]), np.array([m.z[:3] for m in meas])
-    n = int(window_s / float(np.median(np.diff(t)))) + 1
-    window = max(n if n % 2 else n - 1, polyorder + 2 + polyorder % 2)
+    window = savgol_window_length(window_s, float(np.median(np.diff(t))), polyorder)
     w = savgol_derivative(t, z, window, polyorder, max_gap)
     return _rr_truth_rms(np.array([m.step for m in meas]), np.hstack([z, w]), truth, skip_s)
 
