@@ -28,6 +28,7 @@ from bench_eval.claims import diverged
 from bench_eval.consistency import innovation_scores
 from bench_eval.bounds import BoundRun, compute_bounds, score_bounds
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
+from bench_eval.window import EDGES, ScoringWindow, check_window
 from bench_models.states import error_labels
 
 
@@ -54,6 +55,8 @@ class ScoringOptions(Settings):
     offline: dict[str, OfflineRun] = setting({}, doc="offline estimators run over every bag and scored under "
                                                      "their names (bench_eval.offline)")
     bounds: dict[str, BoundRun] = setting({}, doc="lower bounds to score the estimators against (bench_eval.bounds)")
+    window: ScoringWindow | None = setting(None, doc="the part of each run every estimator is scored over "
+                                                     "(bench_eval.window; null: each over all of its steps)")
     options: Settings = variant("metric", lambda: plugins.names("metrics"),
                                 lambda name: plugins.load("metrics", name).options)
 
@@ -67,6 +70,7 @@ def scoring_options(cfg: dict) -> ScoringOptions:
         plugins.load("offline", job.estimator).check(cfg, job.source, job.params)
     for run in opts.bounds.values():
         plugins.load("bounds", run.bound).check(cfg, run.params)
+    check_window(opts.window, cfg)
     return opts
 
 
@@ -75,7 +79,7 @@ TRUTHLESS = "innovations (no truth)"
 scores instead."""
 
 SCORING = SectionReader("scoring", ScoringOptions, "how the bags are scored: the metric family, offline "
-                        "estimators and bounds (bench_eval.scoring)", scoring_options)
+                        "estimators, bounds and the scoring window (bench_eval.scoring)", scoring_options)
 
 
 @dataclass
@@ -228,36 +232,54 @@ def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
                           if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
 
 
-def collect(bag_dirs: list[Path | str | BagData]) -> tuple[str, dict[str, list[metrics.Track]], list[BagData]]:
-    """Load the bags, run the offline estimators, and align every scored estimator's estimates with the truth."""
+def collect(bag_dirs: list[Path | str | BagData]) -> tuple[str, ScoringOptions, list[BagData], list[list[str]]]:
+    """Load the bags and run the offline estimators over each whole run: (scenario, scoring options, runs, the
+    scored estimators of each run)."""
     runs = load_bags(bag_dirs)
     scenario = _scenario_name(runs)
     opts = scoring_options(runs[0].scenario)
+    return scenario, opts, runs, [scored_estimators(data, run_offline(data, opts)) for data in runs]
+
+
+def _tracks(runs: list[BagData], scored: list[list[str]]) -> dict[str, list[metrics.Track]]:
+    """Every scored estimator's estimates aligned with the truth, one Track per run that has it."""
     tracks: dict[str, list[metrics.Track]] = {}
-    for data in runs:
-        for name in scored_estimators(data, run_offline(data, opts)):
+    for data, names in zip(runs, scored):
+        for name in names:
             if data.truth and any(int(k) in data.truth for k in data.estimates[name].steps):
                 tracks.setdefault(name, []).append(track_of(data, name))
-    return scenario, tracks, runs
+    return tracks
+
+
+def _part(runs: list[BagData], scored: list[list[str]], window: ScoringWindow | None,
+          part: str = "window") -> tuple[list[BagData], list[list[str]]]:
+    """The runs cut to ``part`` of the scoring window (bench_eval.window), with the estimators scored there."""
+    if window is None:
+        return runs, scored
+    cut = [window.cut(data, names, part) for data, names in zip(runs, scored)]
+    return [c[0] for c in cut], [c[1] for c in cut]
 
 
 def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
-    the metric family the scenario's ``scoring.metric`` names.
+    the metric family the scenario's ``scoring.metric`` names, over the scenario's scoring window
+    (bench_eval.window: every estimator over the same steps; with ``edges``, the head and tail apart).
 
     Returns {"scenario", "runs", "metric", "estimators": {name: scores}} (and the plot series when
-    ``with_series``).
+    ``with_series``), plus ``window`` {head_s, tail_s, steps: scored steps per run} when the scenario has one.
     """
-    scenario, tracks, runs = collect(bag_dirs)
-    if not any(data.truth for data in runs) and any(data.estimates for data in runs):
-        return _score_without_truth(scenario, runs, with_series)
+    scenario, opts, whole, names = collect(bag_dirs)
+    if not any(data.truth for data in whole) and any(data.estimates for data in whole):
+        return _score_without_truth(scenario, whole, with_series)
+    compute_bounds(whole, opts.bounds)  # over the whole runs, before the window cuts them
+    runs, scored = _part(whole, names, opts.window)
+    tracks = _tracks(runs, scored)
     if not tracks:
-        names = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
-        raise NothingToScore(f"no estimates in {', '.join(names)}: the run's filters published nothing "
-                             "(did the sensors ever see the target?)")
-    opts = scoring_options(runs[0].scenario)
+        found = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
+        raise NothingToScore(f"no estimates in {', '.join(found)}"
+                             f"{' (in the scoring window)' if opts.window else ''}: the run's filters published "
+                             "nothing (did the sensors ever see the target?)")
     family = plugins.load("metrics", opts.metric)
-    compute_bounds(runs, opts.bounds)
     result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
               "estimators": family.score(tracks, runs, opts.options)}
     bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)
@@ -266,6 +288,18 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     if any("ccsds_import" in data.run for data in runs):  # real data scored against a reference: what needs none too
         for name, block in innovation_scores(runs).items():
             result["estimators"].setdefault(name, {}).update(block)
+    if opts.window is not None:
+        result["window"] = {"head_s": opts.window.head_s, "tail_s": opts.window.tail_s,
+                            "steps": [len(next((data.estimates[n].steps for n in names), [])) for data, names
+                                      in zip(runs, scored)]}
+        if opts.window.edges:
+            for edge in EDGES:
+                part, there = _part(whole, names, opts.window, edge)
+                edge_tracks = _tracks(part, there)
+                if edge_tracks:
+                    for name, block in family.score(edge_tracks, part, opts.options).items():
+                        if name in result["estimators"]:
+                            result["estimators"][name].setdefault("edges", {})[edge] = block
     if not with_series:
         return result
     series = family.series(tracks, runs, opts.options)
