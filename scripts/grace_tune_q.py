@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Choose grace_velocity's white-jerk density q from the GNSS baselines alone (innovation likelihood), and
-show it against the q the truth and the KBR would have chosen (bench_studies.grace_velocity.tuning).
+show it against the q the truth and the KBR would have chosen over the scenario's scoring window
+(bench_studies.grace_velocity.tuning).
 
 Runs the truth and the sensors in process once, then the filter over the same measurements for every q of
-the grid. The scenario's default q is the likelihood's choice on the default scenario, seed 1.
+the grid. The scenario's default q is the likelihood's choice on the default scenario and the tuning seed (1001,
+never a scored one).
 
 Examples:
   .venv/bin/python scripts/grace_tune_q.py
@@ -18,9 +20,9 @@ import sys
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
-from bench_studies.grace_velocity.tuning import choices, scan
+from bench_studies.grace_velocity.tuning import TUNING_SEED, choices, scan
 
-DEFAULT_QS = "1e-9,3e-9,1e-8,3e-8,1e-7,3e-7,1e-6,3e-6,1e-5,3e-5,1e-4"
+DEFAULT_QS = "1e-15,1e-14,1e-13,1e-12,1e-11,1e-10,1e-9,3e-9,1e-8,3e-8,1e-7,3e-7,1e-6,3e-6,1e-5,3e-5,1e-4"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,13 +32,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--filter", default="kf_a", help="the filter whose q is chosen (default kf_a)")
     p.add_argument("--qs", default=DEFAULT_QS, help="grid of q [m^2/s^5], comma-separated")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--skip-s", type=float, default=600.0, help="start-up excluded from the truth scores [s]")
+    p.add_argument("--seed", type=int, default=TUNING_SEED)
     args = p.parse_args(argv)
     try:
         qs = [float(q) for q in args.qs.split(",")]
         cfg = apply_overrides(select_variant(load_scenario(args.scenario), args.variant), args.overrides)
-        scores = scan(cfg, args.filter, qs, args.seed, args.skip_s)
+        scores = scan(cfg, args.filter, qs, args.seed)
     except (ScenarioError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -15,8 +15,10 @@ from scipy.special import chdtri
 from bench_engine.config import apply_overrides, load_scenario
 from bench_engine.settings import read
 from bench_engine.stage import Estimate, Measurement
+from bench_engine.timegrid import Time
 from bench_eval.inprocess_runs import bag_data
-from bench_eval.scoring import BagData, Estimates, score_bags
+from bench_eval.scoring import BagData, Estimates, score_bags, scoring_options
+from bench_eval.window import ScoringWindow
 from bench_models.labelled import ComponentModel
 from bench_models.white_jerk import F_AXIS, WhiteJerkDynamics, axis_noise
 from bench_studies.grace_velocity.metrics import RANGE_RATE, range_rate
@@ -334,10 +336,12 @@ def _known_bias_run(bias: np.ndarray, kbr_bias: float, sigma_v: float):
     return data
 
 
-def _range_rate_scores(runs, skip_s: float = 0.0) -> dict:
-    options = read(RANGE_RATE.options, {"kbr": "kbr", "baseline": list(BASELINE), "skip_s": skip_s,
+def _range_rate_scores(runs, head_s: float = 0.0) -> dict:
+    """The metric's scores of ``runs`` cut as the scorer cuts them to a window without their first head_s."""
+    options = read(RANGE_RATE.options, {"kbr": "kbr", "baseline": list(BASELINE),
                                         "pairs": {"pair": ["sat2", "sat1"]}}, "scoring")
-    return RANGE_RATE.score({"est": []}, runs, options)
+    cut = [ScoringWindow(head_s=head_s).cut(run, ["est", "sat1", "sat2"])[0] for run in runs]
+    return RANGE_RATE.score({"est": []}, cut, options)
 
 
 def test_range_rate_is_the_rate_of_change_of_the_baseline_length() -> None:
@@ -353,13 +357,13 @@ def test_range_rate_is_the_rate_of_change_of_the_baseline_length() -> None:
 def test_the_range_rate_residual_reports_a_known_bias_with_its_sign(bias_mm_s: float, kbr_bias_mm_s: float) -> None:
     """An estimate whose range rate is too high by +bias (mean) with a known spread s, and a KBR that reads
     kbr_bias too high: residual vs KBR = estimate - KBR has mean bias - kbr_bias, vs truth mean bias, std s,
-    max and min bias - kbr_bias +- s; the estimates before skip_s are not scored; a pair of single-satellite
-    estimators is differenced second minus first. The baseline NEES is the known (bias_k / sigma_v)^2 +
-    (across / sigma_v)^2."""
+    max and min bias - kbr_bias +- s; the estimates before the scoring window are not scored; a pair of
+    single-satellite estimators is differenced second minus first. The baseline NEES is the known
+    (bias_k / sigma_v)^2 + (across / sigma_v)^2."""
     K, s, sigma_v = 400, 0.4e-3, 0.01
     bias = bias_mm_s * 1e-3 + s * np.where(np.arange(K) % 2 == 0, 1.0, -1.0)
-    bias[:10] = 5.0                                            # the first 100 s: skipped (skip_s = 100)
-    scores = _range_rate_scores([_known_bias_run(bias, kbr_bias_mm_s * 1e-3, sigma_v)], skip_s=100.0)
+    bias[:10] = 5.0                                            # the first 100 s: outside the window (head_s = 100)
+    scores = _range_rate_scores([_known_bias_run(bias, kbr_bias_mm_s * 1e-3, sigma_v)], head_s=100.0)
     for name in ("est", "pair"):
         kbr, truth = scores[name]["rr_kbr"], scores[name]["rr_truth"]
         expect = (bias_mm_s - kbr_bias_mm_s) * 1e-3
@@ -377,8 +381,10 @@ def test_the_range_rate_residual_reports_a_known_bias_with_its_sign(bias_mm_s: f
 @pytest.fixture(scope="module")
 def grace_runs():
     """Three seeded one-hour runs of grace_velocity (KF (a), (b) and the fixed-lag smoother), in process, as the
-    scorer reads them; scored with the scenario's own scoring section (RTS, Newton, Savitzky-Golay offline)."""
-    cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=3600"])
+    scorer reads them; scored with the scenario's own scoring section (RTS, Newton, Savitzky-Golay offline), its
+    window's margins 10 minutes instead of an hour."""
+    cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=3600", "scoring.window.head_s=600",
+                                                            "scoring.window.tail_s=600"])
     return [bag_data(cfg, ["kf_a", "kf_b", "kf_a_lag"], seed) for seed in (1, 2, 3)]
 
 
@@ -395,6 +401,27 @@ def test_a_known_range_rate_bias_added_to_a_real_run_moves_the_mean_by_exactly_t
         assert moved[key]["std"] == pytest.approx(base[key]["std"], rel=1e-9)
 
 
+def test_every_grace_estimator_of_a_run_is_scored_over_the_same_steps(grace_runs) -> None:
+    """The scorer's window (bench_eval.window) on a real run: the filters, the fixed-lag smoother in the graph
+    (which never publishes a run's last 300 s), the offline RTS, Newton and Savitzky-Golay all get the same
+    residual steps: the window's fixes. With no tail margin the window's end is the fixed-lag smoother's last
+    estimate for every one of them; with the margin (600 s here) the window ends 600 s before the run."""
+    import copy
+    from bench_eval.scoring import score_bags
+    names = {"kf_a", "kf_b", "kf_a_lag", "kf_a_rts", "newton", "savgol"}
+    duration = grace_runs[0].scenario["time"]["duration"]
+    no_tail = copy.deepcopy(grace_runs[0])
+    no_tail.scenario["scoring"]["window"]["tail_s"] = 0.0
+    for run, last in ((grace_runs[0], duration - 600.0), (no_tail, duration - 300.0)):
+        result, series = score_bags([run], with_series=True)
+        assert names <= set(series)
+        t = series["kf_a"]["t"]
+        assert t[0] == 600.0 and t[-1] == last and np.all(np.diff(t) == 10.0)
+        for name in names:
+            np.testing.assert_array_equal(series[name]["t"], t, err_msg=name)
+        assert result["window"]["steps"] == [len(t)]
+
+
 def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
     """The time-averaged baseline NEES (6 dof; the metric's own, grace_velocity/metrics.py) of three one-hour
     runs, against the 95 % chi-square band of N independent samples, N = one per 60 s of scored time (the NEES
@@ -404,8 +431,10 @@ def test_the_grace_filters_nees_against_the_chi_square_band(grace_runs) -> None:
     but above the band of a covariance twice too large; (b) above the band but below that of a covariance half as
     large."""
     scores = score_bags(grace_runs)["estimators"]
-    skip = grace_runs[0].scenario["scoring"]["skip_s"]
-    samples = len(grace_runs) * (grace_runs[0].scenario["time"]["duration"] - skip) / 60.0
+    cfg = grace_runs[0].scenario
+    window = scoring_options(cfg).window
+    scored_s = read(Time, cfg["time"], "time").duration - window.head_s - window.tail_s
+    samples = len(grace_runs) * scored_s / 60.0
     lo, hi = chdtri(6 * samples, np.array([0.975, 0.025])) / samples
     nees = {name: scores[name]["baseline_nees"] for name in ("kf_a", "kf_b", "kf_a_lag", "kf_a_rts")}
     for name in ("kf_a", "kf_a_lag", "kf_a_rts"):          # conservative, by less than a factor of 2

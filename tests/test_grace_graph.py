@@ -22,7 +22,9 @@ from graph_helpers import read_bag, script, stamp
 
 STEPS = 1441
 SIGMA_GNSS = 0.02
-ARGS = ["--set", "time.duration=7200", "--variant", "satellites", "--seed", "3"]
+WINDOW = ["scoring.window.head_s=600", "scoring.window.tail_s=600"]   # the scenario's hour-long margins: 10 min
+ARGS = ["--set", "time.duration=7200", *(a for w in WINDOW for a in ("--set", w)), "--variant", "satellites",
+        "--seed", "3"]
 PAIR = ["x1", "y1", "z1", "vx1", "vy1", "vz1", "x2", "y2", "z2", "vx2", "vy2", "vz2",
         "bx", "by", "bz", "bvx", "bvy", "bvz"]
 
@@ -76,7 +78,8 @@ def test_derived_measurements_follow_their_definitions(graph_run) -> None:
 
 def test_the_graph_carries_what_the_cores_give_in_process(graph_run) -> None:
     _, bag, _ = graph_run
-    cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "satellites"), ["time.duration=7200"])
+    cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "satellites"),
+                          ["time.duration=7200", *WINDOW])
     run = run_in_process(cfg, ["kf_a", "kf_b"], seed=3)
     for name in ("kf_a", "kf_b"):
         graph = msgs(bag, f"/{name}/estimate")
@@ -116,7 +119,7 @@ def test_outages_and_gross_outliers_give_a_well_defined_run(tmp_path) -> None:
     the filters gate the outliers (logged), bridge the outage and resume, and every score stays finite."""
     out = tmp_path / "faults"
     res = script("launch.py", "grace_velocity", "--out", str(out), "--json", "--variant",
-                 "faults", "--set", "time.duration=3600", timeout=600)
+                 "faults", "--set", "time.duration=3600", *(a for w in WINDOW for a in ("--set", w)), timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     g1 = [m.step for m in msgs(bag, "/gnss1/measurement")]

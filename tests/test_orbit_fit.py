@@ -139,13 +139,21 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
     report's residual figure draws that bound (the metric's series carry it mapped to the range rate)."""
 
     cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "dynamic"),
-                          ["time.duration=3600.0", "estimators=[kf_a]"])
+                          ["time.duration=3600.0", "scoring.window.head_s=600", "scoring.window.tail_s=600",
+                           "estimators=[kf_a]"])
     data = bag_data(cfg, ["kf_a"], seed=3)
     opts = scoring_options(cfg)
     opts = replaced(opts, offline={k: v for k, v in opts.offline.items() if k in ("orbit_fit", "savgol")})
     run_offline(data, opts)
     rms = {n: np.sqrt(np.mean(residuals(data, n, opts.options)["truth"] ** 2)) for n in opts.offline}
     assert rms["orbit_fit"] < rms["savgol"] / 10
+    # the fit estimates at every truth step (5 s), the others at the fixes (10 s): the scoring window keeps for
+    # each the steps every one has (bench_eval.window)
+    assert len(data.estimates["orbit_fit"].steps) > 1.9 * len(data.estimates["savgol"].steps)
+    day, scored = opts.window.cut(data, ["kf_a", "orbit_fit", "savgol"])
+    assert scored == ["kf_a", "orbit_fit", "savgol"]
+    for name in scored:
+        np.testing.assert_array_equal(day.estimates[name].steps, day.estimates["kf_a"].steps)
     data.bounds = {"orbit_crb": ORBIT_CRB.run(data, {})}
     bound = range_rate_bounds(data)["orbit_crb"]
     est = data.estimates["orbit_fit"]

@@ -9,8 +9,9 @@ bench_eval.metrics.effective_samples, and each run's own time average, ``baselin
 filter's covariance tells the truth about its error.
 
 Options (``scoring`` section): ``kbr`` (the KBR sensor, default "kbr"), ``baseline`` (the six baseline labels,
-position then velocity), ``skip_s`` (the filters' start-up excluded, default 0) and ``pairs`` (name: [second
-satellite's estimator, first's]: a baseline formed from two single-satellite estimators).
+position then velocity) and ``pairs`` (name: [second satellite's estimator, first's]: a baseline formed from two
+single-satellite estimators). Which steps are scored is not the family's choice: the scorer hands it the runs cut
+to the scenario's scoring window, the same steps for every estimator (bench_eval.window).
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ import numpy as np
 from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)
 
 from bench_engine.config import ScenarioError
-from bench_engine.settings import NON_NEGATIVE, Check, Settings, setting
+from bench_engine.settings import Check, Settings, setting
 from bench_eval.metric_families import Metric, Tracks
 from bench_eval.metrics import effective_samples
 from bench_eval.scoring import BagData
@@ -35,7 +36,6 @@ class RangeRateOptions(Settings):
     kbr: str = setting("kbr", doc="the K-band ranging sensor the range rates are compared with")
     baseline: list[str] = setting(doc="the baseline's labels: position, then velocity",
                                   check=Check(lambda v: len(v) == 6, "6 labels (position, velocity)"))
-    skip_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the start of each run not scored")
     pairs: dict = setting({}, doc="NAME: [second, first]: the difference of two estimators' satellite states, "
                                   "scored as the baseline estimate NAME")
 
@@ -89,16 +89,16 @@ def baseline_states(data: BagData, name: str, options: RangeRateOptions) -> tupl
 
 
 def residuals(data: BagData, name: str, options: RangeRateOptions) -> dict[str, np.ndarray] | None:
-    """Per KBR step with an estimate (after skip_s): t, rho_dot_est - rho_dot_KBR, rho_dot_est - rho_dot_true,
-    baseline velocity error (K, 3) and, for an estimator with a covariance, the baseline NEES (K,) (6 dof:
-    position and velocity)."""
+    """Per KBR step with an estimate: t (s from the run's start), rho_dot_est - rho_dot_KBR, rho_dot_est -
+    rho_dot_true, baseline velocity error (K, 3) and, for an estimator with a covariance, the baseline NEES (K,)
+    (6 dof: position and velocity)."""
     states = baseline_states(data, name, options)
     kbr = data.measurements.get(options.kbr, {})
     if states is None or not kbr:
         return None
     steps, t, bw, P = states
     t0 = min(tt for tt, _ in data.truth.values())
-    keep = [i for i, k in enumerate(steps) if int(k) in kbr and t[i] - t0 >= options.skip_s]
+    keep = [i for i, k in enumerate(steps) if int(k) in kbr]
     if not keep:
         return None
     truth_cols = _columns(data.truth_labels, options.baseline)

@@ -18,6 +18,7 @@ import numpy as np
 
 from bench_engine.config import apply_overrides
 from bench_engine.inprocess import run_in_process
+from bench_eval.window import ScoringWindow
 from bench_studies.grace_velocity.metrics import range_rate
 from bench_studies.grace_velocity.pair_fit import pair_force_model
 from orbit_sim.orbit_fit import fit_orbit
@@ -36,9 +37,9 @@ class QScore:
     loglik: float
     """Innovation log-likelihood of the measurements (needs no truth)."""
     velocity_rmse: float
-    """Baseline velocity error against the truth after the start-up [m/s] (3-D RMS)."""
+    """Baseline velocity error against the truth in the scoring window [m/s] (3-D RMS)."""
     rr_kbr_std: float
-    """Std of the range-rate residual against the KBR [m/s]."""
+    """Std of the range-rate residual against the KBR in the scoring window [m/s]."""
 
 
 def measurements(cfg: dict, seed: int):
@@ -47,7 +48,22 @@ def measurements(cfg: dict, seed: int):
     return run.items, build_truth(cfg)
 
 
-def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: float, kbr: str = "kbr") -> QScore:
+def window_of(cfg: dict) -> ScoringWindow:
+    """The scenario's scoring window (bench_eval.window), which the tuning scores by as the scorer does (none:
+    the whole run)."""
+    from bench_eval.scoring import scoring_options
+    return scoring_options(cfg).window or ScoringWindow()
+
+
+def _scored(truth, steps: np.ndarray, window: ScoringWindow, arc_s: float | None = None) -> np.ndarray:
+    """Which of ``steps`` the window keeps, in the truth's run or in an arc of its first ``arc_s`` seconds."""
+    times = truth.grid.times()
+    t0 = times[0]
+    return window.inside(times[steps], t0, times[-1] if arc_s is None else t0 + arc_s)
+
+
+def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, window: ScoringWindow,
+            kbr: str = "kbr") -> QScore:
     """Run filter ``filter_name`` with density q over recorded measurement items; score it three ways."""
     # no NIS gate while tuning: a q too small would gate most measurements and score only the few it kept
     cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
@@ -68,8 +84,7 @@ def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: f
         xs.append(flt.x[:6].copy())
         steps.append(m.step)
     xs, steps = np.array(xs), np.array(steps)
-    t = truth.grid.times()[steps] - truth.grid.times()[0]
-    keep = t >= skip_s
+    keep = _scored(truth, steps, window)
     cols = [truth.labels.index(c) for c in BASELINE]
     true = truth.states[steps][:, cols]
     vel_rmse = float(np.sqrt(np.mean(np.sum((xs[keep, 3:] - true[keep, 3:]) ** 2, axis=1))))
@@ -79,10 +94,10 @@ def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: f
     return QScore(q, float(loglik), vel_rmse, float(np.std(rr)) if len(rr) else float("nan"))
 
 
-def scan(cfg: dict, filter_name: str, qs: list[float], seed: int, skip_s: float) -> list[QScore]:
-    """score_q over a grid of q on one set of measurements."""
+def scan(cfg: dict, filter_name: str, qs: list[float], seed: int) -> list[QScore]:
+    """score_q over a grid of q on one set of measurements, in the scenario's scoring window."""
     items, truth = measurements(cfg, seed)
-    return [score_q(cfg, filter_name, q, items, truth, skip_s) for q in qs]
+    return [score_q(cfg, filter_name, q, items, truth, window_of(cfg)) for q in qs]
 
 
 def choices(scores: list[QScore]) -> dict[str, QScore]:
@@ -94,20 +109,22 @@ def choices(scores: list[QScore]) -> dict[str, QScore]:
 
 # Like-for-like tuning (issue 19 §2): every method's free parameter chosen by one rule that never sees the
 # scored data: the smallest range-rate RMS against the truth on a tuning seed (TUNING_SEED), never a scored
-# one (the Monte Carlo runs use seeds 1, 2, ...). scripts/grace_tune_methods.py prints the grids.
+# one (the Monte Carlo runs use seeds 1, 2, ...), over the scenario's scoring window (issue 28: the central
+# day, as the scorer scores it). scripts/grace_tune_methods.py prints the grids.
 TUNING_SEED = 1001
 
 
-def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, skip_s: float) -> float:
-    """RMS of range_rate(estimate) - range_rate(truth) over the steps after skip_s."""
-    t = truth.grid.times()[steps] - truth.grid.times()[0]
-    keep = t >= skip_s
+def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, window: ScoringWindow,
+                  arc_s: float | None = None) -> float:
+    """RMS of range_rate(estimate) - range_rate(truth) over the steps the scoring window keeps (of the run, or
+    of an arc of its first ``arc_s`` seconds)."""
+    keep = _scored(truth, steps, window, arc_s)
     true = truth.states[steps[keep]][:, [truth.labels.index(c) for c in BASELINE]]
     r = range_rate(bw[keep, :3], bw[keep, 3:]) - range_rate(true[:, :3], true[:, 3:])
     return float(np.sqrt(np.mean(r * r)))
 
 
-def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s: float) -> float:
+def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, window: ScoringWindow) -> float:
     """Range-rate RMS against the truth of the RTS smoothing of ``filter_name`` run with density q (no gate)."""
     cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
     stack = build_filter_stack(cfg, filter_name)
@@ -123,24 +140,24 @@ def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, skip_s:
         steps.append(m.step)
         ts.append(m.t)
     x, _ = smooth_estimates(flt.dynamics, np.diff(ts), np.array(xs), np.array(Ps))
-    return _rr_truth_rms(np.array(steps), x[:, :6], truth, skip_s)
+    return _rr_truth_rms(np.array(steps), x[:, :6], truth, window)
 
 
-def savgol_score(items: dict, truth, window_s: float, polyorder: int, skip_s: float, source: str = "baseline",
+def savgol_score(items: dict, truth, window_s: float, polyorder: int, window: ScoringWindow, source: str = "baseline",
                  max_gap: float = 300.0) -> float:
     """Range-rate RMS against the truth of Savitzky-Golay differentiation of the ``source`` positions (the
     window in samples by tracker_filters.differentiation.savgol_window_length, as bench_eval.offline's savgol)."""
     meas = items[f"/{source}/measurement"]
     t, z = np.array([m.t for m in meas]), np.array([m.z[:3] for m in meas])
-    window = savgol_window_length(window_s, float(np.median(np.diff(t))), polyorder)
-    w = savgol_derivative(t, z, window, polyorder, max_gap)
-    return _rr_truth_rms(np.array([m.step for m in meas]), np.hstack([z, w]), truth, skip_s)
+    samples = savgol_window_length(window_s, float(np.median(np.diff(t))), polyorder)
+    w = savgol_derivative(t, z, samples, polyorder, max_gap)
+    return _rr_truth_rms(np.array([m.step for m in meas]), np.hstack([z, w]), truth, window)
 
 
-def orbit_fit_score(cfg: dict, params, items: dict, truth, skip_s: float, span_s: float,
+def orbit_fit_score(cfg: dict, params, items: dict, truth, window: ScoringWindow, span_s: float,
                     sensors: tuple[str, str] = ("gnss1", "gnss2")) -> float:
     """Range-rate RMS against the truth of the pair's dynamic orbit fit (``params``: pair_fit.py's
-    PairFitParameters) over the first ``span_s`` seconds of fixes."""
+    PairFitParameters) to the first ``span_s`` seconds of fixes, over that arc's scoring window."""
     model, gnss = pair_force_model(cfg, params), read_sensors(cfg)
     states = []
     for name in sensors:
@@ -149,4 +166,4 @@ def orbit_fit_score(cfg: dict, params, items: dict, truth, skip_s: float, span_s
         fit = fit_orbit(t, z, gnss[name].model.sigma_position, model, params.ballistic_guess or 0.0,
                         params.empirical_sigma)
         states.append(fit.states(t, with_covariance=False)[0])
-    return _rr_truth_rms(np.array([m.step for m in meas]), states[1] - states[0], truth, skip_s)
+    return _rr_truth_rms(np.array([m.step for m in meas]), states[1] - states[0], truth, window, span_s)
