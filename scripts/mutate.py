@@ -64,6 +64,8 @@ CQKF = f"{SRC}/tracker_filters/tracker_filters/cqkf.py"
 CUBATURE = f"{SRC}/tracker_filters/tracker_filters/cubature.py"
 PF = f"{SRC}/tracker_filters/tracker_filters/pf.py"
 METRICS = f"{SRC}/bench_eval/bench_eval/metrics.py"
+WINDOW = f"{SRC}/bench_eval/bench_eval/window.py"
+DIFFERENTIATION = f"{SRC}/tracker_filters/tracker_filters/differentiation.py"
 
 SMOOTHING_TESTS = ("tests/test_smoothing.py::test_rts_equals_the_batch_least_squares_solution",
                    "tests/test_smoothing.py::test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates",
@@ -153,6 +155,13 @@ MUTATIONS = [
              "effective samples blind to the spread of the runs' means"),
     Mutation("ess_counts_every_step", METRICS, "return total / max(tau, 1.0)", "return float(total)",
              ("tests/test_metrics.py",), "effective samples count every step"),
+    # the scoring window (bench_eval/window.py) and Savitzky-Golay's weights (issue 28)
+    Mutation("window_each_own_steps", WINDOW, "_rows(estimates[name], np.isin(estimates[name].steps, common))",
+             "_rows(estimates[name], _finite(estimates[name]))", ("tests/test_scoring_window.py",),
+             "each estimator scored over its own steps of the window, not the common ones"),
+    Mutation("savgol_unscaled_slope", DIFFERENTIATION, "legendre.legval((np.asarray(at, dtype=float) - half) / half, "
+             "basis_slope).T / half", "legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T",
+             ("tests/test_grace_filters.py",), "Savitzky-Golay slope without du/dk (the window's half-width)"),
 ]
 
 
