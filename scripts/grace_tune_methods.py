@@ -19,8 +19,13 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
 from bench_engine.settings import read
 from bench_studies.grace_velocity.pair_fit import PairFitParameters
-from bench_studies.grace_velocity.tuning import (TUNING_SEED, measurements, orbit_fit_score, rts_score,
-                                                 savgol_score, window_of)
+from bench_studies.grace_velocity.tuning import (EMPIRICAL_SIGMAS, RTS_QS, SAVGOL_DEGREES, SAVGOL_WINDOWS_S,
+                                                 TUNING_SEED, measurements, orbit_fit_score, rts_score, savgol_score,
+                                                 window_of)
+
+
+def _csv(values) -> str:
+    return ",".join(f"{v:g}" for v in values)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -29,10 +34,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--seed", type=int, default=TUNING_SEED)
     p.add_argument("--methods", default="rts,savgol,orbit_fit_j2")
-    p.add_argument("--qs", default="1e-15,1e-14,3e-14,1e-13,3e-13,1e-12,1e-11,1e-10,1e-9,1e-8,1e-7,1e-6,1e-5,1e-4")
-    p.add_argument("--windows", default="200,400,800,1200,1600,2000")
-    p.add_argument("--orders", default="3,5,7,9")
-    p.add_argument("--sigmas", default="1e-7,1e-6,1e-5,1e-4")
+    p.add_argument("--qs", default=_csv(RTS_QS), help="RTS white-jerk densities q [m^2/s^5]")
+    p.add_argument("--windows", default=_csv(sorted(SAVGOL_WINDOWS_S)), help="Savitzky-Golay windows [s]")
+    p.add_argument("--orders", default=_csv(SAVGOL_DEGREES), help="Savitzky-Golay degrees")
+    p.add_argument("--sigmas", default=_csv(EMPIRICAL_SIGMAS), help="orbit_fit_j2's empirical sigmas [m/s^2]")
     p.add_argument("--span-s", type=float, default=21600.0, help="orbit fits to the first span_s seconds")
     args = p.parse_args(argv)
     try:

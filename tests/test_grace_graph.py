@@ -118,8 +118,9 @@ def test_outages_and_gross_outliers_give_a_well_defined_run(tmp_path) -> None:
     """Variant faults: receiver 1 is out for 10 minutes and 1 % of fixes carry a 30 m error. The run completes,
     the filters gate the outliers (logged), bridge the outage and resume, and every score stays finite."""
     out = tmp_path / "faults"
-    res = script("launch.py", "grace_velocity", "--out", str(out), "--json", "--variant",
-                 "faults", "--set", "time.duration=3600", *(a for w in WINDOW for a in ("--set", w)), timeout=600)
+    res = script("launch.py", "grace_velocity", "--out", str(out), "--json", "--variant", "faults",
+                 "--set", "time.duration=3600", *(a for w in WINDOW for a in ("--set", w)),
+                 "--set", "sensors.gnss1.outages=[[1800.0, 2400.0]]", timeout=600)   # the variant's: in its scored day
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     g1 = [m.step for m in msgs(bag, "/gnss1/measurement")]

@@ -117,7 +117,7 @@ def savgol_weights(n: int, polyorder: int, at: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
-def _savgol_table(n: int, polyorder: int) -> np.ndarray:
+def savgol_table(n: int, polyorder: int) -> np.ndarray:
     """``savgol_weights`` at every sample of an n-sample window (row (n - 1) / 2: the centred weights)."""
     w = savgol_weights(n, polyorder, np.arange(n))
     w.setflags(write=False)
@@ -147,7 +147,7 @@ def savgol_derivative(t: np.ndarray, z: np.ndarray, window_length: int, polyorde
         n = len(ts)
         w = min(window_length, n if n % 2 else n - 1)
         if w >= polyorder + 2:
-            table = _savgol_table(w, polyorder) / float(ts[1] - ts[0])
+            table = savgol_table(w, polyorder) / float(ts[1] - ts[0])
             h = w // 2
             out = v[seg]
             out[h:n - h] = np.einsum("k,i...k->i...", table[h], sliding_window_view(zs, w, axis=0))

@@ -112,6 +112,16 @@ def choices(scores: list[QScore]) -> dict[str, QScore]:
 # one (the Monte Carlo runs use seeds 1, 2, ...), over the scenario's scoring window (issue 28: the central
 # day, as the scorer scores it). scripts/grace_tune_methods.py prints the grids.
 TUNING_SEED = 1001
+RTS_QS = (1e-15, 1e-14, 3e-14, 1e-13, 3e-13, 1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4)
+"""The RTS smoother's white-jerk densities q [m^2/s^5]: from far below the causal filter's to far above."""
+SAVGOL_WINDOWS_S = tuple(float(w) for w in range(400, 7201, 400)) + (200.0,)
+"""Savitzky-Golay windows [s]: up to twice the scoring window's one-hour margins, so that no window centred in
+the scored day reaches past the arc (its ends are fitted one-sided for half a window)."""
+SAVGOL_DEGREES = tuple(range(3, 36, 2))
+"""Savitzky-Golay degrees: up to past the best degree of the longest window (the like-for-like rule's range-rate
+RMS rises again beyond it)."""
+EMPIRICAL_SIGMAS = (1e-7, 1e-6, 1e-5, 1e-4)
+"""The reduced-model orbit fit's a-priori sigma of its empirical accelerations [m/s^2]."""
 
 
 def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, window: ScoringWindow,
