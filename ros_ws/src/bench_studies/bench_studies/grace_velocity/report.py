@@ -80,7 +80,7 @@ def _draw_residuals(series: Mapping):
         top.set_ylabel("RMS over 30 min [mm/s]")
         top.set_xlabel("time [h]")
         bottom.set_ylabel("estimate − KBR [mm/s]")
-        bottom.set_xlabel("time [h] (first 3 h)")
+        bottom.set_xlabel("time [h] from the arc's start (the scored day's first 3 h)")
         for ax in (top, bottom):
             ax.grid(True, which="both", alpha=0.3)
         top.legend(fontsize=7, ncol=4)
@@ -116,7 +116,7 @@ def grace_velocity_sections(scenario: str, scored: Mapping, series: Mapping | No
     # the baseline against bound (b) axis by axis (the bound's groups), where the scenario scores it (variant dynamic)
     bounds = bounds_table(scored, BASELINE_AXES)
     plots = [Plot(f"{scenario}_residuals.png", "Range-rate residual against the KBR (first run): its RMS over "
-                  "30-minute windows through the day, and the residual itself over the first three hours",
+                  "30-minute windows through the scored day, and the residual itself over its first three hours",
                   _draw_residuals(series), (11.0, 7.0))] if series else []
     return [Section(scenario, text, [table] + ([edges] if edges else []) + ([bounds] if bounds else []), plots)]
 
