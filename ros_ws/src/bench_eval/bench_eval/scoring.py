@@ -260,6 +260,18 @@ def _part(runs: list[BagData], scored: list[list[str]], window: ScoringWindow | 
     return [c[0] for c in cut], [c[1] for c in cut]
 
 
+def _score_edges(blocks: dict, family, runs: list[BagData], scored: list[list[str]], opts: ScoringOptions) -> None:
+    """Add to each scored estimator's block ``edges: {head, tail}``, the metric family's scores over each edge of
+    the runs (bench_eval.window: each estimator over its own steps there)."""
+    for edge in EDGES:
+        part, there = _part(runs, scored, opts.window, edge)
+        tracks = _tracks(part, there)
+        if tracks:
+            for name, block in family.score(tracks, part, opts.options).items():
+                if name in blocks:
+                    blocks[name].setdefault("edges", {})[edge] = block
+
+
 def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
     the metric family the scenario's ``scoring.metric`` names, over the scenario's scoring window
@@ -268,11 +280,11 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
     Returns {"scenario", "runs", "metric", "estimators": {name: scores}} (and the plot series when
     ``with_series``), plus ``window`` {head_s, tail_s, steps: scored steps per run} when the scenario has one.
     """
-    scenario, opts, whole, names = collect(bag_dirs)
+    scenario, opts, whole, everyone = collect(bag_dirs)
     if not any(data.truth for data in whole) and any(data.estimates for data in whole):
         return _score_without_truth(scenario, whole, with_series)
     compute_bounds(whole, opts.bounds)  # over the whole runs, before the window cuts them
-    runs, scored = _part(whole, names, opts.window)
+    runs, scored = _part(whole, everyone, opts.window)
     tracks = _tracks(runs, scored)
     if not tracks:
         found = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
@@ -290,16 +302,10 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
             result["estimators"].setdefault(name, {}).update(block)
     if opts.window is not None:
         result["window"] = {"head_s": opts.window.head_s, "tail_s": opts.window.tail_s,
-                            "steps": [len(next((data.estimates[n].steps for n in names), [])) for data, names
-                                      in zip(runs, scored)]}
+                            "steps": [len(data.estimates[names[0]].steps) if names else 0
+                                      for data, names in zip(runs, scored)]}
         if opts.window.edges:
-            for edge in EDGES:
-                part, there = _part(whole, names, opts.window, edge)
-                edge_tracks = _tracks(part, there)
-                if edge_tracks:
-                    for name, block in family.score(edge_tracks, part, opts.options).items():
-                        if name in result["estimators"]:
-                            result["estimators"][name].setdefault("edges", {})[edge] = block
+            _score_edges(result["estimators"], family, whole, everyone, opts)
     if not with_series:
         return result
     series = family.series(tracks, runs, opts.options)
