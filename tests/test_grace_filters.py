@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
+from scipy.signal import savgol_filter
 from scipy.special import chdtri
 
 from bench_engine.config import apply_overrides, load_scenario
@@ -26,11 +27,12 @@ from orbit_sim import gravity
 from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
 from bench_studies.grace_velocity.pair_truth import pair_rate
 from bench_studies.grace_velocity.report import grace_velocity_sections
+from bench_studies.grace_velocity.tuning import SAVGOL_DEGREES, SAVGOL_WINDOWS_S
 from orbit_sim.truth import build_earth, build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters import registry
-from bench_studies.grace_velocity.tuning import SAVGOL_DEGREES, SAVGOL_WINDOWS_S
-from tracker_filters.differentiation import newton_derivative, newton_weights, savgol_derivative
+from tracker_filters.differentiation import (newton_derivative, newton_weights, savgol_derivative, savgol_table,
+                                             savgol_weights, savgol_window_length)
 from tracker_filters.filter_stage import FilterStage
 from tracker_filters.fixed_lag import FixedLagSmoother
 from tracker_filters.smoothing import rts_smoother
@@ -121,7 +123,6 @@ def test_savgol_is_exact_on_a_polynomial_of_its_degree_for_every_window_of_the_t
     (64 eps sum|w| |z|: a window barely longer than its degree is an equispaced interpolation whose weights
     are inherently large, whatever the basis). Weights from scipy's savgol_coeffs, a least-squares solve in
     powers of the unscaled sample index, kept 2.6e-6 of the slope at degree 9 over 161 samples."""
-    from tracker_filters.differentiation import savgol_table, savgol_window_length
     for window_s in SAVGOL_WINDOWS_S:
         window = savgol_window_length(window_s, spacing, polyorder)
         assert window % 2 == 1 and window >= polyorder + 2
@@ -138,8 +139,6 @@ def test_savgol_weights_are_the_least_squares_polynomial_s_slope() -> None:
     powers 2..9 of the offset (the moments of a derivative filter); and where scipy's weights are well
     conditioned (degree 3 over 21 samples) the same derivative as scipy.signal.savgol_filter with its 'interp'
     ends."""
-    from scipy.signal import savgol_filter
-    from tracker_filters.differentiation import savgol_weights
     k = np.arange(161) - 80.0
     w = savgol_weights(161, 9, np.array([80.0]))[0]
     moments = [w @ (k / 80.0) ** j for j in range(10)]
@@ -411,8 +410,6 @@ def test_every_grace_estimator_of_a_run_is_scored_over_the_same_steps(grace_runs
     (which never publishes a run's last 300 s), the offline RTS, Newton and Savitzky-Golay all get the same
     residual steps: the window's fixes. With no tail margin the window's end is the fixed-lag smoother's last
     estimate for every one of them; with the margin (600 s here) the window ends 600 s before the run."""
-    import copy
-    from bench_eval.scoring import score_bags
     names = {"kf_a", "kf_b", "kf_a_lag", "kf_a_rts", "newton", "savgol"}
     duration = grace_runs[0].scenario["time"]["duration"]
     no_tail = copy.deepcopy(grace_runs[0])

@@ -18,6 +18,7 @@ import numpy as np
 
 from bench_engine.config import apply_overrides
 from bench_engine.inprocess import run_in_process
+from bench_eval.scoring import scoring_options
 from bench_eval.window import ScoringWindow
 from bench_studies.grace_velocity.metrics import range_rate
 from bench_studies.grace_velocity.pair_fit import pair_force_model
@@ -51,7 +52,6 @@ def measurements(cfg: dict, seed: int):
 def window_of(cfg: dict) -> ScoringWindow:
     """The scenario's scoring window (bench_eval.window), which the tuning scores by as the scorer does (none:
     the whole run)."""
-    from bench_eval.scoring import scoring_options
     return scoring_options(cfg).window or ScoringWindow()
 
 
