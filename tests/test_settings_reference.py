@@ -195,6 +195,8 @@ def test_a_reader_is_strict_and_its_errors_name_the_key_path() -> None:
                           ({"dt": 1, "names": [1]}, "'x.names' must be a list of strings")):
         with pytest.raises(ScenarioError, match=re.escape(message)):
             read(_Example, data, "x")
+    example = read(_Example, {"dt": 1}, "x.y")
+    assert (example.where(), example.where("dt")) == ("x.y", "x.y.dt")   # a path for the mapping and for its keys
     assert coerce(_Example, {"dt": 2, "labels": ["a"], "other": 1}) == {"dt": 2.0, "names": ["a"], "other": 1}
     assert default_of(dataclasses.fields(_Example)[0]) is REQUIRED
     with pytest.raises(ScenarioError, match="unknown key\\(s\\) 'earth.muu' in 'earth'; allowed: j2, mu, re,"):

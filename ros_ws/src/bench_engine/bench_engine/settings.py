@@ -106,7 +106,7 @@ class Settings:
 
     def where(self, key: str = "") -> str:
         """The full key path of ``key`` of this mapping (of the mapping itself without one)."""
-        return join(self._path, key)
+        return join(self._path, key) if key else self._path
 
 
 @dataclass(frozen=True, kw_only=True)
