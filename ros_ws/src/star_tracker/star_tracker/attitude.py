@@ -32,6 +32,7 @@ from functools import cached_property
 from math import atan2, cos, sin, sqrt
 
 import numpy as np
+from scipy.linalg.lapack import dgesdd as _dgesdd  # loaded with scipy.spatial (the catalogue's k-d tree) anyway
 
 ARCSEC = np.pi / (180.0 * 3600.0)
 
@@ -174,8 +175,7 @@ def davenport_quaternion(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = No
     conjugate of the rotation quaternion used here: its vector part is negated on return, giving
     (qw, qx, qy, qz) with A = R(q), qw >= 0."""
     b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
-    w = np.ones(len(b)) if w is None else np.asarray(w, dtype=float)
-    B = (b * w[:, None]).T @ r
+    B = b.T @ r if w is None else (b * np.asarray(w, dtype=float)[:, None]).T @ r
     sigma = np.trace(B)
     z = np.array([B[1, 2] - B[2, 1], B[2, 0] - B[0, 2], B[0, 1] - B[1, 0]])
     K = np.zeros((4, 4))
@@ -194,12 +194,20 @@ def residuals(A: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
     return 2.0 * np.arcsin(np.minimum(np.sqrt(x * x + y * y + z * z) / 2.0, 1.0))    # |d| = 2 sin(angle/2)
 
 
+def _svd(B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """U, S, Vᵀ of a 3 × 3 matrix by LAPACK's dgesdd, as np.linalg.svd computes it, called directly: the
+    lost-in-space identification solves Wahba's problem several times a frame, and numpy's wrapper (type and
+    error-state handling) cost more than the decomposition. np.linalg.svd where dgesdd reports a failure
+    (it then raises LinAlgError)."""
+    U, S, Vt, info = _dgesdd(B)
+    return (U, S, Vt) if info == 0 else np.linalg.svd(B)
+
+
 def wahba_matrix(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
     """The A minimising Σ w_i |b_i − A r_i|² (SVD solution, module docstring); b, r (N, 3), N >= 2."""
     b, r = np.asarray(b, dtype=float), np.asarray(r, dtype=float)
-    w = np.ones(len(b)) if w is None else np.asarray(w, dtype=float)
-    B = (b * w[:, None]).T @ r
-    U, _, Vt = np.linalg.svd(B)
+    B = b.T @ r if w is None else (b * np.asarray(w, dtype=float)[:, None]).T @ r
+    U, _, Vt = _svd(B)
     A = U @ Vt
     (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A.tolist()     # det A = ±1
     if a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20) < 0:

@@ -118,6 +118,12 @@ class StarCatalogue:
         return np.sort(np.asarray(self.tree.query_ball_point(axis / np.linalg.norm(axis), chord(radius)),
                                   dtype=np.intp))
 
+    def cone_count(self, axis: np.ndarray, radius: float) -> int:
+        """The number of stars within ``radius`` (rad) of ``axis``: ``len(cone(axis, radius))``, counted by the
+        tree without listing them."""
+        axis = np.asarray(axis, dtype=float)
+        return int(self.tree.query_ball_point(axis / np.linalg.norm(axis), chord(radius), return_length=True))
+
     def index_of(self, hip: np.ndarray) -> np.ndarray:
         """Catalogue indices of HIP numbers (−1 where absent)."""
         order = np.argsort(self.ids)

@@ -37,7 +37,7 @@ from scipy.special import bdtrc  # binomial survival function: binom.sf(k, n, p)
 
 from star_tracker.attitude import AttitudeSolution, wahba, wahba_matrix
 from star_tracker.camera import Camera
-from star_tracker.catalogue import ARCSEC, StarCatalogue, angle_between, chord
+from star_tracker.catalogue import ARCSEC, StarCatalogue, chord
 from star_tracker.kvector import PairTable
 
 UNIDENTIFIED = -1
@@ -80,6 +80,31 @@ def triple_product(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
             + a[..., 2] * (b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0]))
 
 
+class _Angles:
+    """The angles between a frame's observed directions b (N, 3), ``theta[i, j]``, computed a column at a time
+    as the search needs them: a frame's search touches the columns of a few stars, and the whole N × N matrix
+    was a sizeable share of a frame's identification."""
+
+    def __init__(self, b: np.ndarray) -> None:
+        self.b = b
+        self._columns: dict[int, np.ndarray] = {}
+
+    def column(self, j: int) -> np.ndarray:
+        """(N,) the angles from every star to star j."""
+        col = self._columns.get(j)
+        if col is None:  # catalogue.angle_between's arithmetic, without np.linalg.norm's and np.clip's wrappers
+            d = self.b - self.b[j]
+            col = self._columns[j] = 2.0 * np.arcsin(np.minimum(np.sqrt((d * d).sum(axis=1)) / 2.0, 1.0))
+        return col
+
+    def __getitem__(self, ij: tuple[int, int]) -> float:
+        return self.column(ij[1])[ij[0]]
+
+    def block(self, rows: np.ndarray, cols: list[int]) -> np.ndarray:
+        """(len(rows), len(cols)): theta[rows][:, cols]."""
+        return np.stack([self.column(c)[rows] for c in cols], axis=1)
+
+
 class PyramidIdentifier:
     """Lost-in-space identification of a frame's centroids against a catalogue (module docstring)."""
 
@@ -97,6 +122,9 @@ class PyramidIdentifier:
         self.sigma = sigma
         self.epsilon = pair_sigmas * np.sqrt(2.0) * sigma + floor_arcsec * ARCSEC
         self.match_radius = match_sigmas * sigma + floor_arcsec * ARCSEC
+        self._match_chord = float(chord(self.match_radius))
+        self._pyramid_chord = float(chord(50.0 * self.match_radius))
+        """The pyramid test's search radius around each other star's predicted direction (step 2)."""
         self.max_stars = int(max_stars)
         self.max_triangles = int(max_triangles)
         self.max_false_alarm = float(max_false_alarm)
@@ -130,8 +158,8 @@ class PyramidIdentifier:
         none = np.full(n, UNIDENTIFIED, dtype=np.int64)
         if n < 4:
             return Identification(False, f"too few stars: {n} centroids, the Pyramid needs 4", none)
-        theta = angle_between(b[:, None, :], b[None, :, :])
-        cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        theta = _Angles(b)
+        cache: dict[tuple[int, int], list[np.ndarray]] = {}
         tried, candidates = 0, 0
         for i, j, k in self._triangles(n):
             if tried >= self.max_triangles:
@@ -167,113 +195,121 @@ class PyramidIdentifier:
         observed direction b (N, 3) mapped to ICRS by the camera-from-ICRS ``attitude`` (−1 where none), each
         catalogue star going to its closest centroid only; and the angular distances (inf where none). This
         identifies the stars of a frame once the attitude is known (new stars entering the field too)."""
-        radius = self.match_radius if radius is None else radius
         b = np.asarray(b, dtype=float).reshape(-1, 3)
-        index = np.full(len(b), UNIDENTIFIED, dtype=np.int64)
+        index, rows, d = self._nearest(b, np.asarray(attitude, dtype=float),
+                                       self._match_chord if radius is None else chord(radius))
         dist = np.full(len(b), np.inf)
-        if len(b) == 0:
-            return index, dist
-        r = b @ np.asarray(attitude, dtype=float)  # rows: Aᵀ b
-        d, idx = self.catalogue.tree.query(r, k=1, distance_upper_bound=chord(radius))
-        hit = np.isfinite(d)
-        if hit.any():
-            rows = np.flatnonzero(hit)
-            rows = rows[np.argsort(d[rows], kind="stable")]
-            _, first = np.unique(idx[rows], return_index=True)  # closest centroid of each catalogue star
-            keep = rows[first]
-            index[keep] = idx[keep]
-            dist[keep] = 2.0 * np.arcsin(np.clip(d[keep] / 2.0, 0.0, 1.0))
+        dist[rows] = 2.0 * np.arcsin(np.minimum(d[rows] / 2.0, 1.0))
         return index, dist
 
+    def _nearest(self, b: np.ndarray, attitude: np.ndarray, bound: float) -> tuple[np.ndarray, ...]:
+        """:meth:`match`'s catalogue indices (N,), with the rows that have one and every row's chord distance."""
+        index = np.full(len(b), UNIDENTIFIED, dtype=np.int64)
+        if len(b) == 0:
+            return index, np.zeros(0, dtype=np.intp), np.zeros(0)
+        d, idx = self.catalogue.tree.query(b @ attitude, k=1, distance_upper_bound=bound)  # rows: Aᵀ b
+        rows = np.isfinite(d).nonzero()[0]
+        if len(rows):
+            found = idx[rows]
+            found.sort()
+            if (found[1:] == found[:-1]).any():  # a catalogue star near two centroids: the closest one keeps it
+                rows = rows[d[rows].argsort(kind="stable")]
+                _, first = np.unique(idx[rows], return_index=True)
+                rows = rows[first]
+            index[rows] = idx[rows]
+        return index, rows, d
+
     # --------------------------------------------------------------------------------------------- steps
-    def _side(self, theta: np.ndarray, i: int, j: int, cache: dict) -> tuple[np.ndarray, ...]:
+    def _side(self, theta: _Angles, i: int, j: int, cache: dict, indexed: bool = False) -> list[np.ndarray]:
         """Directed candidate pairs (x, y) of observed side (i, j) — every catalogue pair {x, y} whose angle is
-        within ε of θ_ij, both ways round — sorted by x, with the start and count of each catalogue star's
-        run in x (a CSR index, so that joins need no search)."""
+        within ε of θ_ij, both ways round — sorted by x; ``indexed``: also the start and count of each catalogue
+        star's run in x (a CSR index, so that joins need no search; built only for a side joined as the second)."""
         key = (i, j)
-        if key not in cache:
+        side = cache.get(key)
+        if side is None:
             f, s = self.pairs.lookup(theta[i, j], self.epsilon)
             x, y = np.concatenate([f, s]), np.concatenate([s, f])
-            order = np.argsort(x, kind="stable")
-            x, y = x[order], y[order]
-            count = np.bincount(x, minlength=self.pairs.n_stars)
-            cache[key] = (x, y, np.cumsum(count) - count, count)
-        return cache[key]
+            order = x.argsort(kind="stable")
+            side = cache[key] = [x[order], y[order]]
+        if indexed and len(side) == 2:
+            count = np.bincount(side[0], minlength=self.pairs.n_stars)
+            side += [count.cumsum() - count, count]
+        return side
 
-    def _triangle_candidates(self, b: np.ndarray, theta: np.ndarray, i: int, j: int, k: int,
+    def _triangle_candidates(self, b: np.ndarray, theta: _Angles, i: int, j: int, k: int,
                              cache: dict) -> np.ndarray:
         """(M, 3) catalogue triangles (a, b, c) matching observed (i, j, k) (module docstring, step 1): the
         candidate pairs of sides (i, j) and (i, k) joined on their common star a, then the third side's angle
         θ_jk checked directly on the catalogue vectors."""
-        x1, y1, _, _ = self._side(theta, i, j, cache)
-        _, y2, start2, count2 = self._side(theta, i, k, cache)
-        if len(x1) == 0 or len(y2) == 0:
-            return np.empty((0, 3), dtype=np.int64)
-        cnt = count2[x1]
+        x1, y1 = self._side(theta, i, j, cache)[:2]
+        _, y2, start2, count2 = self._side(theta, i, k, cache, indexed=True)
+        cnt = count2.take(x1)
         total = int(cnt.sum())
         if total == 0:
             return np.empty((0, 3), dtype=np.int64)
-        rows = np.repeat(np.arange(len(x1)), cnt)
-        pos = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(start2[x1], cnt)
-        ta, tb, tc = x1[rows], y1[rows], y2[pos]
+        first = cnt.cumsum() - cnt      # each (i, j) pair's first joined row
+        tc = y2.take(np.arange(total) + (start2.take(x1) - first).repeat(cnt))
+        tb = y1.repeat(cnt)
         v = self.catalogue.vectors
-        cos_bc = np.einsum("ij,ij->i", v[tb], v[tc])
+        cos_bc = np.einsum("ij,ij->i", v.take(tb, axis=0), v.take(tc, axis=0))  # (take: a fraction of v[tb]'s cost)
         t = theta[j, k]
         ok = (tb != tc) & (cos_bc >= np.cos(min(t + self.epsilon, np.pi))) & \
             (cos_bc <= np.cos(max(t - self.epsilon, 0.0)))
-        if not ok.any():
+        ok = ok.nonzero()[0]
+        if len(ok) == 0:
             return np.empty((0, 3), dtype=np.int64)
-        tri = np.stack([ta[ok], tb[ok], tc[ok]], axis=1).astype(np.int64)
+        tri = np.stack([x1.repeat(cnt)[ok], tb[ok], tc[ok]], axis=1).astype(np.int64)
         # handedness: a rotation keeps the sign of the triple product (skip the test for a flat triangle)
-        s_obs = triple_product(b[i], b[j], b[k])
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = b[[i, j, k]].tolist()
+        s_obs = a0 * (b1 * c2 - b2 * c1) + a1 * (b2 * c0 - b0 * c2) + a2 * (b0 * c1 - b1 * c0)  # triple_product
         if abs(s_obs) > 4.0 * self.epsilon * max(theta[i, j], theta[i, k]):
-            s_cat = triple_product(v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]])
+            corners = v.take(tri, axis=0)
+            s_cat = triple_product(corners[:, 0], corners[:, 1], corners[:, 2])
             tri = tri[np.sign(s_cat) == np.sign(s_obs)]
         return tri
 
-    def _confirm(self, b: np.ndarray, theta: np.ndarray, obs: tuple[int, int, int],
+    def _confirm(self, b: np.ndarray, theta: _Angles, obs: tuple[int, int, int],
                  cat: tuple[int, int, int]) -> Identification | None:
         """Steps 2–4 for one catalogue triangle; None when it is not confirmed."""
         v = self.catalogue.vectors
         obs_i, cat_i = list(obs), list(cat)
-        A = wahba_matrix(b[obs_i], v[cat_i])
-        others = np.ones(len(b), dtype=bool)
-        others[obs_i] = False
-        others = np.flatnonzero(others)
+        A = wahba_matrix(b.take(obs_i, axis=0), v.take(cat_i, axis=0))
+        others = np.array([r for r in range(len(b)) if r not in obs], dtype=np.intp)
         if len(others) == 0:
             return None
         # step 2: nearest catalogue star to each other star's predicted direction, then the pyramid test
-        d, idx = self.catalogue.tree.query(b[others] @ A, k=1, distance_upper_bound=chord(50.0 * self.match_radius))
-        hit = np.isfinite(d)
-        if not hit.any():
+        d, idx = self.catalogue.tree.query(b.take(others, axis=0) @ A, k=1, distance_upper_bound=self._pyramid_chord)
+        hit = np.isfinite(d).nonzero()[0]
+        if len(hit) == 0:
             return None
         rows, cands = others[hit], idx[hit]
-        cat_ang = np.arccos(np.clip(v[cands] @ v[cat_i].T, -1.0, 1.0))          # (M, 3)
-        confirmed = np.all(np.abs(theta[np.ix_(rows, obs_i)] - cat_ang) <= self.epsilon, axis=1)
+        cat_ang = np.arccos(np.clip(v.take(cands, axis=0) @ v.take(cat_i, axis=0).T, -1.0, 1.0))   # (M, 3)
+        confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)
         confirmed &= (cands != cat_i[0]) & (cands != cat_i[1]) & (cands != cat_i[2])
         if not confirmed.any():
             return None
         # step 3: attitude from the pyramid, then every star matched, twice
         rows_c, cands_c = rows[confirmed], cands[confirmed]
         A = wahba_matrix(np.vstack([b[obs_i], b[rows_c]]), np.vstack([v[cat_i], v[cands_c]]))
+        index = self._nearest(b, A, self._match_chord)[0]
         for _ in range(2):
-            index, dist = self.match(b, A)
-            m = int(np.sum(index >= 0))
-            if m < 4:
-                return None
             ident = index >= 0
+            if int(ident.sum()) < 4:
+                return None
             A = wahba_matrix(b[ident], v[index[ident]])
-        index, dist = self.match(b, A)
+            index, previous = self._nearest(b, A, self._match_chord)[0], index
+            if np.array_equal(index, previous):  # the same stars give the same attitude: matching again
+                break                            # would repeat this match exactly
         ident = index >= 0
         m = int(ident.sum())
         if m < 4:
             return None
         solution = wahba(b[ident], v[index[ident]], self.sigma if self.sigma > 0 else ARCSEC)
-        if np.any(solution.residuals > self.match_radius):
+        if (solution.residuals > self.match_radius).any():
             return None
         # step 4: could this many matches be chance?
         n = len(b)
-        density = len(self.catalogue.cone(solution.matrix[2], self._cone_radius)) / self._cone_solid_angle
+        density = self.catalogue.cone_count(solution.matrix[2], self._cone_radius) / self._cone_solid_angle
         p = min(1.0, density * np.pi * self.match_radius ** 2)
         false_alarm = float(bdtrc(m - 3 - 1, n - 3, p))
         if false_alarm > self.max_false_alarm:
