@@ -1,6 +1,7 @@
 """The standard views of estimates and truth (bench_engine.views), as pure conversions: components selected by
 label, covariance blocks placed right, frames named, no Odometry for a state without velocity, attitudes as ROS
-poses, diagnostics read back exactly, trajectory markers cheap and cumulative; and the graph's view topics."""
+poses, diagnostics read back exactly and periodic, trajectory markers cheap and cumulative, the Odometry encoder's
+bytes the serialiser's; and the graph's view topics."""
 from __future__ import annotations
 
 import json
@@ -137,6 +138,24 @@ def test_odometry_selects_by_label_and_places_the_covariance_blocks(labels, seed
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (12, 300_000_000)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.permutations(["x", "y", "z", "vx", "vy", "vz", "bx", "ax"]), st.integers(0, 10_000),
+       st.sampled_from(["eci", "lvlh", "a_longer_frame_name"]), st.sampled_from(["ukf", "kf_a_q", "truth"]),
+       st.integers(0, 2**40), st.booleans())
+def test_the_odometry_encoder_writes_the_serialisers_bytes(labels, seed, frame, child, t_ns, is_truth):
+    """OdometryEncoder skips the message objects and rosbags' serialiser: its bytes must be theirs exactly (CDR
+    layout and alignment, stamp, frame names of any length, every number), for estimates and the truth."""
+    n = len(labels)
+    x = np.random.default_rng(seed).normal(size=n) * 1e6
+    item = (TruthSample(4, t_ns, frame, list(labels), x) if is_truth
+            else estimate(labels, x, spd(n, seed), t_ns=t_ns, frame=frame))
+    encoder = views.OdometryEncoder(child)
+    expected = cdr.serialize(views.ODOMETRY_TYPE, views.odometry(item, child))
+    assert encoder(item) == expected
+    assert encoder(item) == expected  # its cached prefix too
+    assert views.OdometryEncoder(child)(estimate(["x", "y", "z"], [1, 2, 3], np.eye(3))) is None
+
+
 def test_no_odometry_without_velocity_or_position():
     assert views.odometry(estimate(["x", "y", "z"], [1, 2, 3], np.eye(3)), "ukf") is None
     assert views.odometry(estimate(["vx", "vy", "vz"], [1, 2, 3], np.eye(3)), "ukf") is None
@@ -216,9 +235,33 @@ def test_diagnostics_read_back_exactly():
     values = {kv.key: kv.value for kv in status.values}
     assert status.name == "ukf" and status.level == b"\x00"  # OK
     assert float(values["nis"]) == 0.1 + 0.2 and float(values["n_eff"]) == 1234.5678 and values["step"] == "7"
-    assert list(values) == ["step", "nis", "n_eff", "gated"]
+    assert list(values) == ["step", "nis", "n_eff", "gated", "window_estimates", "window_without_update"]
+    assert (values["window_estimates"], values["window_without_update"]) == ("1", "0")
     coasting = views.diagnostics(estimate(["x"], [1.0], [[1.0]], nis=float("nan")))
     assert coasting.status[0].level == 1 and coasting.status[0].message  # WARN: no update
+
+
+def test_diagnostics_are_periodic_and_count_the_estimates_without_an_update():
+    """One DiagnosticArray per DIAGNOSTICS_PERIOD_S of sim time (the first estimate gets one), the status of the
+    estimates since the previous one: WARN as soon as one of them coasted, with the count."""
+    diag = views.PeriodicDiagnostics(period_s=1.0)
+    out = []
+    for k in range(36):  # 10 Hz; steps 12..14 and 25 coast
+        nis = float("nan") if k in (12, 13, 14, 25) else 1.0 + k
+        msg = diag(estimate(["x"], [1.0], [[1.0]], t_ns=4_000_000_000 + k * 100_000_000, nis=nis, step=k))
+        if msg is not None:
+            out.append((k, read_back(views.DIAGNOSTICS_TYPE, msg)))
+    assert [k for k, _ in out] == [0, 10, 20, 30]
+    for k, msg in out:
+        (status,) = msg.status
+        values = {kv.key: kv.value for kv in status.values}
+        assert int(values["step"]) == k and float(values["nis"]) == 1.0 + k
+        assert values["window_estimates"] == ("1" if k == 0 else "10")
+    levels = [(msg.status[0].level, {kv.key: kv.value for kv in msg.status[0].values}["window_without_update"])
+              for _, msg in out]
+    assert levels == [(b"\x00", "0"), (b"\x00", "0"), (b"\x01", "3"), (b"\x01", "1")]  # OK, OK, WARN, WARN
+    assert "3 of the 10 estimates" in out[2][1].status[0].message
+    assert diag(TruthSample(0, 9_000_000_000, "eci", ["x"], np.ones(1))) is None
 
 
 # --- markers ----------------------------------------------------------------------------------------------
@@ -250,12 +293,13 @@ def test_trajectory_markers_are_decimated_joined_segments_with_unique_ids():
 def test_standard_views_of_an_estimate_topic():
     sv = views.StandardViews("ekf", {s: f"/ekf/{s}" for s in views.SUFFIXES})
     item = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), source="ekf")
-    got = [(topic, type_name) for topic, type_name, _ in sv.messages(item)]
+    got = [(topic, type_name) for topic, type_name, _ in sv.encoded(item)]
     assert got == [("/ekf/odometry", views.ODOMETRY_TYPE), ("/ekf/diagnostics", views.DIAGNOSTICS_TYPE),
                    ("/ekf/markers", views.MARKERS_TYPE)]
     truth = views.StandardViews("truth", {s: f"/truth/{s}" for s in (views.ODOMETRY, views.MARKERS)})
     sample = TruthSample(0, 0, "eci", ["x", "y", "z", "vx", "vy", "vz"], np.ones(6))
-    assert [t for t, _, _ in truth.messages(sample)] == ["/truth/odometry", "/truth/markers"]
+    assert [t for t, _, _ in truth.encoded(sample)] == ["/truth/odometry", "/truth/markers"]
+    assert all(type(data) is bytes for _, _, data in truth.encoded(sample))
 
 
 def test_item_publishers_publish_each_item_then_its_views():
@@ -288,7 +332,9 @@ def test_item_publishers_publish_each_item_then_its_views():
     assert shell.sent == [("/ukf/estimate", 7), ("/ukf/odometry", bytes), ("/ukf/diagnostics", bytes),
                           ("/ukf/markers", bytes)]
     shell.sent.clear()
-    bad = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), diagnostics={"n_eff": "many"})
+    later = 2 * int(views.DIAGNOSTICS_PERIOD_S * 1e9)  # a new diagnostics period: its diagnostics are built
+    bad = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), diagnostics={"n_eff": "many"},
+                   t_ns=12_300_000_000 + later)
     outputs["/ukf/estimate"](bad)  # a view that fails is logged, the estimate is published
     outputs["/ukf/estimate"](bad)
     assert shell.sent[0] == ("/ukf/estimate", 7) and len(shell.warnings) == 1 and "not published" in shell.warnings[0]

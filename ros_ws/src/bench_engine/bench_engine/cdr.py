@@ -181,9 +181,11 @@ def _as_char(value: Any) -> int:
     return ord(value) if isinstance(value, str) else int(value)
 
 
+@lru_cache(maxsize=None)
 def lite_class(type_name: str) -> type:
     """The light class of ``pkg/msg/Type`` (or ``pkg/Type``): what :func:`serialize` takes and
-    :func:`deserialize` returns. Keyword (or positional, in field order) arguments, rclpy's defaults."""
+    :func:`deserialize` returns. Keyword (or positional, in field order) arguments, rclpy's defaults. Cached by
+    the name as given: the views look their classes up for every message they build."""
     return _lite(_registered(type_name))
 
 

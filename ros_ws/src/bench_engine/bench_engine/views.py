@@ -34,9 +34,13 @@ Conventions:
   reference frame, Aᵀ P A; position x y z if the state has them, else zero and unknown. And
   bench_msgs/AttitudeEstimate, the bench's own compact attitude: q as the estimate gives it (reference -> body),
   the error covariance in the body frame, and the stars used (the diagnostic ``stars``);
-* diagnostic_msgs/DiagnosticArray: one status per estimate, named after the estimator, level OK after an update
-  and WARN when the estimate had none (NIS NaN: coasting, a gated or rejected measurement); values ``step``,
-  ``nis`` and every diagnostic (``n_eff``, ``gated``, …) written with ``repr`` (float() reads them back exactly);
+* diagnostic_msgs/DiagnosticArray: at most one per :data:`DIAGNOSTICS_PERIOD_S` of sim time per estimator, as
+  ROS nodes publish diagnostics (diagnostic_updater: about 1 Hz), each the status of the estimates since the
+  previous one, this one included (the first estimate gets one): named after the estimator, level OK when each
+  of them had a measurement update and WARN when one had none (NIS NaN: coasting, a gated or rejected
+  measurement; the message counts them); values ``step``, ``nis`` and every diagnostic (``n_eff``, ``gated``, …)
+  of the latest estimate written with ``repr`` (float() reads them back exactly), then ``window_estimates`` and
+  ``window_without_update``. Every estimate's own NIS and diagnostics are on ``/NAME/estimate``;
 * visualization_msgs/Marker: the trajectory as line-strip segments, one marker per segment (the previous drawn
   position to this one), at most one per :data:`MARKER_PERIOD_S` of sim time, each with its own id in the
   namespace of the node and no lifetime: a viewer accumulates them, and every message is the same few bytes. A
@@ -45,6 +49,7 @@ Conventions:
 """
 from __future__ import annotations
 
+import struct
 import zlib
 from dataclasses import dataclass
 from functools import lru_cache
@@ -90,6 +95,8 @@ UNKNOWN_VARIANCE = 1.0e16
 """The variance of a component a view does not know (an Odometry's orientation and angular velocity, an
 attitude pose's position): far above any variance a bench state has in SI units (a position across the Earth,
 ~1e14 m²; a rotation, ~10 rad²)."""
+DIAGNOSTICS_PERIOD_S = 1.0
+"""Sim time between two diagnostics of one estimator (module docstring: ROS's convention of about 1 Hz)."""
 MARKER_PERIOD_S = 1.0
 """Sim time between two trajectory markers of one node (at 10 Hz: 1 marker in 10 estimates)."""
 MARKER_WIDTH = 2.0e-3
@@ -131,9 +138,9 @@ def view_topics(topic: str, type_name: str, labels: tuple[str, ...] | None = Non
 
 SWITCH = "standard_views"
 """The scenario key that turns the views on (default) or off: ``--set standard_views=false``. Monte Carlo batches
-(bench_engine.batch) turn them off: they double the messages of a step with an estimate per filter
-(``scripts/bench_graph.py --set standard_views=false`` measures the difference) and the scorer does not read
-them."""
+(bench_engine.batch) turn them off: they add an Odometry (or a pose and an attitude) to every estimate and truth
+sample, with a diagnostics status and a marker per second of sim time (``scripts/bench_graph.py --set
+standard_views=false`` measures the difference), and the scorer does not read them."""
 
 
 def standard_views(cfg: dict) -> bool:
@@ -257,20 +264,23 @@ def _header(msg: Any, item: Item) -> None:
     msg.header.frame_id = item.frame_id
 
 
-def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any | None:
-    """nav_msgs/Odometry of an estimate or truth sample with x y z vx vy vz; None without them. (``state``:
-    the item's, if already read.)"""
-    st = state or state_of(item)
+_ODOMETRY_BASE = np.concatenate([np.zeros(3), [0.0, 0.0, 0.0, 1.0], _UNKNOWN_BLOCK.ravel(), np.zeros(6),
+                                 _UNKNOWN_BLOCK.ravel()])
+"""An Odometry's 85 numbers after its frame names, in wire order: position x y z, orientation x y z w (the
+identity), pose covariance (36), linear and angular velocity, twist covariance (36); here with nothing known."""
+_POSE_COV, _LINEAR, _TWIST_COV = slice(7, 43), slice(43, 46), slice(49, 85)
+
+
+def _odometry_numbers(st: State) -> np.ndarray | None:
+    """The 85 numbers of the Odometry of a state with x y z vx vy vz (``_ODOMETRY_BASE``'s order); None without."""
     x, P, lay = st.x, st.P, st.layout
     if lay.position is None or lay.velocity is None:
         return None
-    msg = _lite(ODOMETRY_TYPE)(child_frame_id=child_frame_id)
-    _header(msg, item)
-    p, v = msg.pose.pose.position, msg.twist.twist.linear
-    p.x, p.y, p.z = (float(x[i]) for i in lay.position)
-    v.x, v.y, v.z = (float(x[i]) for i in lay.velocity)
-    pose, twist = _UNKNOWN_BLOCK.copy(), _UNKNOWN_BLOCK.copy()
+    out = _ODOMETRY_BASE.copy()
+    out[:3] = x[list(lay.position)]
+    out[_LINEAR] = x[list(lay.velocity)]
     if P is not None:
+        pose, twist = out[_POSE_COV].reshape(6, 6), out[_TWIST_COV].reshape(6, 6)
         if lay.cov_position is not None:
             pose[:3, :3] = _block(P, lay.cov_position, lay.cov_position)
         else:
@@ -279,9 +289,66 @@ def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any
             twist[:3, :3] = _block(P, lay.cov_velocity, lay.cov_velocity)
         else:
             twist[0, 0] = twist[1, 1] = twist[2, 2] = UNKNOWN_VARIANCE
-    msg.pose.covariance = pose.reshape(36)
-    msg.twist.covariance = twist.reshape(36)
+    return out
+
+
+def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any | None:
+    """nav_msgs/Odometry of an estimate or truth sample with x y z vx vy vz; None without them. (``state``:
+    the item's, if already read.)"""
+    numbers = _odometry_numbers(state or state_of(item))
+    if numbers is None:
+        return None
+    msg = _lite(ODOMETRY_TYPE)(child_frame_id=child_frame_id)
+    _header(msg, item)
+    p, o, v = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist.linear
+    p.x, p.y, p.z, o.x, o.y, o.z, o.w = numbers[:7].tolist()
+    v.x, v.y, v.z = numbers[_LINEAR].tolist()
+    msg.pose.covariance = numbers[_POSE_COV].copy()
+    msg.twist.covariance = numbers[_TWIST_COV].copy()
     return msg
+
+
+class OdometryEncoder:
+    """:func:`odometry` straight to its CDR bytes (bench_engine.cdr's, byte for byte: tests/test_views.py), without
+    building a message: an Odometry is its stamp, its two frame names, then 85 float64 (``_ODOMETRY_BASE``), so
+    the bytes up to the numbers are rosbags' serialisation of a message with the same frame names (kept per pair of
+    names, the stamp written in place), and the numbers are one array's bytes. A view published with every
+    estimate and truth sample: building the message objects and serialising them field by field cost several
+    times as much."""
+
+    TAIL = 8 * len(_ODOMETRY_BASE)
+
+    def __init__(self, child_frame_id: str) -> None:
+        self.child_frame_id = child_frame_id
+        self._prefixes: dict[str, bytes] = {}
+
+    def _prefix(self, frame_id: str) -> bytes:
+        prefix = self._prefixes.get(frame_id)
+        if prefix is None:
+            template = _lite(ODOMETRY_TYPE)(child_frame_id=self.child_frame_id)
+            template.header.frame_id = frame_id
+            data = cdr.serialize(ODOMETRY_TYPE, template)
+            prefix = data[:-self.TAIL]
+            # the contract above, checked on the template: zero stamp first, the numbers 8-aligned at the end
+            if data[-self.TAIL:] != _ODOMETRY_BASE_DEFAULT or data[cdr.HEADER:cdr.HEADER + 8] != bytes(8) \
+                    or (len(prefix) - cdr.HEADER) % 8:
+                raise RuntimeError("nav_msgs/Odometry is not laid out as bench_engine.views.OdometryEncoder assumes")
+            self._prefixes[frame_id] = prefix
+        return prefix
+
+    def __call__(self, item: Item, state: State | None = None) -> bytes | None:
+        numbers = _odometry_numbers(state or state_of(item))
+        if numbers is None:
+            return None
+        prefix = self._prefix(item.frame_id)
+        sec, nanosec = divmod(int(item.t_ns), 1_000_000_000)
+        return b"".join((prefix[:cdr.HEADER], _STAMP.pack(sec, nanosec), prefix[cdr.HEADER + 8:],
+                         numbers.tobytes()))
+
+
+_STAMP = struct.Struct("<iI")
+_ODOMETRY_BASE_DEFAULT = np.concatenate([np.zeros(6), [1.0], np.zeros(78)]).astype("<f8").tobytes()
+"""The numbers of a default Odometry (identity orientation, zero covariances) as rosbags writes them."""
 
 
 def pose(item: Item, state: State | None = None) -> Any | None:
@@ -340,20 +407,56 @@ def attitude(item: Item, state: State | None = None) -> Any | None:
     return msg
 
 
-def diagnostics(item: Item, state: State | None = None) -> Any | None:
-    """diagnostic_msgs/DiagnosticArray of an estimate: its NIS and diagnostics; None for anything else."""
+def diagnostics(item: Item, state: State | None = None, estimates: int = 1, without_update: int | None = None
+                ) -> Any | None:
+    """diagnostic_msgs/DiagnosticArray of an estimate: its NIS and diagnostics, as the status of the ``estimates``
+    estimates up to it of which ``without_update`` had no measurement update (default: this one alone); None for
+    anything else."""
     if not isinstance(item, Estimate):
         return None
     nis = float(item.nis)
-    updated = nis == nis
+    if without_update is None:
+        without_update = int(nis != nis)
     key_value, status_class = _lite(KEY_VALUE_TYPE), _lite(STATUS_TYPE)
     values = [key_value(key="step", value=str(int(item.step))), key_value(key="nis", value=repr(nis))]
     values += [key_value(key=str(k), value=repr(float(v))) for k, v in item.diagnostics.items()]
-    status = status_class(level=status_class.OK if updated else status_class.WARN, name=item.source,
-                          message="" if updated else "no measurement update (NIS NaN)", values=values)
+    values += [key_value(key="window_estimates", value=str(int(estimates))),
+               key_value(key="window_without_update", value=str(int(without_update)))]
+    if not without_update:
+        level, message = status_class.OK, ""
+    elif estimates == 1:
+        level, message = status_class.WARN, "no measurement update (NIS NaN)"
+    else:
+        level, message = status_class.WARN, (f"{without_update} of the {estimates} estimates since the last status "
+                                             "had no measurement update (NIS NaN)")
+    status = status_class(level=level, name=item.source, message=message, values=values)
     msg = _lite(DIAGNOSTICS_TYPE)(status=[status])
     _header(msg, item)
     return msg
+
+
+class PeriodicDiagnostics:
+    """One estimator's diagnostics at most once per ``period_s`` of sim time (module docstring): call it with
+    each estimate; it returns the DiagnosticArray of the estimates since the last one it returned (this one
+    included) once ``period_s`` has passed since that one (the first estimate gets one), else None."""
+
+    def __init__(self, period_s: float = DIAGNOSTICS_PERIOD_S) -> None:
+        self.period_ns = int(round(period_s * 1e9))
+        self.last_t_ns: int | None = None
+        self.estimates = 0
+        self.without_update = 0
+
+    def __call__(self, item: Item, state: State | None = None) -> Any | None:
+        if not isinstance(item, Estimate):
+            return None
+        nis = float(item.nis)
+        self.estimates += 1
+        self.without_update += nis != nis
+        if self.last_t_ns is not None and item.t_ns - self.last_t_ns < self.period_ns:
+            return None
+        msg = diagnostics(item, state, self.estimates, self.without_update)
+        self.last_t_ns, self.estimates, self.without_update = int(item.t_ns), 0, 0
+        return msg
 
 
 def color(name: str) -> tuple[float, float, float]:
@@ -398,25 +501,38 @@ class TrajectoryMarkers:
 
 class StandardViews:
     """The views of one data topic's items, for the view topics the graph gave the node (``topics``: suffix ->
-    topic). ``messages(item)`` -> [(view topic, type, light message)], in a fixed order."""
+    topic). ``encoded(item)`` -> [(view topic, type, CDR bytes)], in a fixed order."""
 
     def __init__(self, node: str, topics: dict[str, str]) -> None:
         self.topics = topics
-        makers: list[tuple[str, str, Callable[[Item, State], Any | None]]] = []
-        for suffix, make in ((ODOMETRY, lambda item, st: odometry(item, node, st)), (POSE, pose),
-                             (ATTITUDE, attitude), (DIAGNOSTICS, diagnostics), (MARKERS, TrajectoryMarkers(node))):
+        serialized = _serialized
+        encoders: list[tuple[str, str, Callable[[Item, State], bytes | None]]] = []
+        for suffix, encode in ((ODOMETRY, OdometryEncoder(node)), (POSE, serialized(POSE_TYPE, pose)),
+                               (ATTITUDE, serialized(ATTITUDE_TYPE, attitude)),
+                               (DIAGNOSTICS, serialized(DIAGNOSTICS_TYPE, PeriodicDiagnostics())),
+                               (MARKERS, serialized(MARKERS_TYPE, TrajectoryMarkers(node)))):
             if suffix in topics:
-                makers.append((topics[suffix], (ESTIMATE_VIEWS | TRUTH_VIEWS)[suffix], make))
-        self.makers = makers
+                encoders.append((topics[suffix], (ESTIMATE_VIEWS | TRUTH_VIEWS)[suffix], encode))
+        self.encoders = encoders
 
-    def messages(self, item: Item) -> list[tuple[str, str, Any]]:
+    def encoded(self, item: Item) -> list[tuple[str, str, bytes]]:
         st = state_of(item)
         out = []
-        for topic, type_name, make in self.makers:
-            msg = make(item, st)
-            if msg is not None:
-                out.append((topic, type_name, msg))
+        for topic, type_name, encode in self.encoders:
+            data = encode(item, st)
+            if data is not None:
+                out.append((topic, type_name, data))
         return out
+
+
+def _serialized(type_name: str, make: Callable[[Item, State], Any | None]) -> Callable[[Item, State], bytes | None]:
+    """``make``'s light message as CDR bytes (bench_engine.cdr), None when it makes none."""
+    serialize = cdr.serialize
+
+    def encode(item: Item, st: State) -> bytes | None:
+        msg = make(item, st)
+        return None if msg is None else serialize(type_name, msg)
+    return encode
 
 
 # --- the shells' call -------------------------------------------------------------------------------------
@@ -447,14 +563,13 @@ def _with_views(publish: Callable[[Item], None], views: StandardViews, publish_d
                 warn: Callable[[str], None]) -> Callable[[Item], None]:
     """``publish``, then the item's views; a view that fails is logged (once) and skipped: it never stops the
     node or holds back its estimates."""
-    serialize = cdr.serialize
     warned = []
 
     def publish_with_views(item: Item) -> None:
         publish(item)
         try:
-            for topic, type_name, msg in views.messages(item):
-                publish_data(topic, serialize(type_name, msg))
+            for topic, _, data in views.encoded(item):
+                publish_data(topic, data)
         except Exception as err:  # noqa: BLE001 - a view is a by-product: report it, keep the node running
             if not warned:
                 warned.append(err)
