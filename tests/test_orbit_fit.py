@@ -49,6 +49,53 @@ def _dense_partials(traj) -> np.ndarray:
     return H
 
 
+def test_the_single_state_forces_are_the_vectorised_ones():
+    """The fit's right-hand side evaluates the forces on Python floats (orbit_sim.geopotential's *_xyz forms):
+    the same arithmetic as the vectorised forms the truth integrates, equal to 1e-14 relative (a few ulp: numpy
+    and libm round exp and a norm differently), over LEO states of every latitude."""
+    from orbit_sim.geopotential import (drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
+                                        zonal_acceleration_xyz)
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        r = rng.normal(size=3)
+        r *= rng.uniform(6.55e6, 7.2e6) / np.linalg.norm(r)
+        v = rng.normal(size=3) * 5e3
+        expected = zonal_acceleration(r, MU_EARTH, FULL.re, FULL.zonals)
+        np.testing.assert_allclose(zonal_acceleration_xyz(*r, MU_EARTH, FULL.re, FULL.zonals), expected,
+                                   rtol=0, atol=1e-14 * np.linalg.norm(expected))
+        expected = drag_acceleration(r, v, B_TRUE, FULL.rotation_rate, FULL.re)
+        np.testing.assert_allclose(drag_acceleration_xyz(*r, *v, B_TRUE, FULL.rotation_rate, FULL.re), expected,
+                                   rtol=0, atol=1e-14 * np.linalg.norm(expected))
+
+
+def test_the_right_hand_side_is_the_variational_equations_written_out():
+    """_rate's blocks against the variational equations with A = [[0, I], [G, 0]] formed in full (module
+    docstring): Phi' = A Phi, Psi' = -Psi A, s' = A s + [0; a_drag], W' = Psi [0; R_rtn], the state's rate the
+    forces plus R_rtn e."""
+    from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
+    from orbit_sim.gravity import gravity_gradient
+    from orbit_sim.orbit_fit import _rate, rtn_frame
+    rng = np.random.default_rng(6)
+    for model, e in ((FULL, None), (EMPIRICAL, np.array([2e-7, -1e-7, 3e-7]))):
+        y = np.concatenate([X0, rng.normal(size=96)])
+        got = _rate(0.0, y, model, B_TRUE, e, True)
+        r, v = y[:3], y[3:6]
+        A = np.zeros((6, 6))
+        A[:3, 3:] = np.eye(3)
+        A[3:, :3] = gravity_gradient(*r, MU_EARTH, J2_EARTH, model.re)
+        drag = drag_acceleration(r, v, 1.0, model.rotation_rate, model.re) if model.drag else np.zeros(3)
+        rtn = rtn_frame(*y[:6])
+        np.testing.assert_allclose(rtn.T @ rtn, np.eye(3), atol=1e-15)
+        np.testing.assert_allclose(rtn[:, 0], r / np.linalg.norm(r), atol=1e-15)
+        accel = zonal_acceleration(r, MU_EARTH, model.re, model.zonals) + B_TRUE * drag + (
+            rtn @ e if e is not None else 0.0)
+        phi, psi, s = y[6:42].reshape(6, 6), y[42:78].reshape(6, 6), y[78:84]
+        expected = np.concatenate([v, accel, (A @ phi).ravel(), (-psi @ A).ravel(),
+                                   A @ s + np.concatenate([np.zeros(3), drag]), (psi[:, 3:] @ rtn).ravel()])
+        np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(expected).max())
+        np.testing.assert_allclose(_rate(0.0, y[:6], model, B_TRUE, e, False), expected[:6], rtol=1e-14)
+
+
 def test_the_variational_partials_match_finite_differences():
     """dx(t)/dp from the variational equations against central differences of the propagation, for the state,
     the ballistic coefficient and each interval's empirical acceleration (30 min, three 10-min intervals)."""

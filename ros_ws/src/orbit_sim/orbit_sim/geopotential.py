@@ -15,6 +15,9 @@ rho(h) is the piecewise-exponential CIRA-72 fit of Vallado's Table 8-4 above the
 """
 from __future__ import annotations
 
+import math
+from bisect import bisect_right
+
 import numpy as np
 
 from .constants import OMEGA_EARTH, R_EARTH, WGS84_F
@@ -87,3 +90,48 @@ def drag_acceleration(r: np.ndarray, v: np.ndarray, ballistic: float,
     speed = np.linalg.norm(v_rel, axis=-1, keepdims=True)
     rho = density(geodetic_height(r, re))[..., None]
     return -0.5 * ballistic * rho * speed * v_rel
+
+
+# --- one state in Python floats ------------------------------------------------------------------------------
+# The same arithmetic as the functions above for one state, without numpy's per-call cost on 3-vectors: the
+# right-hand side of an orbit fit's variational equations evaluates them about a hundred thousand times a day
+# (orbit_sim.orbit_fit). tests/test_orbit_fit.py compares them with the functions above.
+
+_BAND_KM = _ATMOSPHERE[:, 0].tolist()
+_BANDS = [tuple(row) for row in _ATMOSPHERE.tolist()]
+
+
+def zonal_acceleration_xyz(x: float, y: float, z: float, mu: float, re: float,
+                           zonals: dict[int, float]) -> tuple[float, float, float]:
+    """:func:`zonal_acceleration` at one position (x, y, z) [m], in Python floats."""
+    rn = math.sqrt(x * x + y * y + z * z)
+    hx, hy, u = x / rn, y / rn, z / rn
+    rn2 = rn**2
+    ax, ay, az = -mu * hx / rn2, -mu * hy / rn2, -mu * u / rn2
+    if zonals:
+        degree = max(zonals)
+        P, dP = [1.0, u], [0.0, 1.0]
+        for n in range(1, degree):
+            P.append(((2 * n + 1) * u * P[n] - n * P[n - 1]) / (n + 1))
+            dP.append(dP[n - 1] + (2 * n + 1) * P[n])
+        for n, jn in zonals.items():
+            scale = mu * jn * re**n / rn ** (n + 2)
+            radial, polar = (n + 1) * P[n], dP[n]
+            ax = ax + scale * (radial * hx - polar * (0.0 - u * hx))
+            ay = ay + scale * (radial * hy - polar * (0.0 - u * hy))
+            az = az + scale * (radial * u - polar * (1.0 - u * u))
+    return ax, ay, az
+
+
+def drag_acceleration_xyz(x: float, y: float, z: float, vx: float, vy: float, vz: float, ballistic: float,
+                          rotation_rate: float = OMEGA_EARTH, re: float = R_EARTH,
+                          f: float = WGS84_F) -> tuple[float, float, float]:
+    """:func:`drag_acceleration` of one state, in Python floats."""
+    wx, wy, wz = vx + rotation_rate * y, vy - rotation_rate * x, vz   # v - omega x r, omega along z
+    speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+    rn = math.sqrt(x * x + y * y + z * z)
+    sin_lat = z / rn
+    h_km = (rn - re * (1.0 - f * sin_lat**2)) / 1000.0
+    h0, rho0, scale = _BANDS[min(max(bisect_right(_BAND_KM, h_km) - 1, 0), len(_BANDS) - 1)]
+    k = -0.5 * ballistic * (rho0 * math.exp(-(h_km - h0) / scale)) * speed
+    return k * wx, k * wy, k * wz

@@ -23,13 +23,15 @@ of the fixes plus the prior: with the truth's force model at the true p, the Cra
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from orbit_sim.constants import OMEGA_EARTH, R_EARTH
-from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
+from orbit_sim.geopotential import (drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
+                                    zonal_acceleration_xyz)
 from orbit_sim.gravity import gravity_gradient
 
 RTOL, ATOL = 1.0e-13, 1.0e-8
@@ -59,20 +61,6 @@ class ForceModel:
         if self.drag:
             a = a + drag_acceleration(r, v, ballistic, self.rotation_rate, self.re)
         return a
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def rtn_frame(r: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3): the
-    transpose of orbit_sim.relative.lvlh_basis, written out for one state because the fit's right-hand side calls
-    it at every integrator stage (np.cross on 3-vectors is slow)."""
-    radial = r / np.sqrt(r @ r)
-    normal = _cross(r, v)
-    normal /= np.sqrt(normal @ normal)
-    return np.column_stack([radial, _cross(normal, radial), normal])
 
 
 @dataclass
@@ -120,21 +108,52 @@ def _sums_after(per_interval: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rate(t: float, y: np.ndarray, model: ForceModel, ballistic: float, e: np.ndarray, with_partials: bool):
-    r, v = y[:3], y[3:6]
-    rtn = rtn_frame(r, v)
-    a = zonal_acceleration(r, model.mu, model.re, model.zonals)
-    drag = drag_acceleration(r, v, 1.0, model.rotation_rate, model.re) if model.drag else np.zeros(3)
-    a = a + ballistic * drag + rtn @ e
+def _rate(t: float, y: np.ndarray, model: ForceModel, ballistic: float, e: np.ndarray | None, with_partials: bool):
+    """d/dt of [x, Phi, Psi, s_drag, W] (module docstring), or of x alone; ``e``: the interval's empirical
+    acceleration (RTN), None for none. The forces on Python floats
+    (orbit_sim.geopotential's single-state forms) and the partials by blocks of A = [[0, I], [G, 0]]
+    (A Phi = [Phi_v; G Phi_r], -Psi A = -[Psi_v G, Psi_r]) rather than numpy calls on 3-vectors and full 6 x 6
+    products: the same values to rounding (tests/test_orbit_fit.py), at a fraction of the cost of a call, which a
+    day's fit makes about a hundred thousand times."""
+    rx, ry, rz, vx, vy, vz = y[:6].tolist()
+    ax, ay, az = zonal_acceleration_xyz(rx, ry, rz, model.mu, model.re, model.zonals)
+    if model.drag:
+        dx, dy, dz = drag_acceleration_xyz(rx, ry, rz, vx, vy, vz, 1.0, model.rotation_rate, model.re)
+        ax, ay, az = ax + ballistic * dx, ay + ballistic * dy, az + ballistic * dz
+    else:
+        dx = dy = dz = 0.0
+    rtn = rtn_frame(rx, ry, rz, vx, vy, vz) if with_partials or e is not None else None
+    if e is not None:
+        ex, ey, ez = (rtn @ e).tolist()
+        ax, ay, az = ax + ex, ay + ey, az + ez
+    out = np.empty(len(y))
+    out[:6] = vx, vy, vz, ax, ay, az
     if not with_partials:
-        return np.concatenate([v, a])
-    A = np.zeros((6, 6))
-    A[:3, 3:] = np.eye(3)
-    A[3:, :3] = gravity_gradient(*r, model.mu, model.zonals.get(2, 0.0), model.re)
+        return out
+    G = gravity_gradient(rx, ry, rz, model.mu, model.zonals.get(2, 0.0), model.re)
     phi, psi = y[6:42].reshape(6, 6), y[42:78].reshape(6, 6)
+    dphi, dpsi = out[6:42].reshape(6, 6), out[42:78].reshape(6, 6)
+    dphi[:3], dphi[3:] = phi[3:], G @ phi[:3]
+    dpsi[:, :3], dpsi[:, 3:] = -(psi[:, 3:] @ G), -psi[:, :3]
     s = y[78:84]
-    return np.concatenate([v, a, (A @ phi).ravel(), (-psi @ A).ravel(), A @ s + np.concatenate([np.zeros(3), drag]),
-                           (psi[:, 3:] @ rtn).ravel()])
+    out[78:81] = s[3:]
+    out[81:84] = G @ s[:3] + (dx, dy, dz)
+    out[84:] = (psi[:, 3:] @ rtn).ravel()
+    return out
+
+
+def rtn_frame(rx: float, ry: float, rz: float, vx: float, vy: float, vz: float) -> np.ndarray:
+    """Columns: radial, along-track (completing the triad), cross-track (orbit normal) unit vectors (3, 3) of one
+    state: the transpose of orbit_sim.relative.lvlh_basis, written out on floats because the fit's right-hand side
+    calls it at every integrator stage."""
+    rn = math.sqrt(rx * rx + ry * ry + rz * rz)
+    hx, hy, hz = rx / rn, ry / rn, rz / rn
+    nx, ny, nz = ry * vz - rz * vy, rz * vx - rx * vz, rx * vy - ry * vx
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx / nn, ny / nn, nz / nn
+    return np.array([[hx, ny * hz - nz * hy, nx],
+                     [hy, nz * hx - nx * hz, ny],
+                     [hz, nx * hy - ny * hx, nz]])
 
 
 def edges(t0: float, t1: float, interval: float | None) -> np.ndarray:
@@ -162,7 +181,7 @@ def propagate(x0: np.ndarray, ballistic: float, e: np.ndarray, model: ForceModel
         t_eval = np.append(t[mask], t_edges[j + 1]) if not (mask.any() and t[mask][-1] == t_edges[j + 1]) \
             else t[mask]
         sol = solve_ivp(_rate, (t_edges[j], t_edges[j + 1]), y, method="DOP853", t_eval=t_eval, rtol=rtol,
-                        atol=atol, args=(model, ballistic, e[j], with_partials))
+                        atol=atol, args=(model, ballistic, e[j] if e[j].any() else None, with_partials))
         if not sol.success:
             raise RuntimeError(f"orbit propagation failed: {sol.message}")
         out[mask] = sol.y[:, :mask.sum()].T
