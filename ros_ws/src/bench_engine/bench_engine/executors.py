@@ -20,7 +20,7 @@ import shutil
 import signal
 import sys
 from dataclasses import replace
-from typing import Callable
+from typing import Any, Callable
 
 from dask.distributed import Client, LocalCluster, as_completed
 from tqdm import tqdm
@@ -97,3 +97,22 @@ def run_dask(specs: list[RunSpec], scheduler: str, jobs: int = 2, desc: str = "r
     finally:
         close(client)
     return results
+
+
+def map_dask(fn: Callable[[Any], Any], items: list, scheduler: str, jobs: int = 2, desc: str = "tasks",
+             retries: int = 2) -> list:
+    """``[fn(item) for item in items]`` on the cluster at ``scheduler`` (:func:`connect`), in order, with a
+    progress bar; ``fn`` and the items must pickle, and any path in an item must be the same on every host (a
+    shared file system). A task that raises is retried ``retries`` times, then its error is raised here."""
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+    client = connect(scheduler, jobs)
+    try:
+        futures = [client.submit(fn, item, retries=retries, pure=False,
+                                 key=f"{desc}-{i:05d}-{os.urandom(4).hex()}") for i, item in enumerate(items)]
+        with tqdm(total=len(items), unit="task", desc=desc) as bar:
+            for _ in as_completed(futures):
+                bar.update()
+        return [f.result() for f in futures]
+    finally:
+        close(client)

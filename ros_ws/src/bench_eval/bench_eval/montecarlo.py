@@ -56,7 +56,8 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     """Run, score and report a Monte Carlo; returns (scores with runs_per_minute, failure messages). Writes
     OUT/score.json and OUT/report/. Raises ScenarioError before any run for a bad scenario or override, or
     for run directories already in OUT (unless ``resume``). ``scheduler``: a Dask scheduler address or
-    ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times."""
+    ``"local"`` (bench_engine.executors) instead of the local executor, each run retried ``retries`` times. The
+    runs are then scored ``jobs`` at a time, or on the same cluster (bench_eval.scoring.prepare_runs)."""
     mc.out.mkdir(parents=True, exist_ok=True)
     pending = mc.pending(mc.validate(), resume)
     phases.mark("validated", "montecarlo", mc.out.resolve())
@@ -90,7 +91,8 @@ def run_montecarlo(mc: MonteCarlo, jobs: int = 2, domains: list[int] | None = No
     bags = mc.bags()
     if not bags:
         raise RuntimeError("no run produced a bag")
-    scored, series = score_bags([loaded.get(b.resolve(), b) for b in bags], with_series=True)
+    scored, series = score_bags([loaded.get(b.resolve(), b) for b in bags], with_series=True, jobs=jobs,
+                                scheduler=scheduler)
     if results:
         scored["runs_per_minute"] = round(60 * len(results) / wall, 2)
     (mc.out / "score.json").write_text(json.dumps(scored, indent=1))

@@ -7,8 +7,10 @@ Estimates are matched to truth and measurements by lock-step index (``step``), n
 from __future__ import annotations
 
 import json
+import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -22,11 +24,11 @@ from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
-from bench_eval import metrics
 from bench_engine.settings import SectionReader, Settings, read, setting, variant
+from bench_eval import metrics, offline_cache
+from bench_eval.bounds import BoundRun, compute_bounds, score_bounds
 from bench_eval.claims import diverged
 from bench_eval.consistency import innovation_scores
-from bench_eval.bounds import BoundRun, compute_bounds, score_bounds
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
 from bench_eval.window import EDGES, ScoringWindow, check_window
 from bench_models.states import error_labels
@@ -127,6 +129,11 @@ class BagData:
     estimates: dict[str, Estimates] = field(default_factory=dict)
     bounds: dict = field(default_factory=dict)
     """Bound name -> its bench_eval.bounds.BoundSeries over this run (filled by the scorer: compute_bounds)."""
+    path: Path | None = None
+    """The bag directory it was read from (None for a run made in process): where the offline estimators'
+    results are kept (bench_eval.offline_cache)."""
+    offline: list[str] = field(default_factory=list)
+    """The offline estimators whose estimates joined ``estimates`` (run_offline)."""
 
     def __post_init__(self) -> None:
         self.run = upgrade_run_config(self.run)   # a bag recorded before 'estimators' says 'filters'
@@ -143,7 +150,7 @@ def load_bag(bag_dir: Path | str) -> BagData:
     if not config.is_file():
         raise FileNotFoundError(f"{bag_dir} has no run_config.yaml: not a bag recorded by this bench")
     try:
-        data = BagData(yamlio.load(config.read_text()))
+        data = BagData(yamlio.load(config.read_text()), path=bag_dir)
         data.scenario.get("scenario")
     except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError, AttributeError) as err:
         raise BagDamaged(f"{config} is not a run config written by this bench (damaged or edited)") from err
@@ -180,6 +187,39 @@ def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
     return [b if isinstance(b, BagData) else next(loaded) for b in bags]
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity): the scorer's default number of jobs."""
+    return len(os.sched_getaffinity(0))
+
+
+def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
+    """One run made ready to score: its bag read (unless it is a BagData already), its offline estimators run
+    or read from the cache beside the bag (bench_eval.offline_cache), its bounds computed. The scorer's task,
+    in a worker process or on a Dask worker."""
+    data = run if isinstance(run, BagData) else load_bag(run)
+    opts = scoring_options(data.scenario)
+    data.offline = run_offline(data, opts, cache)
+    compute_bounds([data], opts.bounds)
+    return data
+
+
+def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None,
+                 cache: bool = True) -> list[BagData]:
+    """:func:`prepared` of every run, in order: ``jobs`` at a time in worker processes (default: every CPU this
+    process may use), or on the Dask cluster at ``scheduler`` (an address, or ``"local"``:
+    bench_engine.executors), with a progress bar; in this process when there is one run or one job."""
+    jobs = available_cpus() if jobs is None else max(1, int(jobs))
+    task = partial(prepared, cache=cache)
+    if scheduler is not None:
+        from bench_engine.executors import map_dask
+        return map_dask(task, runs, scheduler, jobs, desc="scoring")
+    from tqdm import tqdm
+    if jobs == 1 or len(runs) == 1:
+        return [task(r) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
+    with ProcessPoolExecutor(min(jobs, len(runs))) as pool:
+        return list(tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring"))
+
+
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
     """Estimates of one filter aligned with the truth of the same steps: the estimate's components that the
     truth has, matched by label wherever they sit in either state (e.g. a bias block first), with the
@@ -211,16 +251,31 @@ def _scenario_name(runs: list[BagData]) -> str:
     return names.pop()
 
 
-def run_offline(data: BagData, opts: ScoringOptions) -> list[str]:
+def run_offline(data: BagData, opts: ScoringOptions, cache: bool = True) -> list[str]:
     """Run the scoring section's offline estimators over one run's recorded estimates or measurements
-    (bench_eval.offline);
-    their estimates join ``data.estimates``. Returns the names of the estimators that ran."""
+    (bench_eval.offline); their estimates join ``data.estimates``. A run read from a bag keeps each result
+    beside it and reads it back next time (bench_eval.offline_cache; ``cache=False``: neither). Returns the
+    names of the estimators that ran (or were read back)."""
     ran = []
     for name, job in opts.offline.items():
         if job.source in data.estimates or job.source in data.measurements:
-            data.estimates[name] = plugins.load("offline", job.estimator).run(data, job.source, job.params)
+            data.estimates[name] = _offline_estimates(data, name, job, cache and data.path is not None)
             ran.append(name)
     return ran
+
+
+def _offline_estimates(data: BagData, name: str, job: OfflineRun, cache: bool) -> Estimates:
+    file = None
+    if cache:
+        file = offline_cache.path(data.path, name, offline_cache.key(data.path, name, job.estimator, job.source,
+                                                                     job.params))
+        kept = offline_cache.load(file)
+        if kept is not None:
+            return kept
+    est = plugins.load("offline", job.estimator).run(data, job.source, job.params)
+    if file is not None:
+        offline_cache.store(file, est)
+    return est
 
 
 def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
@@ -232,13 +287,15 @@ def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
                           if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
 
 
-def collect(bag_dirs: list[Path | str | BagData]) -> tuple[str, ScoringOptions, list[BagData], list[list[str]]]:
-    """Load the bags and run the offline estimators over each whole run: (scenario, scoring options, runs, the
-    scored estimators of each run)."""
-    runs = load_bags(bag_dirs)
+def collect(bag_dirs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None,
+            cache: bool = True) -> tuple[str, ScoringOptions, list[BagData], list[list[str]]]:
+    """Load the bags and run the offline estimators over each whole run, and the bounds (:func:`prepare_runs`: in
+    parallel, offline results cached beside the bags): (scenario, scoring options, runs, the scored estimators of
+    each run)."""
+    runs = prepare_runs(bag_dirs, jobs, scheduler, cache)
     scenario = _scenario_name(runs)
     opts = scoring_options(runs[0].scenario)
-    return scenario, opts, runs, [scored_estimators(data, run_offline(data, opts)) for data in runs]
+    return scenario, opts, runs, [scored_estimators(data, data.offline) for data in runs]
 
 
 def _tracks(runs: list[BagData], scored: list[list[str]]) -> dict[str, list[metrics.Track]]:
@@ -272,18 +329,21 @@ def _score_edges(blocks: dict, family, runs: list[BagData], scored: list[list[st
                     blocks[name].setdefault("edges", {})[edge] = block
 
 
-def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False):
+def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, jobs: int | None = None,
+               scheduler: str | None = None, cache: bool = True):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
     the metric family the scenario's ``scoring.metric`` names, over the scenario's scoring window
-    (bench_eval.window: every estimator over the same steps; with ``edges``, the head and tail apart).
+    (bench_eval.window: every estimator over the same steps; with ``edges``, the head and tail apart); the runs are
+    prepared ``jobs`` at a time (default every CPU) or on a Dask cluster (``scheduler``), each offline estimator's
+    result kept beside its bag (``cache``; :func:`prepare_runs`).
 
     Returns {"scenario", "runs", "metric", "estimators": {name: scores}} (and the plot series when
     ``with_series``), plus ``window`` {head_s, tail_s, steps: scored steps per run} when the scenario has one.
     """
-    scenario, opts, whole, everyone = collect(bag_dirs)
+    scenario, opts, whole, everyone = collect(bag_dirs, jobs, scheduler, cache)
     if not any(data.truth for data in whole) and any(data.estimates for data in whole):
         return _score_without_truth(scenario, whole, with_series)
-    compute_bounds(whole, opts.bounds)  # over the whole runs, before the window cuts them
+    compute_bounds(whole, opts.bounds)  # over the whole runs, before the window cuts them (prepared: done)
     runs, scored = _part(whole, everyone, opts.window)
     tracks = _tracks(runs, scored)
     if not tracks:

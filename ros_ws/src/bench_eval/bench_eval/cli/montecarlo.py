@@ -3,7 +3,9 @@
 Run i uses seed SEED0 + i and writes OUT/run_NNN/bag. Up to --jobs runs execute in parallel, each on its
 own ROS_DOMAIN_ID (DDS stays on this host). By default each run's nodes share one process (real DDS, one
 executor); --multiprocess starts one process per node instead. Metrics are aggregated across runs as in
-paper 000 eq. 35 (RMSE per time step over the N runs) and written to OUT/score.json and OUT/report/.
+paper 000 eq. 35 (RMSE per time step over the N runs) and written to OUT/score.json and OUT/report/; the bags
+are scored --jobs at a time (or on the --scheduler's cluster), each offline estimator's result kept beside its
+bag for the next scoring (scripts/score.py).
 
 With --scheduler the runs go to a Dask distributed cluster instead: each worker runs whole runs on its own
 host (DDS on that host, a free ROS domain there) and writes the bags to OUT, which must be on a file system

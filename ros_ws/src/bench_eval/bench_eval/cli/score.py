@@ -4,9 +4,16 @@ Several bags of the same scenario are Monte Carlo runs: RMSE is taken per time s
 (paper 000 eq. 35). Prints a summary table, or JSON with --json; --plots DIR writes report.md and PNGs.
 A bag a killed recorder left incomplete is recovered first (bench_engine.recovery).
 
+The bags are read, and their offline estimators and bounds computed, --jobs at a time (default: every CPU),
+or on a Dask cluster with --scheduler. Each offline estimator's result (e.g. grace_velocity's orbit fits) is
+kept in the bag's directory (offline_cache/) and read back when the same estimator, with the same parameters
+and code, scores the same bag again (bench_eval.offline_cache); --no-cache neither reads nor writes it.
+
 Examples:
   .venv/bin/python scripts/score.py runs/demo/leo_radar/bag
   .venv/bin/python scripts/score.py runs/mc/run_*/bag --json --plots runs/mc/report
+  .venv/bin/python scripts/score.py runs/mc/run_*/bag --jobs 1 --no-cache
+  .venv/bin/python scripts/score.py /shared/mc/run_*/bag --scheduler tcp://head:8786
 """
 from __future__ import annotations
 
@@ -28,7 +35,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("bags", nargs="+", type=Path, help="bag directories (metadata.yaml + .mcap) of one scenario")
     p.add_argument("--json", action="store_true", help="print the scores as JSON")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write report.md and plots into DIR")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="bags prepared in parallel (read, offline estimators, bounds; default: every CPU)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="prepare the bags on a Dask distributed cluster: the scheduler's address "
+                        "(tcp://HOST:8786), or 'local' for a local cluster of --jobs worker processes")
+    p.add_argument("--no-cache", action="store_true",
+                   help="run every offline estimator again, without reading or writing the cache beside the bag")
     args = p.parse_args(argv)
+    if args.jobs is not None and args.jobs < 1:
+        p.error("--jobs must be >= 1")
     missing = [str(b) for b in args.bags if not (b / "metadata.yaml").is_file() and not list(b.glob("*.mcap"))]
     if missing:
         print(f"error: not a bag directory (no metadata.yaml or .mcap file): {', '.join(missing)}", file=sys.stderr)
@@ -36,7 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.plots:
         check_output(args.plots)  # a file in the way, read-only, full: said before the bags are read
     try:
-        scored, series = score_bags(args.bags, with_series=True) if args.plots else (score_bags(args.bags), None)
+        options = {"jobs": args.jobs, "scheduler": args.scheduler, "cache": not args.no_cache}
+        scored, series = (score_bags(args.bags, with_series=True, **options) if args.plots
+                          else (score_bags(args.bags, **options), None))
     except NothingToScore as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -78,9 +78,10 @@ def _fit_and_sample(t: np.ndarray, z: np.ndarray, sigma: float, model, ballistic
 
 
 def _both(jobs: list[tuple]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``_fit_and_sample`` of the two satellites, one process each where this process may start children (the
-    fits are independent and each takes a core for minutes with empirical accelerations); in turn otherwise."""
-    if multiprocessing.current_process().daemon or (os.cpu_count() or 1) < 2:
+    """``_fit_and_sample`` of the two satellites, one process each where this process may start children and
+    run on two CPUs (the fits are independent and each takes a core for seconds, tens of seconds with empirical
+    accelerations); in turn otherwise, e.g. in the scorer's worker processes, which score bags in parallel."""
+    if multiprocessing.current_process().daemon or len(os.sched_getaffinity(0)) < 2:
         return [_fit_and_sample(*job) for job in jobs]
     with ProcessPoolExecutor(len(jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
         return list(pool.map(_fit_and_sample, *zip(*jobs)))
