@@ -1,9 +1,10 @@
-"""The scorer's parallel path and the offline estimators' cache beside the bag (bench_eval.scoring.prepare_runs,
-bench_eval.offline_cache), on real bags: formation_cqkf's variant ``smoothed`` (three RTS smoothers, offline).
+"""The scorer's parallel path and the offline results' cache beside the bag (bench_eval.scoring.prepare_runs,
+bench_eval.offline_cache), on real bags: formation_cqkf's variant ``smoothed`` (three RTS smoothers, offline,
+and the posterior CRB bound).
 
 Parallel scoring gives the serial scores: the same code over the same arrays in other processes, compared to
 rtol 1e-12 (worker processes may be given other BLAS kernels than the parent, which changes last bits only). A
-second scoring reads every offline result back instead of running the estimator, exactly; a change of the
+second scoring reads every offline result (estimates and bounds) back instead of computing it, exactly; a change of the
 parameters or of the code is a miss; a damaged, truncated or hostile cache file is ignored with a warning naming
 it, and replaced."""
 from __future__ import annotations
@@ -47,15 +48,21 @@ def bags(recorded, tmp_path) -> list[Path]:
 
 @pytest.fixture
 def calls(monkeypatch) -> list[str]:
-    """The sources the RTS estimator was run on in this process (the scorer's own process: jobs=1)."""
-    rts, seen = plugins.load("offline", "rts"), []
+    """The sources the RTS estimator was run on, and "pcrb" for each bound computed, in this process (the
+    scorer's own process: jobs=1)."""
+    rts, pcrb, seen = plugins.load("offline", "rts"), plugins.load("bounds", "pcrb"), []
 
-    def counting(data, source, params):
+    def counting_rts(data, source, params):
         seen.append(source)
         return rts.run(data, source, params)
+
+    def counting_pcrb(data, params):
+        seen.append("pcrb")
+        return pcrb.run(data, params)
     original = plugins.load
-    monkeypatch.setattr(plugins, "load", lambda group, name: (
-        type(rts)(counting, rts.check) if (group, name) == ("offline", "rts") else original(group, name)))
+    wrapped = {("offline", "rts"): type(rts)(counting_rts, rts.check),
+               ("bounds", "pcrb"): type(pcrb)(counting_pcrb, pcrb.check)}
+    monkeypatch.setattr(plugins, "load", lambda group, name: wrapped.get((group, name)) or original(group, name))
     return seen
 
 
@@ -90,9 +97,10 @@ def test_scoring_on_two_processes_gives_the_serial_scores(bags, scheduler):
 
 def test_a_second_scoring_reads_the_offline_results_back(bags, calls):
     first = score_bags(bags, jobs=1)
-    assert sorted(calls) == sorted(["ss", "cw", "cwb"] * 3)
+    assert sorted(calls) == sorted(["ss", "cw", "cwb", "pcrb"] * 3)
     for b in bags:
-        assert sorted(p.name.split("-")[0] for p in (b / offline_cache.DIRECTORY).glob("*.npz")) == sorted(OFFLINE)
+        kept = sorted(p.name.rsplit("-", 1)[0] for p in (b / offline_cache.DIRECTORY).glob("*.npz"))
+        assert kept == sorted([*(f"offline-{n}" for n in OFFLINE), "bounds-pcrb"])
     calls.clear()
     again = score_bags(bags, jobs=1)
     assert calls == []
@@ -104,7 +112,7 @@ def test_changed_parameters_or_code_miss_the_cache(bags, calls, monkeypatch):
     opts = scoring_options(data.scenario)
     run_offline(data, opts)
     kept = data.estimates["ss_rts"]
-    assert len(calls) == 3
+    assert sorted(calls) == ["cw", "cwb", "ss"]
     calls.clear()
     run_offline(load_bag(bags[0]), opts)
     assert calls == []
@@ -146,7 +154,7 @@ def test_the_code_version_follows_every_module_the_estimator_imports(tmp_path, m
 def _hostile_npz(path: Path, member: str, payload: bytes) -> None:
     """A cache file with every expected member, one of them replaced by ``payload``."""
     with zipfile.ZipFile(path, "w") as z:
-        for m in offline_cache.MEMBERS:
+        for m in offline_cache.MEMBERS["offline"]:
             if m == member:
                 z.writestr(f"{m}.npy", payload)
             else:
@@ -175,7 +183,7 @@ def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, 
     only = type(opts)(opts.metric, opts.options, {"ss_rts": opts.offline["ss_rts"]})
     run_offline(data, only)
     expected = data.estimates["ss_rts"]
-    (file,) = (bags[0] / offline_cache.DIRECTORY).glob("ss_rts-*.npz")
+    (file,) = (bags[0] / offline_cache.DIRECTORY).glob("offline-ss_rts-*.npz")
     good = file.read_bytes()
     if damage == "garbage":
         file.write_bytes(b"PK\x03\x04 this is not a cache file" * 10)
@@ -197,7 +205,7 @@ def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, 
     assert calls == ["ss"]
     np.testing.assert_array_equal(again.estimates["ss_rts"].x, expected.x)
     np.testing.assert_array_equal(again.estimates["ss_rts"].P, expected.P)
-    assert offline_cache.load(file) is not None  # replaced by a good one
+    assert offline_cache.load(file, "offline") is not None  # replaced by a good one
 
 
 def test_a_run_made_in_process_has_no_cache(bags):

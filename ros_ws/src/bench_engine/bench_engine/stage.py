@@ -106,7 +106,10 @@ class Source(Protocol):
 
 
 class Codec(Protocol):
-    """Converts between a ROS message type and its item (registered per type name)."""
+    """Converts between a ROS message type and its item (registered per type name). A measurement codec may
+    also read a whole topic's measurement vectors at once, ``measurement_vectors(table) -> (N, d) array or
+    None`` (a bench_engine.columns.Table; None when they cannot be read as columns), which the scorer uses
+    instead of decoding every message."""
 
     def encode(self, item: Item, msg_type: type) -> object: ...
 

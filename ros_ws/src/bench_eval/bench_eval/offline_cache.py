@@ -1,23 +1,27 @@
-"""Offline estimators' results kept beside the bag, so that scoring a bag again does not run them again.
+"""Offline results kept beside the bag, so that scoring a bag again does not compute them again.
 
-An offline estimator (bench_eval.offline) may take minutes a run (grace_velocity's orbit fits). Its result, an
-:class:`bench_eval.scoring.Estimates`, is written into the bag's directory as ``offline_cache/NAME-KEY.npz`` and
-read back the next time the same estimator is run over the same bag, where KEY is the SHA-256 of:
+The scorer computes two things per run from its bag alone, which may take a minute a run (grace_velocity's
+orbit fits and its orbit bound): the offline estimators' estimates (bench_eval.offline: an
+:class:`bench_eval.scoring.Estimates`) and the bounds (bench_eval.bounds: a :class:`bench_eval.bounds.BoundSeries`).
+Each result is written into the bag's directory as ``offline_cache/GROUP-NAME-KEY.npz`` (GROUP ``offline`` or
+``bounds``, NAME its name in the scenario's ``scoring`` section) and read back the next time the same
+computation runs over the same bag, where KEY is the SHA-256 of:
 
 * the bag: its run config and every MCAP file, byte for byte (a bag recorded or recovered again is another bag);
-* the offline run: its name in the scenario, the registered estimator, its source and its params;
-* the code's version (:func:`code_version`): the source of every module the estimator's entry point imports,
+* the computation: its name, the registered component (estimator or bound) and its entry point, its source (an
+  offline estimator's) and its params;
+* the code's version (:func:`code_version`): the source of every module the component's entry point imports,
   directly or not, within the packages that register components of the bench (``tracking_bench.*`` entry
   points: the bench's own and any plugin's), every ``import`` statement counted, also inside functions (the bench
   imports lazily), and the versions of Python, numpy and scipy. Any edit of that code, even a comment, is a miss:
   a stale result is worse than a recomputed one.
 
-A cache file is read as a hostile file: ``np.load`` without pickles, the archive's members and their declared
-sizes checked before anything is decompressed, every array's kind and shape checked against the others. A file
-that fails any check is ignored with a warning naming it and the reason (the estimator runs, and its result
-replaces the file). Files are written atomically (a temporary file, then a rename), so a killed scorer leaves
-the previous file or none. A bag directory that cannot be written (read-only, full) is scored without a cache,
-with a warning.
+A cache file is read as a hostile file: ``np.load`` without pickles, the archive's members and every member's
+.npy header checked against its declared size before numpy allocates anything, every array's kind and shape
+checked against the others. A file that fails any check is ignored with a warning naming it and the reason (the
+result is computed again and replaces the file). Files are written atomically (a temporary file, then a
+rename), so a killed scorer leaves the previous file or none. A bag directory that cannot be written (read-only,
+full) is scored without a cache, with a warning.
 """
 from __future__ import annotations
 
@@ -40,8 +44,9 @@ from bench_engine import plugins
 
 DIRECTORY = "offline_cache"
 """The cache's directory inside a bag directory."""
-MEMBERS = ("steps", "t", "x", "P", "labels", "diagnostic_names", "diagnostic_values")
-"""The arrays of a cache file (an Estimates)."""
+MEMBERS = {"offline": ("steps", "t", "x", "P", "labels", "diagnostic_names", "diagnostic_values"),
+           "bounds": ("steps", "t", "P", "labels")}
+"""The arrays of a cache file, by group: an Estimates, a BoundSeries."""
 MAX_BYTES = 1 << 32
 """The largest uncompressed size a cache file may declare (4 GiB: a day of grace_velocity's 18-state pair fit
 holds ~45 MB); a larger one is refused before it is read."""
@@ -81,15 +86,24 @@ def _imported(source: bytes, module: str, is_package: bool) -> set[str]:
     return names
 
 
+@lru_cache(maxsize=None)
+def _package_dirs(top: str) -> tuple[Path, ...]:
+    """The directories of a top-level package (found without importing anything below it)."""
+    spec = importlib.util.find_spec(top)
+    return tuple(Path(p) for p in (spec.submodule_search_locations or [])) if spec is not None else ()
+
+
 def _source(module: str) -> tuple[Path, bool] | None:
-    """(source file, is a package) of an importable module, None for a name that is no module with a .py source."""
-    try:
-        spec = importlib.util.find_spec(module)
-    except (ImportError, ValueError, AttributeError):  # a parent is no package, or the name is an attribute
-        return None
-    if spec is None or not spec.origin or not spec.origin.endswith(".py"):
-        return None
-    return Path(spec.origin), spec.submodule_search_locations is not None
+    """(source file, is a package) of a module of an own package, located on disk without importing it; None
+    for a name that is no module with a .py source (e.g. an attribute named in ``from a import b``)."""
+    top, *rest = module.split(".")
+    for root in _package_dirs(top):
+        base = root.joinpath(*rest)
+        if (base / "__init__.py").is_file():
+            return base / "__init__.py", True
+        if rest and base.with_suffix(".py").is_file():
+            return base.with_suffix(".py"), False
+    return None
 
 
 @lru_cache(maxsize=None)
@@ -136,19 +150,20 @@ def bag_digest(bag: Path) -> str:
     return _bag_digest(bag, stamp)
 
 
-def key(bag: Path, name: str, estimator: str, source: str, params: dict) -> str:
-    """The cache key of the offline run ``name`` (registered ``estimator`` over ``source`` with ``params``) of a
-    bag (module docstring)."""
-    module = plugins.origin("offline", estimator).split(":")[0]
-    text = json.dumps({"bag": bag_digest(bag), "name": name, "estimator": estimator,
-                       "origin": plugins.origin("offline", estimator), "source": source, "params": params,
-                       "code": code_version(module)}, sort_keys=True, default=repr)
+def key(bag: Path, group: str, name: str, component: str, params: dict, source: str | None = None) -> str:
+    """The cache key of computation ``name`` of a bag: the registered ``component`` of entry-point group
+    ``group`` (``offline``, ``bounds``) with ``params`` (and an offline estimator's ``source``); module
+    docstring."""
+    origin = plugins.origin(group, component)
+    text = json.dumps({"bag": bag_digest(bag), "group": group, "name": name, "component": component,
+                       "origin": origin, "source": source, "params": params,
+                       "code": code_version(origin.split(":")[0])}, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def path(bag: Path, name: str, cache_key: str) -> Path:
-    """Where the result of offline run ``name`` with ``cache_key`` is kept."""
-    return Path(bag) / DIRECTORY / f"{name}-{cache_key[:32]}.npz"
+def path(bag: Path, group: str, name: str, cache_key: str) -> Path:
+    """Where the result of computation ``name`` of ``group`` with ``cache_key`` is kept."""
+    return Path(bag) / DIRECTORY / f"{group}-{name}-{cache_key[:32]}.npz"
 
 
 # --- reading and writing ---------------------------------------------------------------------------------------
@@ -157,42 +172,46 @@ def _warn(text: str) -> None:
     warnings.warn(text, CacheWarning, stacklevel=3)
 
 
-def load(file: Path):
-    """The Estimates kept in ``file``; None when there is none, or with a warning when the file fails a check
-    (module docstring)."""
-    from bench_eval.scoring import Estimates
+def load(file: Path, group: str) -> dict[str, np.ndarray] | None:
+    """The arrays (:data:`MEMBERS` of ``group``) kept in ``file``, checked; None when there is none, or with a
+    warning when the file fails a check (module docstring)."""
     if not file.is_file():
         return None
+    members = MEMBERS[group]
     try:
         with zipfile.ZipFile(file) as archive:
             infos = archive.infolist()
-            members = sorted(info.filename for info in infos)
-            if members != sorted(f"{m}.npy" for m in MEMBERS):
-                raise ValueError(f"members {members}, expected {sorted(MEMBERS)}")
+            names = sorted(info.filename for info in infos)
+            if names != sorted(f"{m}.npy" for m in members):
+                raise ValueError(f"members {names}, expected {sorted(members)}")
             if sum(info.file_size for info in infos) > MAX_BYTES:
                 raise ValueError(f"it declares more than {MAX_BYTES} bytes of data")
             for info in infos:
                 _check_header(archive, info)
         with np.load(file, allow_pickle=False) as z:
-            a = {m: z[m] for m in MEMBERS}
-        steps, t, x, P = a["steps"], a["t"], a["x"], a["P"]
-        labels, names, values = a["labels"], a["diagnostic_names"], a["diagnostic_values"]
-        k = len(steps)
-        checks = [(steps.ndim == 1 and steps.dtype.kind == "i", "steps"), (t.shape == (k,) and t.dtype.kind == "f", "t"),
-                  (x.ndim == 2 and len(x) == k and x.dtype.kind == "f", "x"),
-                  (P.ndim == 3 and len(P) == k and P.shape[1] == P.shape[2] and P.dtype.kind == "f", "P"),
-                  (labels.ndim == 1 and labels.dtype.kind == "U" and len(labels) == x.shape[1], "labels"),
-                  (names.ndim == 1 and names.dtype.kind == "U", "diagnostic_names"),
-                  (values.shape == (len(names), k) and values.dtype.kind == "f", "diagnostic_values")]
-        bad = [what for ok, what in checks if not ok]
+            arrays = {m: z[m] for m in members}
+        bad = [what for ok, what in _checks(arrays) if not ok]
         if bad:
             raise ValueError(f"inconsistent arrays: {', '.join(bad)}")
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, NotImplementedError) as err:
-        _warn(f"ignored the offline-estimator cache file {file} ({type(err).__name__}: {err}); running the "
-              "estimator again")
+        _warn(f"ignored the cache file {file} ({type(err).__name__}: {err}); computing its result again")
         return None
-    return Estimates(steps.astype(np.int64), t.astype(float), x.astype(float), P.astype(float),
-                     [str(s) for s in labels], {str(n): v.astype(float) for n, v in zip(names, values)})
+    return arrays
+
+
+def _checks(a: dict[str, np.ndarray]) -> list[tuple[bool, str]]:
+    """(passes, what) of every consistency check of a file's arrays."""
+    steps, t, P, labels = a["steps"], a["t"], a["P"], a["labels"]
+    k, n = len(steps), len(labels)
+    checks = [(steps.ndim == 1 and steps.dtype.kind == "i", "steps"), (t.shape == (k,) and t.dtype.kind == "f", "t"),
+              (labels.ndim == 1 and labels.dtype.kind == "U", "labels")]
+    if "x" not in a:  # a bound: its covariance over its labels
+        return checks + [(P.shape == (k, n, n) and P.dtype.kind == "f", "P")]
+    x, names, values = a["x"], a["diagnostic_names"], a["diagnostic_values"]
+    return checks + [(x.shape == (k, n) and x.dtype.kind == "f", "x"),
+                     (P.ndim == 3 and len(P) == k and P.shape[1] == P.shape[2] and P.dtype.kind == "f", "P"),
+                     (names.ndim == 1 and names.dtype.kind == "U", "diagnostic_names"),
+                     (values.shape == (len(names), k) and values.dtype.kind == "f", "diagnostic_values")]
 
 
 def _check_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
@@ -210,15 +229,18 @@ def _check_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
         raise ValueError(f"{info.filename}: shape {shape} does not fit its {info.file_size} bytes")
 
 
-def store(file: Path, est) -> None:
-    """Write ``est`` (an Estimates) to ``file`` atomically; a warning when the directory cannot be written."""
-    names = sorted(est.diagnostics)
-    arrays = {"steps": np.asarray(est.steps, dtype=np.int64), "t": np.asarray(est.t, dtype=float),
-              "x": np.asarray(est.x, dtype=float), "P": np.asarray(est.P, dtype=float),
-              "labels": np.array([str(s) for s in est.labels], dtype=str).reshape(-1),
-              "diagnostic_names": np.array(names, dtype=str).reshape(-1),
-              "diagnostic_values": np.array([est.diagnostics[n] for n in names], dtype=float).reshape(
-                  len(names), len(est.steps))}
+def store(file: Path, result) -> None:
+    """Write ``result`` (a bench_eval.scoring.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
+    and an Estimates' x and diagnostics) to ``file`` atomically; a warning when the directory cannot be
+    written."""
+    arrays = {"steps": np.asarray(result.steps, dtype=np.int64), "t": np.asarray(result.t, dtype=float),
+              "P": np.asarray(result.P, dtype=float),
+              "labels": np.array([str(s) for s in result.labels], dtype=str).reshape(-1)}
+    if hasattr(result, "x"):
+        names = sorted(result.diagnostics)
+        arrays.update(x=np.asarray(result.x, dtype=float), diagnostic_names=np.array(names, dtype=str).reshape(-1),
+                      diagnostic_values=np.array([result.diagnostics[n] for n in names], dtype=float).reshape(
+                          len(names), len(result.steps)))
     tmp = None
     try:
         file.parent.mkdir(exist_ok=True)
@@ -229,5 +251,4 @@ def store(file: Path, est) -> None:
     except OSError as err:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
-        _warn(f"could not keep the offline estimator's result in {file.parent} ({err.strerror or err}); scored "
-              "without a cache")
+        _warn(f"could not keep a result in {file.parent} ({err.strerror or err}); scored without a cache")

@@ -26,7 +26,7 @@ from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_engine.settings import SectionReader, Settings, read, setting, variant
 from bench_eval import metrics, offline_cache
-from bench_eval.bounds import BoundRun, compute_bounds, score_bounds
+from bench_eval.bounds import BoundRun, BoundSeries, score_bounds
 from bench_eval.claims import diverged
 from bench_eval.consistency import innovation_scores
 from bench_eval.errors import NothingToScore  # noqa: F401 - raised here, importable from here
@@ -128,7 +128,7 @@ class BagData:
     measurements: dict[str, dict[int, np.ndarray]] = field(default_factory=dict)  # sensor -> step -> z
     estimates: dict[str, Estimates] = field(default_factory=dict)
     bounds: dict = field(default_factory=dict)
-    """Bound name -> its bench_eval.bounds.BoundSeries over this run (filled by the scorer: compute_bounds)."""
+    """Bound name -> its bench_eval.bounds.BoundSeries over this run (filled by the scorer: prepared)."""
     path: Path | None = None
     """The bag directory it was read from (None for a run made in process): where the offline estimators'
     results are kept (bench_eval.offline_cache)."""
@@ -165,9 +165,11 @@ def load_bag(bag_dir: Path | str) -> BagData:
             data.truth = dict(zip(steps, zip(tab.seconds().tolist(), _stack(tab["state"], np.arange(len(tab))))))
             data.truth_labels = list(tab["labels"][-1])
         elif sensors[topic] is not None:
-            decode = codec(types[topic]).decode
+            reader = codec(types[topic])
+            vectors = reader.measurement_vectors(tab) if hasattr(reader, "measurement_vectors") else None
             data.measurements.setdefault(sensors[topic], {}).update(
-                (step, decode(tab.row(i)).z) for i, step in enumerate(steps))
+                zip(steps, vectors) if vectors is not None
+                else ((step, reader.decode(tab.row(i)).z) for i, step in enumerate(steps)))
         else:
             owners = np.array(tab["filter_name"], dtype=object)
             for name in dict.fromkeys(owners):
@@ -199,7 +201,10 @@ def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
     data = run if isinstance(run, BagData) else load_bag(run)
     opts = scoring_options(data.scenario)
     data.offline = run_offline(data, opts, cache)
-    compute_bounds([data], opts.bounds)
+    for name, b in opts.bounds.items():
+        if name not in data.bounds:
+            data.bounds[name] = _cached(data, cache, "bounds", name, b.bound, b.params, None,
+                                        lambda b=b: plugins.load("bounds", b.bound).run(data, b.params))
     return data
 
 
@@ -207,7 +212,8 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
                  cache: bool = True) -> list[BagData]:
     """:func:`prepared` of every run, in order: ``jobs`` at a time in worker processes (default: every CPU this
     process may use), or on the Dask cluster at ``scheduler`` (an address, or ``"local"``:
-    bench_engine.executors), with a progress bar; in this process when there is one run or one job."""
+    bench_engine.executors), with a progress bar; in this process when there is one run or one job. ``cache``:
+    offline estimates and bounds kept beside each bag and read back (bench_eval.offline_cache)."""
     jobs = available_cpus() if jobs is None else max(1, int(jobs))
     task = partial(prepared, cache=cache)
     if scheduler is not None:
@@ -259,23 +265,36 @@ def run_offline(data: BagData, opts: ScoringOptions, cache: bool = True) -> list
     ran = []
     for name, job in opts.offline.items():
         if job.source in data.estimates or job.source in data.measurements:
-            data.estimates[name] = _offline_estimates(data, name, job, cache and data.path is not None)
+            data.estimates[name] = _cached(data, cache, "offline", name, job.estimator, job.params, job.source,
+                                           lambda job=job: plugins.load("offline", job.estimator).run(
+                                               data, job.source, job.params))
             ran.append(name)
     return ran
 
 
-def _offline_estimates(data: BagData, name: str, job: OfflineRun, cache: bool) -> Estimates:
-    file = None
-    if cache:
-        file = offline_cache.path(data.path, name, offline_cache.key(data.path, name, job.estimator, job.source,
-                                                                     job.params))
-        kept = offline_cache.load(file)
-        if kept is not None:
-            return kept
-    est = plugins.load("offline", job.estimator).run(data, job.source, job.params)
-    if file is not None:
-        offline_cache.store(file, est)
-    return est
+def _cached(data: BagData, cache: bool, group: str, name: str, component: str, params: dict, source: str | None,
+            compute):
+    """``compute()``, or its result kept beside the run's bag (bench_eval.offline_cache), which it then keeps;
+    computed without a cache for a run made in process or with ``cache`` off."""
+    if not cache or data.path is None:
+        return compute()
+    file = offline_cache.path(data.path, group, name,
+                              offline_cache.key(data.path, group, name, component, params, source))
+    arrays = offline_cache.load(file, group)
+    if arrays is not None:
+        return _from_arrays(group, arrays)
+    result = compute()
+    offline_cache.store(file, result)
+    return result
+
+
+def _from_arrays(group: str, a: dict[str, np.ndarray]):
+    """The Estimates (group ``offline``) or BoundSeries (``bounds``) of a cache file's arrays."""
+    steps, t, P, labels = a["steps"].astype(np.int64), a["t"].astype(float), a["P"].astype(float), a["labels"]
+    if group == "bounds":
+        return BoundSeries(steps, t, [str(s) for s in labels], P)
+    return Estimates(steps, t, a["x"].astype(float), P, [str(s) for s in labels],
+                     {str(n): v.astype(float) for n, v in zip(a["diagnostic_names"], a["diagnostic_values"])})
 
 
 def scored_estimators(data: BagData, offline: list[str]) -> list[str]:

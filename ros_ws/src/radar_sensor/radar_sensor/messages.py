@@ -27,6 +27,15 @@ class RangeAzElCodec:
         msg.covariance = cov.ravel()
         return msg
 
+    def measurement_vectors(self, table) -> np.ndarray | None:
+        """The z of every message of a topic read as columns (bench_engine.columns.Table), one row each, as
+        ``decode`` gives them; None when some have a range rate and others not."""
+        has = np.asarray(table["has_range_rate"], dtype=bool)
+        if len(has) and has.any() != has.all():
+            return None
+        names = ["range", "azimuth", "elevation"] + (["range_rate"] if len(has) and has[0] else [])
+        return np.column_stack([np.asarray(table[n], dtype=float) for n in names]).reshape(len(has), len(names))
+
     def decode(self, msg) -> Measurement:
         d = 4 if msg.has_range_rate else 3
         z = np.array([msg.range, msg.azimuth, msg.elevation, msg.range_rate][:d])
@@ -44,6 +53,12 @@ class VectorMeasurementCodec:
         msg.value = np.asarray(item.z, dtype=float).tolist()
         msg.covariance = np.asarray(item.R, dtype=float).ravel().tolist()
         return msg
+
+    def measurement_vectors(self, table) -> np.ndarray | None:
+        """The z of every message of a topic read as columns (bench_engine.columns.Table), one row each, as
+        ``decode`` gives them; None when their lengths differ."""
+        value = table["value"]
+        return value.astype(float) if isinstance(value, np.ndarray) and value.ndim == 2 else None
 
     def decode(self, msg) -> Measurement:
         z = np.asarray(msg.value, dtype=float)
