@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BLAS thread per scoring worker
 
 from bench_engine import phases  # noqa: E402
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402

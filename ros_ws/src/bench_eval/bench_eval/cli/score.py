@@ -18,11 +18,14 @@ Examples:
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
-from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
-from bench_eval.scoring import NothingToScore, print_summary, score_bags
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BLAS thread per worker (--jobs)
+
+from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
+from bench_eval.scoring import NothingToScore, print_summary, score_bags  # noqa: E402
 
 EPILOG = exit_codes(c0="the bags were scored", c2="bad input: a directory that is not a bag, an unrecoverable or "
                     "damaged bag, bags of different scenarios, a bag whose scenario needs a component not "
