@@ -8,10 +8,12 @@ any estimator); its source filter must be selected too.
 The node keeps the source filter's estimates of the last ``lag_s`` seconds. When an estimate arrives that is
 at least ``lag_s`` after the oldest one kept, it runs the RTS backward pass (tracker_filters.smoothing) from
 the newest estimate down to the oldest and publishes the oldest's smoothed estimate, stamped with its own
-step and time. For a linear-Gaussian model the backward pass over that window gives exactly E[x_k | z_1..N]
-with N the newest measurement: fixed-lag smoothing with a delay of at least ``lag_s``. The transitions come
-from the source filter's own dynamics model. The last ``lag_s`` seconds of a run are not published (the node
-never learns that the run ended; the offline ``rts`` estimator smooths them).
+step and time. Each estimate's transition and gain (F_k x_k|k, P_k+1|k, C_k: filtered quantities only) are
+computed once, as the next estimate arrives, and serve every window that holds it. For a linear-Gaussian
+model the backward pass over that window gives exactly E[x_k | z_1..N] with N the newest measurement:
+fixed-lag smoothing with a delay of at least ``lag_s``. The transitions come from the source filter's own
+dynamics model. The last ``lag_s`` seconds of a run are not published (the node never learns that the run
+ended; the offline ``rts`` estimator smooths them).
 """
 from __future__ import annotations
 
@@ -59,6 +61,8 @@ class FixedLagSmoother:
         self.name, self.conf = name, read_fixed_lag(cfg)[name]
         self.dynamics = build_stack(cfg, self.conf.source).filter.dynamics
         self.window: deque[Estimate] = deque()
+        self.gains: deque[tuple[np.ndarray, ...]] = deque()
+        """The RTS gain (tracker_filters.smoothing.rts_gain) from each estimate of the window to the next."""
         self.topic = estimate_topic(name)
         self.log = python_log(name)
 
@@ -66,23 +70,31 @@ class FixedLagSmoother:
         if self.window and e.t_ns <= self.window[-1].t_ns:
             self.log("warning", f"ignored an estimate of step {e.step} that is not newer than the last")
             return []
+        from tracker_filters.smoothing import rts_gain   # scipy: not for every node reading the kind
+        if self.window:
+            last = self.window[-1]
+            x, P, dt = np.asarray(last.x, dtype=float), np.asarray(last.P, dtype=float), (e.t_ns - last.t_ns) * 1e-9
+            self.gains.append(rts_gain(x, P, np.asarray(self.dynamics.transition_matrix(x, dt), dtype=float),
+                                       np.asarray(self.dynamics.process_noise(x, dt), dtype=float)))
         self.window.append(e)
         out = []
         while len(self.window) > 1 and (self.window[-1].t_ns - self.window[0].t_ns) * 1e-9 >= self.conf.lag_s:
             out.append((self.topic, self._smoothed_oldest()))
             self.window.popleft()
+            self.gains.popleft()
         return out
 
     def _smoothed_oldest(self) -> Estimate:
-        """RTS backward pass (tracker_filters.smoothing) from the newest estimate of the window to the oldest."""
-        from tracker_filters.smoothing import smooth_estimates  # scipy.linalg: not for every node reading the kind
+        """RTS backward pass (tracker_filters.smoothing.rts_step) from the newest estimate of the window to the
+        oldest."""
+        from tracker_filters.smoothing import rts_step  # scipy.linalg: not for every node reading the kind
         items = list(self.window)
-        dts = [(b.t_ns - a.t_ns) * 1e-9 for a, b in zip(items[:-1], items[1:])]
-        x_s, P_s = smooth_estimates(self.dynamics, dts, np.array([e.x for e in items]),
-                                    np.array([e.P for e in items]))
+        x_s, P_s = np.asarray(items[-1].x, dtype=float), np.asarray(items[-1].P, dtype=float)
+        for e, gain in zip(reversed(items[:-1]), reversed(self.gains)):
+            x_s, P_s = rts_step(np.asarray(e.x, dtype=float), np.asarray(e.P, dtype=float), gain, x_s, P_s)
         oldest = items[0]
-        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.name, list(oldest.labels), x_s[0],
-                        P_s[0], oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
+        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.name, list(oldest.labels), x_s,
+                        P_s, oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:

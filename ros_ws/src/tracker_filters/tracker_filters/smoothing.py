@@ -40,10 +40,22 @@ def rts_smoother(xs: np.ndarray, Ps: np.ndarray, Fs: np.ndarray, Qs: np.ndarray)
         raise ValueError(f"need {len(xs) - 1} transitions for {len(xs)} estimates, got {len(Fs)} and {len(Qs)}")
     x_s, P_s = xs.copy(), Ps.copy()
     for k in range(len(xs) - 2, -1, -1):
-        F = Fs[k]
-        P_pred = F @ Ps[k] @ F.T + Qs[k]
-        C = cho_solve(cho_factor(P_pred), F @ Ps[k]).T  # P_k|k F' P_pred^-1 (P_pred symmetric)
-        x_s[k] = xs[k] + C @ (x_s[k + 1] - F @ xs[k])
-        P = Ps[k] + C @ (P_s[k + 1] - P_pred) @ C.T
-        P_s[k] = 0.5 * (P + P.T)
+        x_s[k], P_s[k] = rts_step(xs[k], Ps[k], rts_gain(xs[k], Ps[k], Fs[k], Qs[k]), x_s[k + 1], P_s[k + 1])
     return x_s, P_s
+
+
+def rts_gain(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(F_k x_k|k, P_k+1|k, C_k) of one step (module docstring): everything the backward pass needs from the
+    filtered estimate k and its transition, none of it from later estimates (the fixed-lag smoother computes it
+    once per estimate and uses it in every window)."""
+    P_pred = F @ P @ F.T + Q
+    C = cho_solve(cho_factor(P_pred), F @ P).T  # P_k|k F' P_pred^-1 (P_pred symmetric)
+    return F @ x, P_pred, C
+
+
+def rts_step(x: np.ndarray, P: np.ndarray, gain: tuple[np.ndarray, ...], x_next: np.ndarray, P_next: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(x_k|N, P_k|N) from the filtered x_k|k, P_k|k, the step's :func:`rts_gain` and the smoothed k+1."""
+    Fx, P_pred, C = gain
+    P_s = P + C @ (P_next - P_pred) @ C.T
+    return x + C @ (x_next - Fx), 0.5 * (P_s + P_s.T)
