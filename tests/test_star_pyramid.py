@@ -10,7 +10,7 @@ from star_tracker.attitude import error_angle, error_vector
 from star_tracker.camera import DEFAULT_CAMERA, Camera
 from star_tracker.catalogue import ARCSEC, angle_between, load_catalogue
 from star_tracker.frames import FALSE_STAR, random_attitude, simulate_frame
-from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier, _Angles, triangle_order, triple_product
+from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier, _Angles, _Near, triangle_order, triple_product
 
 
 @pytest.fixture(scope="module")
@@ -245,3 +245,31 @@ def test_a_fourth_star_confirms_only_when_all_three_of_its_angles_match(catalogu
             == real_others + 1
         return
     pytest.fail(f"no star of six frames gives a fake matching side(s) {sides} only")
+
+
+def test_the_neighbourhood_search_answers_as_the_k_d_tree_or_not_at_all(catalogue, pyramid):
+    """_Near (the brute-force nearest star around a candidate triangle's first star) gives the k-d tree's
+    answer for directions near that star, and declines directions farther than its neighbourhood covers."""
+    rng = np.random.default_rng(3)
+    answered = declined = hits = 0
+    for a in rng.choice(len(catalogue), 40, replace=False):
+        near = _Near(pyramid, int(a))
+        assert near.stars[-1] == a
+        spread = rng.uniform(0.0, 0.5, 60)      # up to 29°: some beyond the neighbourhood's reach
+        p = catalogue.vectors[a] + spread[:, None] * rng.normal(size=(60, 3))
+        p /= np.linalg.norm(p, axis=1, keepdims=True)
+        for bound in (pyramid._match_chord, pyramid._pyramid_chord):
+            d, idx = catalogue.tree.query(p, k=1, distance_upper_bound=bound)
+            for row in range(0, 60, 6):     # small batches: one far row makes the whole batch decline
+                got = near(p[row:row + 6], bound)
+                if got is None:
+                    declined += 1
+                    reach = np.linalg.norm(p[row:row + 6] - catalogue.vectors[a], axis=1).max() + bound
+                    assert reach > near.reach_chord
+                    continue
+                answered += 1
+                rows = np.isfinite(d[row:row + 6]).nonzero()[0]
+                hits += len(rows)
+                np.testing.assert_array_equal(got[0], rows)
+                np.testing.assert_array_equal(got[1], idx[row:row + 6][rows])
+    assert answered > 100 and declined > 100 and hits > 100

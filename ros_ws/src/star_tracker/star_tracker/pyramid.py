@@ -105,6 +105,44 @@ class _Angles:
         return np.stack([self.column(c)[rows] for c in cols], axis=1)
 
 
+def _neighbourhoods(catalogue: StarCatalogue, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """(start (N + 1,), stars): the catalogue stars within ``radius`` of star a are
+    ``stars[start[a]:start[a + 1]]``, a itself last (a CSR index of the catalogue's k-d tree's pairs)."""
+    n = len(catalogue)
+    pairs = catalogue.tree.query_pairs(chord(radius), output_type="ndarray")
+    first = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+    second = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+    start = np.zeros(n + 1, dtype=np.intp)
+    start[1:] = np.bincount(first, minlength=n).cumsum()
+    return start, second[first.argsort(kind="stable")].astype(np.intp)
+
+
+class _Near:
+    """The nearest catalogue star to directions in the field of a candidate triangle: brute force over the
+    catalogue stars within the identifier's reach of its first star a (``_neighbourhoods``), a few hundred dot
+    products instead of a k-d tree query. Exact: it answers only when every direction is close enough to a
+    that each star within the bound of it lies in a's neighbourhood (chord triangle inequality), else the
+    caller asks the k-d tree. Nearest by the largest dot product, the same order as the chord distance of
+    unit vectors (ties aside)."""
+
+    def __init__(self, identifier: "PyramidIdentifier", a: int) -> None:
+        self.stars = identifier._near[identifier._near_start[a]:identifier._near_start[a + 1]]
+        self.vectors_t = identifier.catalogue.vectors.take(self.stars, axis=0).T  # a is the last column
+        self.reach_chord = identifier._reach_chord
+
+    def __call__(self, p: np.ndarray, bound: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(rows of ``p`` (M, 3) with a catalogue star within chord ``bound``, that star), as
+        ``tree.query(p, k=1, distance_upper_bound=bound)``'s finite rows; None when a row of ``p`` lies too far
+        from a for the neighbourhood to hold every star within ``bound`` of it."""
+        dots = p @ self.vectors_t
+        if np.sqrt(max(2.0 - 2.0 * float(dots[:, -1].min()), 0.0)) + bound > self.reach_chord:
+            return None
+        best = dots.argmax(axis=1)
+        top = dots.ravel().take(best + np.arange(0, dots.size, dots.shape[1]))
+        rows = (top >= 1.0 - 0.5 * bound * bound).nonzero()[0]
+        return rows, self.stars.take(best.take(rows))
+
+
 class PyramidIdentifier:
     """Lost-in-space identification of a frame's centroids against a catalogue (module docstring)."""
 
@@ -129,6 +167,11 @@ class PyramidIdentifier:
         self.max_triangles = int(max_triangles)
         self.max_false_alarm = float(max_false_alarm)
         self.pairs = pair_table if pair_table is not None else PairTable(catalogue, camera.max_separation)
+        # _Near's neighbourhood radius: a frame spans camera.max_separation, the pyramid test searches 50 match
+        # radii around a direction, and a candidate triangle's attitude puts a's centroid near a
+        reach = camera.max_separation + 50.0 * self.match_radius + 4.0 * self.epsilon
+        self._near_start, self._near = _neighbourhoods(catalogue, reach)
+        self._reach_chord = float(chord(reach)) * (1.0 - 1e-9)  # (the margin: rounding of the chord distances)
         cone = camera.half_diagonal
         self._cone_radius = cone
         self._cone_solid_angle = 2.0 * np.pi * (1.0 - np.cos(cone))
@@ -202,22 +245,38 @@ class PyramidIdentifier:
         dist[rows] = 2.0 * np.arcsin(np.minimum(d[rows] / 2.0, 1.0))
         return index, dist
 
-    def _nearest(self, b: np.ndarray, attitude: np.ndarray, bound: float) -> tuple[np.ndarray, ...]:
-        """:meth:`match`'s catalogue indices (N,), with the rows that have one and every row's chord distance."""
+    def _nearest(self, b: np.ndarray, attitude: np.ndarray, bound: float, near: _Near | None = None
+                 ) -> tuple[np.ndarray, ...]:
+        """:meth:`match`'s catalogue indices (N,), with the rows that have one and every row's chord distance
+        (None when ``near`` answered)."""
         index = np.full(len(b), UNIDENTIFIED, dtype=np.int64)
         if len(b) == 0:
             return index, np.zeros(0, dtype=np.intp), np.zeros(0)
-        d, idx = self.catalogue.tree.query(b @ attitude, k=1, distance_upper_bound=bound)  # rows: Aᵀ b
-        rows = np.isfinite(d).nonzero()[0]
+        p = b @ attitude  # rows: Aᵀ b
+        rows, found, d = self._query(p, bound, near)
         if len(rows):
-            found = idx[rows]
-            found.sort()
-            if (found[1:] == found[:-1]).any():  # a catalogue star near two centroids: the closest one keeps it
-                rows = rows[d[rows].argsort(kind="stable")]
-                _, first = np.unique(idx[rows], return_index=True)
-                rows = rows[first]
-            index[rows] = idx[rows]
+            stars = np.sort(found)
+            if (stars[1:] == stars[:-1]).any():  # a catalogue star near two centroids: the closest one keeps it
+                closeness = (d[rows] if d is not None
+                             else -np.einsum("ij,ij->i", p[rows], self.catalogue.vectors.take(found, axis=0)))
+                order = closeness.argsort(kind="stable")
+                rows, found = rows[order], found[order]
+                _, first = np.unique(found, return_index=True)
+                rows, found = rows[first], found[first]
+            index[rows] = found
         return index, rows, d
+
+    def _query(self, p: np.ndarray, bound: float, near: _Near | None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(rows of ``p`` (M, 3) with a catalogue star within chord ``bound``, that nearest star, every row's
+        chord distance): by ``near`` when it answers (then no distances), else by the catalogue's k-d tree."""
+        if near is not None:
+            found = near(p, bound)
+            if found is not None:
+                return found[0], found[1], None
+        d, idx = self.catalogue.tree.query(p, k=1, distance_upper_bound=bound)
+        rows = np.isfinite(d).nonzero()[0]
+        return rows, idx[rows], d
 
     # --------------------------------------------------------------------------------------------- steps
     def _side(self, theta: _Angles, i: int, j: int, cache: dict, indexed: bool = False) -> list[np.ndarray]:
@@ -278,11 +337,11 @@ class PyramidIdentifier:
         if len(others) == 0:
             return None
         # step 2: nearest catalogue star to each other star's predicted direction, then the pyramid test
-        d, idx = self.catalogue.tree.query(b.take(others, axis=0) @ A, k=1, distance_upper_bound=self._pyramid_chord)
-        hit = np.isfinite(d).nonzero()[0]
+        near = _Near(self, cat_i[0])
+        hit, cands, _ = self._query(b.take(others, axis=0) @ A, self._pyramid_chord, near)
         if len(hit) == 0:
             return None
-        rows, cands = others[hit], idx[hit]
+        rows = others[hit]
         cat_ang = np.arccos(np.clip(v.take(cands, axis=0) @ v.take(cat_i, axis=0).T, -1.0, 1.0))   # (M, 3)
         confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)
         confirmed &= (cands != cat_i[0]) & (cands != cat_i[1]) & (cands != cat_i[2])
@@ -291,13 +350,13 @@ class PyramidIdentifier:
         # step 3: attitude from the pyramid, then every star matched, twice
         rows_c, cands_c = rows[confirmed], cands[confirmed]
         A = wahba_matrix(np.vstack([b[obs_i], b[rows_c]]), np.vstack([v[cat_i], v[cands_c]]))
-        index = self._nearest(b, A, self._match_chord)[0]
+        index = self._nearest(b, A, self._match_chord, near)[0]
         for _ in range(2):
             ident = index >= 0
             if int(ident.sum()) < 4:
                 return None
             A = wahba_matrix(b[ident], v[index[ident]])
-            index, previous = self._nearest(b, A, self._match_chord)[0], index
+            index, previous = self._nearest(b, A, self._match_chord, near)[0], index
             if np.array_equal(index, previous):  # the same stars give the same attitude: matching again
                 break                            # would repeat this match exactly
         ident = index >= 0
