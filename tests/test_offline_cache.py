@@ -9,6 +9,7 @@ parameters or of the code is a miss; a damaged, truncated or hostile cache file 
 it, and replaced."""
 from __future__ import annotations
 
+import io
 import math
 import shutil
 import sys
@@ -19,6 +20,7 @@ import numpy as np
 import pytest
 
 from bench_engine import plugins
+from bench_engine.settings import replaced
 from bench_eval import offline_cache, scoring
 from bench_eval.offline_cache import CacheWarning
 from bench_eval.scoring import OfflineRun, load_bag, run_offline, score_bags, scoring_options
@@ -60,8 +62,8 @@ def calls(monkeypatch) -> list[str]:
         seen.append("pcrb")
         return pcrb.run(data, params)
     original = plugins.load
-    wrapped = {("offline", "rts"): type(rts)(counting_rts, rts.check),
-               ("bounds", "pcrb"): type(pcrb)(counting_pcrb, pcrb.check)}
+    wrapped = {("offline", "rts"): type(rts)(counting_rts, rts.check, rts.params),
+               ("bounds", "pcrb"): type(pcrb)(counting_pcrb, pcrb.check, pcrb.params)}
     monkeypatch.setattr(plugins, "load", lambda group, name: wrapped.get((group, name)) or original(group, name))
     return seen
 
@@ -86,7 +88,7 @@ def assert_same_scores(a, b, path="") -> None:
 def test_scoring_on_two_processes_gives_the_serial_scores(bags, scheduler):
     serial = score_bags(bags, with_series=True, jobs=1, cache=False)
     parallel = score_bags(bags, with_series=True, jobs=2, scheduler=scheduler, cache=False)
-    assert serial[0]["runs"] == 3 and set(OFFLINE) <= set(serial[0]["filters"])
+    assert serial[0]["runs"] == 3 and set(OFFLINE) <= set(serial[0]["estimators"])
     assert_same_scores(serial[0], parallel[0])
     for name in serial[1]:
         for key, value in serial[1][name].items():
@@ -116,7 +118,7 @@ def test_changed_parameters_or_code_miss_the_cache(bags, calls, monkeypatch):
     calls.clear()
     run_offline(load_bag(bags[0]), opts)
     assert calls == []
-    other = type(opts)(opts.metric, opts.options, {"ss_rts": OfflineRun("rts", "ss", {"changed": 1})})
+    other = replaced(opts, offline={"ss_rts": OfflineRun(estimator="rts", source="ss", params={"changed": 1})})
     again = load_bag(bags[0])
     run_offline(again, other)
     assert calls == ["ss"]
@@ -163,14 +165,12 @@ def _hostile_npz(path: Path, member: str, payload: bytes) -> None:
 
 
 def _pickled_array() -> bytes:
-    import io
     buf = io.BytesIO()
     np.save(buf, np.array([{"a": 1}], dtype=object), allow_pickle=True)
     return buf.getvalue()
 
 
 def _huge_header() -> bytes:
-    import io
     buf = io.BytesIO()
     np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": (10**12,)})
     return buf.getvalue() + bytes(64)
@@ -180,7 +180,7 @@ def _huge_header() -> bytes:
 def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, damage):
     data = load_bag(bags[0])
     opts = scoring_options(data.scenario)
-    only = type(opts)(opts.metric, opts.options, {"ss_rts": opts.offline["ss_rts"]})
+    only = replaced(opts, offline={"ss_rts": opts.offline["ss_rts"]})
     run_offline(data, only)
     expected = data.estimates["ss_rts"]
     (file,) = (bags[0] / offline_cache.DIRECTORY).glob("offline-ss_rts-*.npz")

@@ -13,9 +13,11 @@ from bench_studies.grace_velocity.metrics import range_rate_bounds, range_rate_s
 from bench_studies.grace_velocity.report import _draw_residuals
 from orbit_sim import kepler
 from orbit_sim.constants import J2_EARTH, MU_EARTH
-from orbit_sim.geopotential import ZONALS
-from orbit_sim.orbit_fit import (ForceModel, edges, fit_orbit, information, normal_equations, position_change,
-                                propagate, state_covariance)
+from orbit_sim.geopotential import (ZONALS, drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
+                                    zonal_acceleration_xyz)
+from orbit_sim.gravity import gravity_gradient
+from orbit_sim.orbit_fit import (ForceModel, _rate, edges, fit_orbit, information, normal_equations, position_change,
+                                propagate, rtn_frame, state_covariance)
 
 X0 = kepler.kepler_to_cartesian(6858137.0, 0.001, np.radians(89.0), 0.3, 0.2, 0.1, mu=MU_EARTH)
 FULL = ForceModel(MU_EARTH, zonals={n: (J2_EARTH if n == 2 else ZONALS[n]) for n in range(2, 7)}, drag=True)
@@ -53,8 +55,6 @@ def test_the_single_state_forces_are_the_vectorised_ones():
     """The fit's right-hand side evaluates the forces on Python floats (orbit_sim.geopotential's *_xyz forms):
     the same arithmetic as the vectorised forms the truth integrates, equal to 1e-14 relative (a few ulp: numpy
     and libm round exp and a norm differently), over LEO states of every latitude."""
-    from orbit_sim.geopotential import (drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
-                                        zonal_acceleration_xyz)
     rng = np.random.default_rng(5)
     for _ in range(300):
         r = rng.normal(size=3)
@@ -72,9 +72,6 @@ def test_the_right_hand_side_is_the_variational_equations_written_out():
     """_rate's blocks against the variational equations with A = [[0, I], [G, 0]] formed in full (module
     docstring): Phi' = A Phi, Psi' = -Psi A, s' = A s + [0; a_drag], W' = Psi [0; R_rtn], the state's rate the
     forces plus R_rtn e."""
-    from orbit_sim.geopotential import drag_acceleration, zonal_acceleration
-    from orbit_sim.gravity import gravity_gradient
-    from orbit_sim.orbit_fit import _rate, rtn_frame
     rng = np.random.default_rng(6)
     for model, e in ((FULL, None), (EMPIRICAL, np.array([2e-7, -1e-7, 3e-7]))):
         y = np.concatenate([X0, rng.normal(size=96)])

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
 from scipy.spatial.transform import Rotation
 
-from bench_engine import cdr, views
+from bench_engine import cdr, view_state, views
 from bench_engine.config import ScenarioError, load_scenario
 from bench_engine.graph import NodeSpec, build_graph
 from bench_engine.msg_schema import message_class
@@ -184,7 +184,7 @@ def test_an_attitude_is_the_pose_of_the_body_with_its_error_covariance_in_the_re
     q *= -1 if scalar_negative else 1
     labels = ["qw", "qx", "qy", "qz", "bx"]
     P = spd(4, seed)  # over the error labels rx ry rz bx
-    assert error_labels(labels) == ["rx", "ry", "rz", "bx"] == list(views.covariance_labels(tuple(labels), 4))
+    assert error_labels(labels) == ["rx", "ry", "rz", "bx"] == list(view_state.covariance_labels(tuple(labels), 4))
     item = estimate(labels, [*q, 0.5], P, frame="icrs", source="sna_triad", diagnostics={"stars": 12.0})
     msg = read_back(views.POSE_TYPE, views.pose(item))
     A = Rotation.from_quat(q, scalar_first=True).as_matrix()  # camera-from-ICRS (star_tracker.attitude)

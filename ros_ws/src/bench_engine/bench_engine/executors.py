@@ -104,8 +104,6 @@ def map_dask(fn: Callable[[Any], Any], items: list, scheduler: str, jobs: int = 
     """``[fn(item) for item in items]`` on the cluster at ``scheduler`` (:func:`connect`), in order, with a
     progress bar; ``fn`` and the items must pickle, and any path in an item must be the same on every host (a
     shared file system). A task that raises is retried ``retries`` times, then its error is raised here."""
-    from dask.distributed import as_completed
-    from tqdm import tqdm
     client = connect(scheduler, jobs)
     try:
         futures = [client.submit(fn, item, retries=retries, pure=False,

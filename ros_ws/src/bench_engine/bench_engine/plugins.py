@@ -68,6 +68,12 @@ def load(group: str, name: str) -> object:
     return found[name].load()
 
 
+def origin(group: str, name: str) -> str:
+    """``module:attribute`` a registered name points at, without loading it (the scorer's cache key names the
+    code behind it: bench_eval.offline_cache)."""
+    return _entry_points(group)[name].value
+
+
 def registered(group: str) -> dict[str, object]:
     """Every component of a group, loaded: {name: component}."""
     return {name: load(group, name) for name in names(group)}

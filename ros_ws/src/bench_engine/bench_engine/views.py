@@ -34,13 +34,12 @@ Conventions:
   reference frame, Aᵀ P A; position x y z if the state has them, else zero and unknown. And
   bench_msgs/AttitudeEstimate, the bench's own compact attitude: q as the estimate gives it (reference -> body),
   the error covariance in the body frame, and the stars used (the diagnostic ``stars``);
-* diagnostic_msgs/DiagnosticArray: at most one per :data:`DIAGNOSTICS_PERIOD_S` of sim time per estimator, as
-  ROS nodes publish diagnostics (diagnostic_updater: about 1 Hz), each the status of the estimates since the
-  previous one, this one included (the first estimate gets one): named after the estimator, level OK when each
-  of them had a measurement update and WARN when one had none (NIS NaN: coasting, a gated or rejected
-  measurement; the message counts them); values ``step``, ``nis`` and every diagnostic (``n_eff``, ``gated``, …)
-  of the latest estimate written with ``repr`` (float() reads them back exactly), then ``window_estimates`` and
-  ``window_without_update``. Every estimate's own NIS and diagnostics are on ``/NAME/estimate``;
+* diagnostic_msgs/DiagnosticArray: at most one per :data:`DIAGNOSTICS_PERIOD_S` of sim time per estimator (ROS's
+  diagnostic_updater: about 1 Hz), the status of the estimates since the previous one, this one included: named
+  after the estimator, level OK when each had a measurement update, WARN when one had none (NIS NaN: coasting, a
+  gated or rejected measurement); values ``step``, ``nis`` and every diagnostic (``n_eff``, ``gated``, …) of the
+  latest estimate with ``repr`` (float() reads them back exactly), ``window_estimates``, ``window_without_update``
+  (the first estimate gets one; each estimate's own NIS and diagnostics are on ``/NAME/estimate``);
 * visualization_msgs/Marker: the trajectory as line-strip segments, one marker per segment (the previous drawn
   position to this one), at most one per :data:`MARKER_PERIOD_S` of sim time, each with its own id in the
   namespace of the node and no lifetime: a viewer accumulates them, and every message is the same few bytes. A
@@ -51,19 +50,18 @@ from __future__ import annotations
 
 import struct
 import zlib
-from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
 from bench_engine import cdr
-from bench_engine.labels import POSITION, QUATERNION, ROTATION, VELOCITY
+from bench_engine.labels import POSITION, QUATERNION, VELOCITY
 from bench_engine.scenario import EngineKeys
 from bench_engine.settings import read_key
 from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
 from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, Item
+from bench_engine.view_state import State, attitude_matrix, block, state_of
 
 ODOMETRY = "odometry"
 """``/NAME/odometry`` (nav_msgs/Odometry): position and velocity with their covariance, for a state with
@@ -164,80 +162,6 @@ def add_standard_views(nodes: list[NodeSpec], cfg: dict) -> None:
                 node.publishes.setdefault(view, view_type)
 
 
-# --- state layout -----------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Layout:
-    """Where a state's components are: indices into the state vector and into its covariance (None: absent)."""
-
-    position: tuple[int, ...] | None
-    velocity: tuple[int, ...] | None
-    quaternion: tuple[int, ...] | None
-    cov_position: tuple[int, ...] | None
-    cov_velocity: tuple[int, ...] | None
-    cov_rotation: tuple[int, ...] | None
-
-
-def covariance_labels(labels: tuple[str, ...], n: int) -> tuple[str, ...] | None:
-    """The labels of an n × n covariance of a state with ``labels``: the labels themselves, or for an attitude
-    state with one row fewer, its error labels (rx ry rz in place of qw qx qy qz); None if neither fits."""
-    if n == len(labels):
-        return labels
-    if n == len(labels) - 1 and all(q in labels for q in QUATERNION):
-        i = labels.index(QUATERNION[0])
-        return labels[:i] + ROTATION + tuple(lab for lab in labels[i:] if lab not in QUATERNION)
-    return None
-
-
-@lru_cache(maxsize=256)
-def layout(labels: tuple[str, ...], n_cov: int) -> Layout:
-    """The :class:`Layout` of a state with ``labels`` and an ``n_cov`` × ``n_cov`` covariance (0: none)."""
-    def find(names: tuple[str, ...], within: tuple[str, ...] | None) -> tuple[int, ...] | None:
-        if within is None or not all(n in within for n in names):
-            return None
-        return tuple(within.index(n) for n in names)
-    cov = covariance_labels(labels, n_cov)
-    return Layout(find(POSITION, labels), find(VELOCITY, labels), find(QUATERNION, labels),
-                  find(POSITION, cov), find(VELOCITY, cov), find(ROTATION, cov))
-
-
-def _block(P: np.ndarray, rows: tuple[int, ...], cols: tuple[int, ...]) -> np.ndarray:
-    """P[rows, cols] (3 × 3), by slicing when the indices are consecutive (the usual layouts)."""
-    r, c = rows[0], cols[0]
-    if rows == (r, r + 1, r + 2) and cols == (c, c + 1, c + 2):
-        return P[r:r + 3, c:c + 3]
-    return P[np.ix_(rows, cols)]
-
-
-@dataclass(frozen=True)
-class State:
-    """An item's state as the views read it: labels, values, covariance (None for the truth) and layout."""
-
-    labels: tuple[str, ...]
-    x: np.ndarray
-    P: np.ndarray | None
-    layout: Layout
-
-
-def state_of(item: Item) -> State:
-    """The :class:`State` of an estimate or a truth sample."""
-    if isinstance(item, Estimate):
-        P = np.asarray(item.P, dtype=float)
-        P = P if P.size else None
-        labels = tuple(item.labels)
-        return State(labels, np.asarray(item.x, dtype=float), P, layout(labels, 0 if P is None else len(P)))
-    labels = tuple(item.labels)
-    return State(labels, np.asarray(item.state, dtype=float), None, layout(labels, 0))
-
-
-def attitude_matrix(q: np.ndarray) -> np.ndarray:
-    """R(q) of a scalar-first unit quaternion (normalised first): the body-from-reference matrix A."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 # --- the views --------------------------------------------------------------------------------------------
 
 _lite = cdr.lite_class
@@ -282,11 +206,11 @@ def _odometry_numbers(st: State) -> np.ndarray | None:
     if P is not None:
         pose, twist = out[_POSE_COV].reshape(6, 6), out[_TWIST_COV].reshape(6, 6)
         if lay.cov_position is not None:
-            pose[:3, :3] = _block(P, lay.cov_position, lay.cov_position)
+            pose[:3, :3] = block(P, lay.cov_position, lay.cov_position)
         else:
             pose[0, 0] = pose[1, 1] = pose[2, 2] = UNKNOWN_VARIANCE
         if lay.cov_velocity is not None:
-            twist[:3, :3] = _block(P, lay.cov_velocity, lay.cov_velocity)
+            twist[:3, :3] = block(P, lay.cov_velocity, lay.cov_velocity)
         else:
             twist[0, 0] = twist[1, 1] = twist[2, 2] = UNKNOWN_VARIANCE
     return out
@@ -309,12 +233,10 @@ def odometry(item: Item, child_frame_id: str, state: State | None = None) -> Any
 
 
 class OdometryEncoder:
-    """:func:`odometry` straight to its CDR bytes (bench_engine.cdr's, byte for byte: tests/test_views.py), without
-    building a message: an Odometry is its stamp, its two frame names, then 85 float64 (``_ODOMETRY_BASE``), so
-    the bytes up to the numbers are rosbags' serialisation of a message with the same frame names (kept per pair of
-    names, the stamp written in place), and the numbers are one array's bytes. A view published with every
-    estimate and truth sample: building the message objects and serialising them field by field cost several
-    times as much."""
+    """:func:`odometry` straight to its CDR bytes (bench_engine.cdr's, byte for byte: tests/test_views.py): an
+    Odometry is its stamp, its two frame names, then 85 float64 (``_ODOMETRY_BASE``), so its bytes are rosbags'
+    serialisation of a message with the same frame names (kept per frame name, the stamp written in place), then
+    one array's bytes: no message objects built and serialised field by field with every estimate and sample."""
 
     TAIL = 8 * len(_ODOMETRY_BASE)
 
@@ -373,13 +295,13 @@ def pose(item: Item, state: State | None = None) -> Any | None:
             cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_VARIANCE
     else:
         if lay.cov_position is not None:
-            cov[:3, :3] = _block(P, lay.cov_position, lay.cov_position)
+            cov[:3, :3] = block(P, lay.cov_position, lay.cov_position)
         else:
             cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_VARIANCE
         if lay.cov_rotation is not None:
-            cov[3:, 3:] = A.T @ _block(P, lay.cov_rotation, lay.cov_rotation) @ A
+            cov[3:, 3:] = A.T @ block(P, lay.cov_rotation, lay.cov_rotation) @ A
             if lay.cov_position is not None:
-                cov[:3, 3:] = _block(P, lay.cov_position, lay.cov_rotation) @ A
+                cov[:3, 3:] = block(P, lay.cov_position, lay.cov_rotation) @ A
                 cov[3:, :3] = cov[:3, 3:].T
         else:
             cov[3, 3] = cov[4, 4] = cov[5, 5] = UNKNOWN_VARIANCE
@@ -402,7 +324,7 @@ def attitude(item: Item, state: State | None = None) -> Any | None:
     _header(msg, item)
     o = msg.orientation
     o.w, o.x, o.y, o.z = (float(x[i]) for i in lay.quaternion)
-    msg.covariance = (np.ascontiguousarray(_block(P, lay.cov_rotation, lay.cov_rotation)).reshape(9)
+    msg.covariance = (np.ascontiguousarray(block(P, lay.cov_rotation, lay.cov_rotation)).reshape(9)
                       if lay.cov_rotation is not None else np.full(9, np.nan))
     return msg
 

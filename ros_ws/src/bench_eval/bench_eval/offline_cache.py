@@ -26,6 +26,7 @@ full) is scored without a cache, with a warning.
 from __future__ import annotations
 
 import ast
+import dataclasses
 import hashlib
 import importlib.util
 import json
@@ -41,6 +42,7 @@ import numpy as np
 import scipy
 
 from bench_engine import plugins
+from bench_engine.settings import Settings
 
 DIRECTORY = "offline_cache"
 """The cache's directory inside a bag directory."""
@@ -150,11 +152,14 @@ def bag_digest(bag: Path) -> str:
     return _bag_digest(bag, stamp)
 
 
-def key(bag: Path, group: str, name: str, component: str, params: dict, source: str | None = None) -> str:
+def key(bag: Path, group: str, name: str, component: str, params: Settings | dict,
+        source: str | None = None) -> str:
     """The cache key of computation ``name`` of a bag: the registered ``component`` of entry-point group
-    ``group`` (``offline``, ``bounds``) with ``params`` (and an offline estimator's ``source``); module
-    docstring."""
+    ``group`` (``offline``, ``bounds``) with ``params`` (its typed settings: bench_engine.settings; and an offline
+    estimator's ``source``); module docstring."""
     origin = plugins.origin(group, component)
+    if dataclasses.is_dataclass(params):
+        params = dataclasses.asdict(params)
     text = json.dumps({"bag": bag_digest(bag), "group": group, "name": name, "component": component,
                        "origin": origin, "source": source, "params": params,
                        "code": code_version(origin.split(":")[0])}, sort_keys=True, default=repr)

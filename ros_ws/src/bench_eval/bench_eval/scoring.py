@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from bench_engine import plugins, yamlio
 from bench_engine.bag_errors import BagDamaged
@@ -217,9 +218,8 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
     jobs = available_cpus() if jobs is None else max(1, int(jobs))
     task = partial(prepared, cache=cache)
     if scheduler is not None:
-        from bench_engine.executors import map_dask
+        from bench_engine.executors import map_dask  # dask: imported only when a cluster scores
         return map_dask(task, runs, scheduler, jobs, desc="scoring")
-    from tqdm import tqdm
     if jobs == 1 or len(runs) == 1:
         return [task(r) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
     with ProcessPoolExecutor(min(jobs, len(runs))) as pool:
