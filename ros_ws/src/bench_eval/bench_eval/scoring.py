@@ -209,6 +209,22 @@ def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
     return data
 
 
+_IN_WORKER = False
+
+
+def in_scoring_worker() -> bool:
+    """True in a process that :func:`prepare_runs` gave bags to prepare (a pool worker or a Dask worker): the
+    bags share the CPUs there, so a task should start no processes of its own."""
+    return _IN_WORKER
+
+
+def _prepared_in_worker(run: Path | str | BagData, cache: bool = True) -> BagData:
+    """:func:`prepared` in a scoring worker (:func:`in_scoring_worker`)."""
+    global _IN_WORKER
+    _IN_WORKER = True
+    return prepared(run, cache)
+
+
 def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None,
                  cache: bool = True) -> list[BagData]:
     """:func:`prepared` of every run, in order: ``jobs`` at a time in worker processes (default: every CPU this
@@ -216,12 +232,12 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
     bench_engine.executors), with a progress bar; in this process when there is one run or one job. ``cache``:
     offline estimates and bounds kept beside each bag and read back (bench_eval.offline_cache)."""
     jobs = available_cpus() if jobs is None else max(1, int(jobs))
-    task = partial(prepared, cache=cache)
+    task = partial(_prepared_in_worker, cache=cache)
     if scheduler is not None:
         from bench_engine.executors import map_dask  # dask: imported only when a cluster scores
         return map_dask(task, runs, scheduler, jobs, desc="scoring")
     if jobs == 1 or len(runs) == 1:
-        return [task(r) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
+        return [prepared(r, cache) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
     with ProcessPoolExecutor(min(jobs, len(runs))) as pool:
         return list(tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring"))
 

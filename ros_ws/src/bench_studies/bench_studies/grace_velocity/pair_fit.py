@@ -19,7 +19,7 @@ import numpy as np
 from bench_engine.config import ScenarioError
 from bench_engine.settings import POSITIVE, Check, Settings, setting
 from bench_eval.offline import OfflineEstimator, measurement_series
-from bench_eval.scoring import BagData, Estimates
+from bench_eval.scoring import BagData, Estimates, in_scoring_worker
 from bench_studies.grace_velocity.pair_truth import LABELS
 from orbit_sim.geopotential import ZONALS
 from orbit_sim.orbit_fit import ForceModel, fit_orbit
@@ -80,8 +80,9 @@ def _fit_and_sample(t: np.ndarray, z: np.ndarray, sigma: float, model, ballistic
 def _both(jobs: list[tuple]) -> list[tuple[np.ndarray, np.ndarray]]:
     """``_fit_and_sample`` of the two satellites, one process each where this process may start children and
     run on two CPUs (the fits are independent and each takes a core for seconds, tens of seconds with empirical
-    accelerations); in turn otherwise, e.g. in the scorer's worker processes, which score bags in parallel."""
-    if multiprocessing.current_process().daemon or len(os.sched_getaffinity(0)) < 2:
+    accelerations); in turn otherwise, e.g. in the scorer's worker processes, which score bags in parallel
+    (bench_eval.scoring.in_scoring_worker)."""
+    if in_scoring_worker() or multiprocessing.current_process().daemon or len(os.sched_getaffinity(0)) < 2:
         return [_fit_and_sample(*job) for job in jobs]
     with ProcessPoolExecutor(len(jobs), mp_context=multiprocessing.get_context("spawn")) as pool:
         return list(pool.map(_fit_and_sample, *zip(*jobs)))
