@@ -32,6 +32,7 @@ import pytest
 import yaml
 
 from bench_engine.cli.guard import BAD_INPUT, BUG, os_error_line, run_main, writing
+from bench_eval import offline_cache
 
 from graph_helpers import script
 
@@ -304,7 +305,7 @@ def test_the_read_only_and_full_cases_leave_nothing_behind(inputs: Inputs, outco
     assert not list(inputs.read_only.iterdir())
     assert [p.name for p in inputs.read_only_bag.parent.iterdir()] == ["bag"]
     assert sorted(p.name for p in inputs.read_only_bag.iterdir()) == sorted(
-        p.name for p in inputs.leo.iterdir() if p.name != "metadata.yaml")
+        p.name for p in inputs.leo.iterdir() if p.name not in ("metadata.yaml", offline_cache.DIRECTORY))
     for name in ("l4", "r5", "m3", "w3", "d2"):
         assert not list((inputs.root / "out").glob(f"{name}/**/metadata.yaml"))
 

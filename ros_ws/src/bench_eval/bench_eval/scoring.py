@@ -202,7 +202,7 @@ def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
     data = run if isinstance(run, BagData) else load_bag(run)
     opts = scoring_options(data.scenario)
     data.offline = run_offline(data, opts, cache)
-    for name, b in opts.bounds.items():
+    for name, b in opts.bounds.items() if data.truth else ():  # a run without truth: no bound (score_bags)
         if name not in data.bounds:
             data.bounds[name] = _cached(data, cache, "bounds", name, b.bound, b.params, None,
                                         lambda b=b: plugins.load("bounds", b.bound).run(data, b.params))
@@ -266,11 +266,24 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
 
 
 def _scenario_name(runs: list[BagData]) -> str:
-    names = {d.scenario.get("scenario") for d in runs}
+    return _one_scenario({d.scenario.get("scenario") for d in runs})
+
+
+def _one_scenario(names: set) -> str:
     if len(names) != 1:
         raise ScenarioError(f"bags of different scenarios cannot be scored together: {sorted(map(str, names))}; "
                             "score each scenario's bags separately")
     return names.pop()
+
+
+def _recorded_scenario(bag: Path | str | BagData) -> str | None:
+    """The scenario name in a bag's run config, None where it cannot be read (load_bag then says why)."""
+    if isinstance(bag, BagData):
+        return bag.scenario.get("scenario")
+    try:
+        return yamlio.load((Path(bag) / "run_config.yaml").read_text())["scenario"]["scenario"]
+    except (OSError, yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError):
+        return None
 
 
 def run_offline(data: BagData, opts: ScoringOptions, cache: bool = True) -> list[str]:
@@ -327,6 +340,7 @@ def collect(bag_dirs: list[Path | str | BagData], jobs: int | None = None, sched
     """Load the bags and run the offline estimators over each whole run, and the bounds (:func:`prepare_runs`: in
     parallel, offline results cached beside the bags): (scenario, scoring options, runs, the scored estimators of
     each run)."""
+    _one_scenario({_recorded_scenario(b) for b in bag_dirs} - {None} or {None})  # before any bag is prepared
     runs = prepare_runs(bag_dirs, jobs, scheduler, cache)
     scenario = _scenario_name(runs)
     opts = scoring_options(runs[0].scenario)
