@@ -50,8 +50,8 @@ MEMBERS = {"offline": ("steps", "t", "x", "P", "labels", "diagnostic_names", "di
            "bounds": ("steps", "t", "P", "labels")}
 """The arrays of a cache file, by group: an Estimates, a BoundSeries."""
 MAX_BYTES = 1 << 32
-"""The largest uncompressed size a cache file may declare (4 GiB: a day of grace_velocity's 18-state pair fit
-holds ~45 MB); a larger one is refused before it is read."""
+"""The largest uncompressed size a cache file may declare (4 GiB: a day of an 18-state estimate at 5 s holds
+~45 MB); a larger one is refused before it is read."""
 
 
 class CacheWarning(UserWarning):
