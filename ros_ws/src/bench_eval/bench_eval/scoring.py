@@ -7,6 +7,7 @@ Estimates are matched to truth and measurements by lock-step index (``step``), n
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -238,7 +239,8 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
         return map_dask(task, runs, scheduler, jobs, desc="scoring")
     if jobs == 1 or len(runs) == 1:
         return [prepared(r, cache) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
-    with ProcessPoolExecutor(min(jobs, len(runs))) as pool:
+    # forkserver, not fork: a process forked from a threaded one (a test runner, a node) may inherit a held lock
+    with ProcessPoolExecutor(min(jobs, len(runs)), mp_context=multiprocessing.get_context("forkserver")) as pool:
         return list(tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring"))
 
 
