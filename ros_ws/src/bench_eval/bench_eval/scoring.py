@@ -191,11 +191,6 @@ def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
     return [b if isinstance(b, BagData) else next(loaded) for b in bags]
 
 
-def available_cpus() -> int:
-    """The CPUs this process may run on (its affinity): the scorer's default number of jobs."""
-    return len(os.sched_getaffinity(0))
-
-
 def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
     """One run made ready to score: its bag read (unless it is a BagData already), its offline estimators run
     or read from the cache beside the bag (bench_eval.offline_cache), its bounds computed. The scorer's task,
@@ -232,7 +227,7 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
     process may use), or on the Dask cluster at ``scheduler`` (an address, or ``"local"``:
     bench_engine.executors), with a progress bar; in this process when there is one run or one job. ``cache``:
     offline estimates and bounds kept beside each bag and read back (bench_eval.offline_cache)."""
-    jobs = available_cpus() if jobs is None else max(1, int(jobs))
+    jobs = len(os.sched_getaffinity(0)) if jobs is None else max(1, int(jobs))  # the CPUs it may use
     task = partial(_prepared_in_worker, cache=cache)
     if scheduler is not None:
         from bench_engine.executors import map_dask  # dask: imported only when a cluster scores
@@ -394,7 +389,6 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, 
     scenario, opts, whole, everyone = collect(bag_dirs, jobs, scheduler, cache)
     if not any(data.truth for data in whole) and any(data.estimates for data in whole):
         return _score_without_truth(scenario, whole, with_series)
-    compute_bounds(whole, opts.bounds)  # over the whole runs, before the window cuts them (prepared: done)
     runs, scored = _part(whole, everyone, opts.window)
     tracks = _tracks(runs, scored)
     if not tracks:
