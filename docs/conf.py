@@ -6,6 +6,7 @@ rclpy-free modules from their docstrings, ``settings_page`` the settings referen
 settings, and ``run_blocks`` runs the tutorials' shell and Python steps on shortened runs while the site is
 built, so that a step that stops working fails the build.
 """
+
 from __future__ import annotations
 
 import os
@@ -20,8 +21,12 @@ sys.path.insert(0, str(DOCS / "_ext"))
 project = "Spacecraft tracking bench"
 author = "The tracking bench contributors"
 copyright = "the tracking bench contributors; Apache-2.0"
-release = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True,
-                         text=True).stdout.strip() or "unknown"
+release = (
+    subprocess.run(
+        ["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True, text=True
+    ).stdout.strip()
+    or "unknown"
+)
 
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.mathjax", "api_pages", "settings_page", "run_blocks"]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}  # .rst: the generated API pages
@@ -46,8 +51,17 @@ autodoc_typehints = "none"
 autodoc_preserve_defaults = True
 
 # api_pages: one page per package, every module that imports no ROS client library at its top level.
-api_packages = ["bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-                "bench_eval", "bench_ccsds", "bench_studies"]
+api_packages = [
+    "bench_engine",
+    "orbit_sim",
+    "bench_models",
+    "radar_sensor",
+    "tracker_filters",
+    "star_tracker",
+    "bench_eval",
+    "bench_ccsds",
+    "bench_studies",
+]
 api_source = str(ROOT / "ros_ws" / "src")
 
 # run_blocks: the steps run in a scratch copy of the repository's layout (links to .venv, scripts, foxglove,

@@ -15,6 +15,7 @@ The median is the per-step budget's measure; the mean includes the batch re-solv
 
 To bench another filter, register it in tracker_filters.registry; add a budget to TARGETS_US if it has one.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,14 +33,13 @@ from tracker_filters.registry import filter_names, make_filter
 TARGETS_US = {"ekf": 100.0, "ukf": 300.0}
 """Median per-step budgets [us] (the product brief's targets)."""
 
-CHAMP = (6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653),
-         np.radians(80.0))
+CHAMP = (6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0))
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)
 PASS_START = 4330.0
 """s after the epoch: inside the ~420 s pass of CHAMP over the station (scenario leo_radar)."""
 DT = 0.1
-R = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
+R = np.diag([1000.0, 0.017**2, 0.017**2])
 SIGMA_ACCEL = 1.0
 """m/s^1.5 (default of --sigma-accel); the per-step cost does not depend on it. ``relinearise`` needs 0."""
 
@@ -58,11 +58,18 @@ def simulate(steps: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return times, truth, z, model
 
 
-def time_filter(name: str, params: dict, times: np.ndarray, truth: np.ndarray, z: np.ndarray,
-                model: GroundRadarModel, sigma_accel: float = SIGMA_ACCEL) -> list[float]:
+def time_filter(
+    name: str,
+    params: dict,
+    times: np.ndarray,
+    truth: np.ndarray,
+    z: np.ndarray,
+    model: GroundRadarModel,
+    sigma_accel: float = SIGMA_ACCEL,
+) -> list[float]:
     """Wall-clock seconds of each ``process`` call of filter ``name`` along the simulated pass."""
     filt = make_filter(name, OrbitJ2Dynamics(sigma_accel), **params)
-    filt.initialise(truth[0], np.diag([100.0 ** 2] * 3 + [1.0] * 3), times[0])
+    filt.initialise(truth[0], np.diag([100.0**2] * 3 + [1.0] * 3), times[0])
     durations = []
     for t, zk in zip(times[1:], z):
         start = time.perf_counter()
@@ -86,16 +93,31 @@ def parse_params(items: list[str]) -> dict[str, dict[str, float]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--filters", nargs="+", default=["ekf", "ekf2", "ukf"], choices=filter_names(),
-                        help="filters to time (default: ekf ekf2 ukf)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--filters",
+        nargs="+",
+        default=["ekf", "ekf2", "ukf"],
+        choices=filter_names(),
+        help="filters to time (default: ekf ekf2 ukf)",
+    )
     parser.add_argument("--steps", type=int, default=1000, help="measurement steps per repeat (default 1000)")
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the table shows the best (default 3)")
-    parser.add_argument("--param", action="append", default=[], metavar="FILTER.NAME=VALUE",
-                        help="filter parameter, e.g. --param ukf.alpha=0.5 (repeatable)")
-    parser.add_argument("--sigma-accel", type=float, default=SIGMA_ACCEL,
-                        help=f"process noise [m/s^1.5] (default {SIGMA_ACCEL}; 0 for relinearise)")
+    parser.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="FILTER.NAME=VALUE",
+        help="filter parameter, e.g. --param ukf.alpha=0.5 (repeatable)",
+    )
+    parser.add_argument(
+        "--sigma-accel",
+        type=float,
+        default=SIGMA_ACCEL,
+        help=f"process noise [m/s^1.5] (default {SIGMA_ACCEL}; 0 for relinearise)",
+    )
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     params = parse_params(args.param)
@@ -104,8 +126,10 @@ def main() -> None:
     print(f"leo_radar, {args.steps} steps of predict {DT} s + radar update, best of {args.repeats} repeats")
     print(f"{'filter':<8}{'median us':>11}{'p90 us':>9}{'mean us':>9}{'max ms':>8}{'target us':>11}  status")
     for name in args.filters:
-        runs = [time_filter(name, params.get(name, {}), times, truth, z, model, args.sigma_accel)
-                for _ in range(args.repeats)]
+        runs = [
+            time_filter(name, params.get(name, {}), times, truth, z, model, args.sigma_accel)
+            for _ in range(args.repeats)
+        ]
         median = min(statistics.median(r) for r in runs) * 1e6
         p90 = min(float(np.percentile(r, 90)) for r in runs) * 1e6
         mean = min(statistics.fmean(r) for r in runs) * 1e6

@@ -8,6 +8,7 @@ Targets: PF with N = 10 000 ≤ 5 ms, CQKF n' = 2 on the 9-state model ≤ 300 �
 the machine's other load inflates them, so the CPU time of this process is printed too). OpenBLAS runs
 single-threaded, as in the graph (bench_engine.launcher).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,7 +26,7 @@ from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter  # n
 from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
 
 N_MEAN_MOTION = 2.0 * np.pi / 7200.0
-R = np.diag([0.02 ** 2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
+R = np.diag([0.02**2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
 
 
 def time_steps(f: Filter, dim: int, steps: int, warmup: int, seed: int) -> tuple[float, float, float]:
@@ -62,26 +63,43 @@ def main() -> None:
     cw = CWDynamics(N_MEAN_MOTION, sigma_accel=1e-3)
     cw_bias = CWBiasDynamics(N_MEAN_MOTION, sigma_accel=1e-3, sigma_bias=1e-6)
     cases = [
-        ("pf", "CW 6", f"N={args.particles}", 5e-3,
-         RegularisedParticleFilter(cw, n_particles=args.particles, seed=args.seed)),
-        ("sir", "CW 6", f"N={args.particles}", None,
-         SIRParticleFilter(cw, n_particles=args.particles, seed=args.seed)),
-        ("cqkf", "CW+bias 9", f"n'={args.order}, {2 * 9 * args.order} pts", 300e-6,
-         CubatureQuadratureKF(cw_bias, order=args.order)),
-        ("cqkf", "CW 6", f"n'={args.order}, {2 * 6 * args.order} pts", None,
-         CubatureQuadratureKF(cw, order=args.order)),
+        (
+            "pf",
+            "CW 6",
+            f"N={args.particles}",
+            5e-3,
+            RegularisedParticleFilter(cw, n_particles=args.particles, seed=args.seed),
+        ),
+        ("sir", "CW 6", f"N={args.particles}", None, SIRParticleFilter(cw, n_particles=args.particles, seed=args.seed)),
+        (
+            "cqkf",
+            "CW+bias 9",
+            f"n'={args.order}, {2 * 9 * args.order} pts",
+            300e-6,
+            CubatureQuadratureKF(cw_bias, order=args.order),
+        ),
+        (
+            "cqkf",
+            "CW 6",
+            f"n'={args.order}, {2 * 6 * args.order} pts",
+            None,
+            CubatureQuadratureKF(cw, order=args.order),
+        ),
     ]
-    print(f"{'filter':<6} {'dynamics':<10} {'size':<18} {'median wall':>12} {'median cpu':>11} "
-          f"{'p90 wall':>10} {'target':>9}  ok")
+    print(
+        f"{'filter':<6} {'dynamics':<10} {'size':<18} {'median wall':>12} {'median cpu':>11} "
+        f"{'p90 wall':>10} {'target':>9}  ok"
+    )
     for name, dyn_name, size, target, f in cases:
         dim = len(f.dynamics.labels)
         wall, cpu, p90 = time_steps(f, dim, args.steps, args.warmup, args.seed)
         target_text = "-" if target is None else _fmt(target)
         ok = "-" if target is None else ("yes" if wall <= target else "NO")
-        print(f"{name:<6} {dyn_name:<10} {size:<18} {_fmt(wall):>12} {_fmt(cpu):>11} {_fmt(p90):>10} "
-              f"{target_text:>9}  {ok}")
-    print("models: bench_models.relative_dynamics CWDynamics / CWBiasDynamics, "
-          "bench_models.isl.RangeAzElModel")
+        print(
+            f"{name:<6} {dyn_name:<10} {size:<18} {_fmt(wall):>12} {_fmt(cpu):>11} {_fmt(p90):>10} "
+            f"{target_text:>9}  {ok}"
+        )
+    print("models: bench_models.relative_dynamics CWDynamics / CWBiasDynamics, bench_models.isl.RangeAzElModel")
 
 
 def _fmt(seconds: float) -> str:

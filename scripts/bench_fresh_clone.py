@@ -15,6 +15,7 @@ Examples:
   .venv/bin/python scripts/bench_fresh_clone.py --test-runs 5          # five fresh-clone make test, in turn
   .venv/bin/python scripts/bench_fresh_clone.py --demo --test-runs 1 --cold-cache
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,6 +37,7 @@ PYTEST_SUMMARY = re.compile(r"^=*\s*((?:\d+ \w+(?:, )?)+) in [\d.]+s", re.MULTIL
 @dataclass(frozen=True)
 class Timing:
     """One fresh-clone run of a make target."""
+
     target: str
     wall_s: float
     setup_s: float | None
@@ -65,16 +67,19 @@ def time_target(target: str, rev: str, cold_cache: bool, keep: bool) -> Timing:
     try:
         clone = _clone(rev, scratch)
         start = time.monotonic()
-        result = subprocess.run(["make", target], cwd=clone, env=_environment(scratch, cold_cache),
-                                capture_output=True, text=True)
+        result = subprocess.run(
+            ["make", target], cwd=clone, env=_environment(scratch, cold_cache), capture_output=True, text=True
+        )
         wall = time.monotonic() - start
         (scratch / f"make-{target}.log").write_text(result.stdout + result.stderr)
         setup = SETUP_READY.search(result.stdout + result.stderr)
         summary = PYTEST_SUMMARY.findall(result.stdout)
         outcome = summary[-1] if summary else ("ok" if result.returncode == 0 else f"exit {result.returncode}")
         if result.returncode != 0:
-            print(f"[fresh] make {target} failed (exit {result.returncode}); log: {scratch}/make-{target}.log",
-                  file=sys.stderr)
+            print(
+                f"[fresh] make {target} failed (exit {result.returncode}); log: {scratch}/make-{target}.log",
+                file=sys.stderr,
+            )
             keep = True
         return Timing(target, wall, float(setup.group(1)) if setup else None, outcome, result.returncode == 0)
     finally:
@@ -83,15 +88,28 @@ def time_target(target: str, rev: str, cold_cache: bool, keep: bool) -> Timing:
 
 
 def _machine() -> str:
-    model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                  if line.startswith("model name")), "unknown CPU") if Path("/proc/cpuinfo").is_file() else "?"
+    model = (
+        next(
+            (
+                line.split(":", 1)[1].strip()
+                for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")
+            ),
+            "unknown CPU",
+        )
+        if Path("/proc/cpuinfo").is_file()
+        else "?"
+    )
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     return f"{os.cpu_count()} CPUs, {model}, load average {load} at the start"
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("Examples:")[1],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog=__doc__.split("Examples:")[1],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--demo", action="store_true", help="time one fresh-clone `make demo`")
     p.add_argument("--test-runs", type=int, default=0, metavar="N", help="time N fresh-clone `make test`, in turn")
     p.add_argument("--rev", default="HEAD", help="the commit to clone (default HEAD)")
@@ -100,8 +118,9 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if not args.demo and args.test_runs < 1:
         p.error("nothing to time: give --demo and/or --test-runs N (N >= 1)")
-    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short=12", args.rev], capture_output=True,
-                         text=True, check=True).stdout.strip()
+    rev = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--short=12", args.rev], capture_output=True, text=True, check=True
+    ).stdout.strip()
     print(f"commit {rev}; {_machine()}; package caches {'cold' if args.cold_cache else 'warm'}")
     print("| command | run | wall [s] | of which setup [s] | outcome |\n|---|---|---|---|---|", flush=True)
     targets = (["demo"] if args.demo else []) + ["test"] * args.test_runs

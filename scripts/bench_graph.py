@@ -9,6 +9,7 @@ Example:
   .venv/bin/python scripts/bench_graph.py                       # leo_radar, 420 s pass at 10 Hz, EKF + UKF
   .venv/bin/python scripts/bench_graph.py --repeat 3 --modes single-process
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,18 +23,34 @@ from pathlib import Path
 
 
 from bench_engine import yamlio
+
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 LAUNCH = Path(__file__).resolve().parent / "launch.py"
-MODES = {"multi-process": [], "single-process": ["--single-process"],
-         "single-process-unpinned": ["--single-process", "--no-pin"]}
+MODES = {
+    "multi-process": [],
+    "single-process": ["--single-process"],
+    "single-process-unpinned": ["--single-process", "--no-pin"],
+}
 
 
 def one_run(scenario: str, mode: str, estimators: str, domain: int, extra: list[str]) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        cmd = [sys.executable, str(LAUNCH), scenario, "--out", str(out), "--domain-id", str(domain), "--no-score",
-               "--estimators", estimators, *MODES[mode], *extra]
+        cmd = [
+            sys.executable,
+            str(LAUNCH),
+            scenario,
+            "--out",
+            str(out),
+            "--domain-id",
+            str(domain),
+            "--no-score",
+            "--estimators",
+            estimators,
+            *MODES[mode],
+            *extra,
+        ]
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode != 0:
             raise RuntimeError(f"{mode} run failed:\n{res.stderr[-2000:]}")
@@ -54,15 +71,19 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     extra = [a for o in args.overrides for a in ("--set", o)]
     print(f"{args.scenario} with {args.estimators} + recorder; {args.repeat} run(s) per mode, median")
-    print(f"{'mode':16s} {'steps':>6s} {'sim [s]':>8s} {'start-up [s]':>12s} {'stepping [s]':>12s} "
-          f"{'steps/s':>8s} {'sim/wall':>9s}")
+    print(
+        f"{'mode':16s} {'steps':>6s} {'sim [s]':>8s} {'start-up [s]':>12s} {'stepping [s]':>12s} "
+        f"{'steps/s':>8s} {'sim/wall':>9s}"
+    )
     for mode in args.modes.split(","):
         runs = [one_run(args.scenario, mode, args.estimators, args.domain_id, extra) for _ in range(args.repeat)]
         startup = statistics.median(r["startup_s"] for r in runs)
         stepping = statistics.median(r["stepping_s"] for r in runs)
         steps, sim = runs[0]["steps"], runs[0]["sim_s"]
-        print(f"{mode:16s} {steps:6d} {sim:8.1f} {startup:12.2f} {stepping:12.2f} {steps / stepping:8.0f} "
-              f"{sim / stepping:8.0f}x")
+        print(
+            f"{mode:16s} {steps:6d} {sim:8.1f} {startup:12.2f} {stepping:12.2f} {steps / stepping:8.0f} "
+            f"{sim / stepping:8.0f}x"
+        )
     return 0
 
 

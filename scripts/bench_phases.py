@@ -26,6 +26,7 @@ Example:
   .venv/bin/python scripts/bench_phases.py                          # leo_radar, 10-run Monte Carlo, 2 jobs
   .venv/bin/python scripts/bench_phases.py --runs 20 --modes multi-process,montecarlo
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,8 +44,19 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 from bench_engine import phases  # noqa: E402
 
 SCRIPTS = Path(__file__).resolve().parent
-PHASES = ("interpreter + imports", "validation", "process spawn", "node set-up", "discovery + readiness",
-          "stepping", "drain", "bag close", "shutdown", "scoring", "exit")
+PHASES = (
+    "interpreter + imports",
+    "validation",
+    "process spawn",
+    "node set-up",
+    "discovery + readiness",
+    "stepping",
+    "drain",
+    "bag close",
+    "shutdown",
+    "scoring",
+    "exit",
+)
 LAUNCH_MODES = {"multi-process": [], "fresh-nodes": ["--fresh-nodes"], "single-process": ["--single-process"]}
 
 
@@ -69,8 +81,7 @@ def run_phases(records: list[dict], start: float, end: float | None, after_run: 
         ("interpreter + imports", _first(launcher, "imported")),
         ("validation", _first(launcher, "validated")),
         ("process spawn", _last(nodes, "imported") if spawned_processes else _first(launcher, "spawned")),
-        ("node set-up", _last(nodes, "node_created") if spawned_processes
-         else _first(launcher, "node_created")),
+        ("node set-up", _last(nodes, "node_created") if spawned_processes else _first(launcher, "node_created")),
         ("discovery + readiness", _first(records, "stepping_start")),
         ("stepping", _first(records, "stepping_end")),
         ("drain", _first(records, "bag_close_start")),
@@ -112,8 +123,18 @@ def one_launch(scenario: str, mode: str, extra: list[str], tmp: Path) -> tuple[d
 
 def montecarlo(scenario: str, runs: int, jobs: int, extra: list[str], tmp: Path) -> dict:
     out = tmp / "mc"
-    cmd = [sys.executable, str(SCRIPTS / "montecarlo.py"), scenario, "--runs", str(runs), "--jobs", str(jobs),
-           "--out", str(out), *extra]
+    cmd = [
+        sys.executable,
+        str(SCRIPTS / "montecarlo.py"),
+        scenario,
+        "--runs",
+        str(runs),
+        "--jobs",
+        str(jobs),
+        "--out",
+        str(out),
+        *extra,
+    ]
     records, start, end = timed(cmd, tmp / "mc.jsonl")
     mc = [r for r in records if r["who"] == "montecarlo"]
     by_run: dict[str, list[dict]] = {}
@@ -127,22 +148,29 @@ def montecarlo(scenario: str, runs: int, jobs: int, extra: list[str], tmp: Path)
     steppings = [json.loads((Path(run) / "timing.json").read_text())["stepping_s"] for run in by_run]
     return {
         "wall": end - start,
-        "command": {"interpreter + imports": _first(mc, "imported") - start,
-                    "validation": _first(mc, "validated") - _first(mc, "imported"),
-                    "runs": _first(mc, "runs_done") - _first(mc, "validated"),
-                    "scoring": _first(mc, "scored") - _first(mc, "runs_done"),
-                    "report": _first(mc, "reported") - _first(mc, "scored"),
-                    "exit": end - _first(mc, "reported")},
+        "command": {
+            "interpreter + imports": _first(mc, "imported") - start,
+            "validation": _first(mc, "validated") - _first(mc, "imported"),
+            "runs": _first(mc, "runs_done") - _first(mc, "validated"),
+            "scoring": _first(mc, "scored") - _first(mc, "runs_done"),
+            "report": _first(mc, "reported") - _first(mc, "scored"),
+            "exit": end - _first(mc, "reported"),
+        },
         "per_run": {p: statistics.mean(r[p] for r in per_run) for p in PHASES},
         "per_run_wall": statistics.mean(sum(r.values()) for r in per_run),
-        "stepping_sum": sum(steppings), "stepping_mean": statistics.mean(steppings)}
+        "stepping_sum": sum(steppings),
+        "stepping_mean": statistics.mean(steppings),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", default="leo_radar")
-    p.add_argument("--modes", default="multi-process,fresh-nodes,single-process,montecarlo",
-                   help="comma-separated subset of multi-process, fresh-nodes, single-process, montecarlo")
+    p.add_argument(
+        "--modes",
+        default="multi-process,fresh-nodes,single-process,montecarlo",
+        help="comma-separated subset of multi-process, fresh-nodes, single-process, montecarlo",
+    )
     p.add_argument("--repeat", type=int, default=1, help="launches per mode (the median of each phase is printed)")
     p.add_argument("--runs", type=int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--jobs", type=int, default=2, help="Monte Carlo jobs (default 2)")
@@ -163,19 +191,27 @@ def main(argv: list[str] | None = None) -> int:
             for i in range(args.repeat):
                 (tmp / str(i)).mkdir(exist_ok=True)
                 runs.append(one_launch(args.scenario, mode, extra, tmp / str(i)))
-            launches[mode] = {"phases": {ph: statistics.median(r[0][ph] for r in runs) for ph in PHASES},
-                              "wall": statistics.median(r[1] for r in runs),
-                              "stepping": statistics.median(r[2] for r in runs)}
+            launches[mode] = {
+                "phases": {ph: statistics.median(r[0][ph] for r in runs) for ph in PHASES},
+                "wall": statistics.median(r[1] for r in runs),
+                "stepping": statistics.median(r[2] for r in runs),
+            }
         if launches:
-            print(f"launch.py {args.scenario} {' '.join(extra)}: wall time by phase [s] "
-                  f"(median of {args.repeat}; {os.cpu_count()} CPUs)")
+            print(
+                f"launch.py {args.scenario} {' '.join(extra)}: wall time by phase [s] "
+                f"(median of {args.repeat}; {os.cpu_count()} CPUs)"
+            )
             print(f"{'phase':24s}" + "".join(f"{m:>22s}" for m in launches))
             for ph in PHASES:
-                print(f"{ph:24s}" + "".join(f"{v['phases'][ph]:14.2f} ({100 * v['phases'][ph] / v['wall']:3.0f} %)"
-                                            for v in launches.values()))
+                print(
+                    f"{ph:24s}"
+                    + "".join(
+                        f"{v['phases'][ph]:14.2f} ({100 * v['phases'][ph] / v['wall']:3.0f} %)"
+                        for v in launches.values()
+                    )
+                )
             print(f"{'wall':24s}" + "".join(f"{v['wall']:22.2f}" for v in launches.values()))
-            print(f"{'wall / stepping':24s}" + "".join(f"{v['wall'] / v['stepping']:22.2f}"
-                                                      for v in launches.values()))
+            print(f"{'wall / stepping':24s}" + "".join(f"{v['wall'] / v['stepping']:22.2f}" for v in launches.values()))
             print()
         result["launch"] = launches
         if "montecarlo" in modes:
@@ -186,15 +222,19 @@ def main(argv: list[str] | None = None) -> int:
             for ph in PHASES:
                 if ph not in ("scoring",):
                     print(f"    {ph:24s}{mc['per_run'][ph]:8.2f}")
-            print(f"    {'run wall':24s}{mc['per_run_wall']:8.2f}   (stepping "
-                  f"{mc['stepping_mean']:.2f}: run wall / stepping {mc['per_run_wall'] / mc['stepping_mean']:.2f})")
+            print(
+                f"    {'run wall':24s}{mc['per_run_wall']:8.2f}   (stepping "
+                f"{mc['stepping_mean']:.2f}: run wall / stepping {mc['per_run_wall'] / mc['stepping_mean']:.2f})"
+            )
             print("  the command [s]:")
             for name, value in mc["command"].items():
                 print(f"    {name:24s}{value:8.2f}")
             print(f"    {'wall':24s}{mc['wall']:8.2f}")
-            print(f"  Monte Carlo wall / (stepping / jobs) = {mc['wall']:.1f} / ({mc['stepping_sum']:.1f} / "
-                  f"{args.jobs}) = {mc['wall'] / (mc['stepping_sum'] / args.jobs):.2f}; runs only "
-                  f"{mc['command']['runs'] / (mc['stepping_sum'] / args.jobs):.2f}")
+            print(
+                f"  Monte Carlo wall / (stepping / jobs) = {mc['wall']:.1f} / ({mc['stepping_sum']:.1f} / "
+                f"{args.jobs}) = {mc['wall'] / (mc['stepping_sum'] / args.jobs):.2f}; runs only "
+                f"{mc['command']['runs'] / (mc['stepping_sum'] / args.jobs):.2f}"
+            )
     if args.json:
         print(json.dumps(result, indent=1))
     return 0

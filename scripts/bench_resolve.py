@@ -9,6 +9,7 @@ one ``linearise`` at the true state at t0 (ms, and us per scan) and one full ``s
     .venv/bin/python scripts/bench_resolve.py                       # N = 500 1000 2000 4000
     .venv/bin/python scripts/bench_resolve.py --scans 4000 --generic # the per-scan loop, for comparison
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,20 +49,28 @@ def best_time(fn, repeats: int) -> tuple[float, object]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog=__doc__.split("\n\n", 1)[1])
-    parser.add_argument("--scans", type=int, nargs="+", default=[500, 1000, 2000, 4000],
-                        help="numbers of stored scans (default 500 1000 2000 4000; capped at the pass's)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 1)[1],
+    )
+    parser.add_argument(
+        "--scans",
+        type=int,
+        nargs="+",
+        default=[500, 1000, 2000, 4000],
+        help="numbers of stored scans (default 500 1000 2000 4000; capped at the pass's)",
+    )
     parser.add_argument("--repeats", type=int, default=3, help="repeats; the best is shown (default 3)")
-    parser.add_argument("--generic", action="store_true",
-                        help="force the per-scan loop (PassBatch(vectorised=False))")
+    parser.add_argument("--generic", action="store_true", help="force the per-scan loop (PassBatch(vectorised=False))")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     dynamics, (m0, P0, t0), x_t0, scans, R, model = pass_scans(args.seed)
     options = {"vectorised": False} if args.generic else {}
-    print(f"leo_radar: {len(scans)} scans after the first; {'generic loop' if args.generic else 'default path'}"
-          f", best of {args.repeats}")
+    print(
+        f"leo_radar: {len(scans)} scans after the first; {'generic loop' if args.generic else 'default path'}"
+        f", best of {args.repeats}"
+    )
     print(f"{'scans':>6}{'linearise ms':>14}{'us/scan':>9}{'solve ms':>10}{'passes':>8}")
     for n in args.scans:
         n = min(n, len(scans))

@@ -14,6 +14,7 @@ lost-in-space frame included), its range over the repeats and the median and p90
 Budget (issue 8): the JPDAF at most 5 ms per frame. Nothing is asserted: on a shared machine the times are
 upper bounds.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,8 +38,9 @@ def time_cores(cfg: dict, filters: list[str], seed: int) -> dict[str, np.ndarray
     context = {"scenario": cfg, "seed": seed}
     trackers = read_trackers(cfg)
     stages = {name: (TRUTH_TOPIC, STAR_CAMERA.stage(cfg, name, context)) for name in read_cameras(cfg)}
-    stages.update({name: (measurement_topic(trackers[name].camera), StarTrackerStage(cfg, name, context))
-                   for name in filters})
+    stages.update(
+        {name: (measurement_topic(trackers[name].camera), StarTrackerStage(cfg, name, context)) for name in filters}
+    )
     ms: dict[str, list[float]] = {name: [] for name in stages}
     for k in range(len(sensors[TRUTH_TOPIC])):
         for name, (topic, stage) in stages.items():
@@ -50,8 +52,9 @@ def time_cores(cfg: dict, filters: list[str], seed: int) -> dict[str, np.ndarray
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__
+    )
     ap.add_argument("--scenario", default="star_tracker")
     ap.add_argument("--variant", default=None, help="the scenario's variants, comma-separated")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override (repeatable)")
@@ -66,8 +69,10 @@ def main() -> None:
     filters = [n for n in read_trackers(cfg) if n in resolve_estimators(cfg, requested)]
     runs = [time_cores(cfg, filters, seed) for _ in range(args.repeat)]
     frames = len(next(iter(runs[0].values())))
-    print(f"{args.scenario}{' --variant ' + args.variant if args.variant else ''}: {frames} frames, seed {seed}, "
-          f"{args.repeat} repeats")
+    print(
+        f"{args.scenario}{' --variant ' + args.variant if args.variant else ''}: {frames} frames, seed {seed}, "
+        f"{args.repeat} repeats"
+    )
     print(f"{'node':14s} {'mean ms/frame':>14s} {'range':>15s} {'median':>7s} {'p90':>7s}")
     total = np.zeros(args.repeat)
     for name in runs[0]:
@@ -75,10 +80,14 @@ def main() -> None:
         every = np.concatenate([r[name] for r in runs])
         if name in filters:
             total += means
-        print(f"{name:14s} {np.median(means):14.3f} {means.min():7.3f}–{means.max():<7.3f} "
-              f"{np.median(every):7.3f} {np.percentile(every, 90):7.3f}")
-    print(f"{'trackers':14s} {np.median(total):14.3f} {total.min():7.3f}–{total.max():<7.3f}"
-          f"   (JPDAF budget {JPDAF_BUDGET_MS} ms each)")
+        print(
+            f"{name:14s} {np.median(means):14.3f} {means.min():7.3f}–{means.max():<7.3f} "
+            f"{np.median(every):7.3f} {np.percentile(every, 90):7.3f}"
+        )
+    print(
+        f"{'trackers':14s} {np.median(total):14.3f} {total.min():7.3f}–{total.max():<7.3f}"
+        f"   (JPDAF budget {JPDAF_BUDGET_MS} ms each)"
+    )
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ Examples:
       --set 'filters.ukf={type: ukf, dynamics: {model: cw, sigma_accel: 0.0}}'
   .venv/bin/python scripts/bounds.py formation_cqkf --grid tables --runs 2 --out runs/bounds-cqkf
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,8 +42,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--runs", type=int, default=10, help="seeds seed0..seed0+runs-1 per case (default 10)")
     p.add_argument("--seed0", type=int, default=1, help="first seed (default 1)")
     p.add_argument("--variant", default="", help="comma-separated variants (not with --grid)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override (repeatable), e.g. --set 'filters.ukf.dynamics.sigma_accel=0.0'")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override (repeatable), e.g. --set 'filters.ukf.dynamics.sigma_accel=0.0'",
+    )
     p.add_argument("--grid", help="every cell of this sweep grid of the scenario (scripts/sweep.py's grids)")
     add_estimators_option(p)
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
@@ -59,8 +65,11 @@ def table_rows(case: str, scored: dict) -> list[str]:
     rows = []
     for est, block in scored.items():
         for bound, b in (block.get("bounds") or {}).items():
-            cells = [f"{fmt(b[g]['efficiency'])} ({fmt(b[g]['final_rmse'])} / {fmt(b[g]['final_sqrt_bound'])})"
-                     for g in ("position", "velocity") if g in b]
+            cells = [
+                f"{fmt(b[g]['efficiency'])} ({fmt(b[g]['final_rmse'])} / {fmt(b[g]['final_sqrt_bound'])})"
+                for g in ("position", "velocity")
+                if g in b
+            ]
             rows.append(f"| {case} | {est} | {bound} | " + " | ".join(cells) + " |")
     return rows
 
@@ -78,8 +87,10 @@ def main(argv: list[str] | None = None) -> int:
     estimators = names(args.estimators)
     seeds = range(args.seed0, args.seed0 + args.runs)
     print(f"{args.scenario}: {len(cases)} case(s) x {args.runs} runs (seeds {seeds[0]}..{seeds[-1]}), in process\n")
-    print("| case | estimator | bound | position: efficiency (last RMSE / √bound [m]) | velocity: efficiency (last "
-          "RMSE / √bound [m/s]) |\n|---|---|---|---|---|")
+    print(
+        "| case | estimator | bound | position: efficiency (last RMSE / √bound [m]) | velocity: efficiency (last "
+        "RMSE / √bound [m/s]) |\n|---|---|---|---|---|"
+    )
     with ProcessPoolExecutor(args.jobs) as pool:
         for case, cfg in cases:
             runs = list(pool.map(_run, [(cfg, estimators, s) for s in seeds]))

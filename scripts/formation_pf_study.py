@@ -20,6 +20,7 @@ Examples:
   .venv/bin/python scripts/formation_pf_study.py --runs 10 --out runs/formation_pf_study
   .venv/bin/python scripts/formation_pf_study.py --out runs/formation_pf_study --tabulate-only
 """
+
 from __future__ import annotations
 
 import argparse

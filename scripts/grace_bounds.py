@@ -14,6 +14,7 @@ shaded), with the square roots of both bounds over the same windows dashed.
 Example:
   .venv/bin/python scripts/grace_bounds.py --seed 1 --out runs/grace_bounds
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,11 +46,16 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x * x))) if len(x) else float("nan")
 
 
-def draw_bounds_figure(out: Path, errors: dict[str, tuple[np.ndarray, np.ndarray]],
-                       bounds: dict[str, tuple[np.ndarray, np.ndarray]], day: tuple[float, float]) -> Path:
+def draw_bounds_figure(
+    out: Path,
+    errors: dict[str, tuple[np.ndarray, np.ndarray]],
+    bounds: dict[str, tuple[np.ndarray, np.ndarray]],
+    day: tuple[float, float],
+) -> Path:
     """OUT/FIGURE: each estimator's range-rate error against the truth and each bound's standard deviation, as
     RMS over WINDOW_S windows (t in s from the run's start, values in m/s), on a log scale; outside ``day`` (the
     scoring window, s) shaded."""
+
     def draw(fig) -> None:
         ax = fig.subplots()
         for name, (t, err) in errors.items():
@@ -68,8 +74,12 @@ def draw_bounds_figure(out: Path, errors: dict[str, tuple[np.ndarray, np.ndarray
         ax.legend(fontsize=7, ncol=4)
 
     out.mkdir(parents=True, exist_ok=True)
-    return save_plot(out, Plot(FIGURE, "grace_velocity: range-rate error against the truth next to bounds (a) and "
-                                       "(b)", draw, (10.0, 5.5)))
+    return save_plot(
+        out,
+        Plot(
+            FIGURE, "grace_velocity: range-rate error against the truth next to bounds (a) and (b)", draw, (10.0, 5.5)
+        ),
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -101,13 +111,18 @@ def main(argv: list[str] | None = None) -> int:
     sd_a = smoother_bound(rts, opts.options.baseline)
     bound_a = _rms(sd_a)
     steps = len(rts.steps)
-    print(f"grace_velocity seed {args.seed} ({args.variant or 'default'}): range-rate residual [um/s] over the "
-          f"scoring window [{window.head_s:g}, {last - first - window.tail_s:g}] s ({steps} steps, the same for "
-          f"every estimator); head / tail: the first {window.head_s:g} s / last {window.tail_s:g} s of the arc")
-    print(f"bound (a) white-jerk q (RTS covariance): {bound_a * 1e6:.3f}; bound (b) truth's dynamics: "
-          f"{bound_b * 1e6:.4f}")
-    print(f"{'estimator':14} {'RMS vs truth':>13} {'std vs KBR':>11} {'eff. (b)':>9} {'eff. (a)':>9} {'head RMS':>11} "
-          f"{'tail RMS':>11} {'time [s]':>9}")
+    print(
+        f"grace_velocity seed {args.seed} ({args.variant or 'default'}): range-rate residual [um/s] over the "
+        f"scoring window [{window.head_s:g}, {last - first - window.tail_s:g}] s ({steps} steps, the same for "
+        f"every estimator); head / tail: the first {window.head_s:g} s / last {window.tail_s:g} s of the arc"
+    )
+    print(
+        f"bound (a) white-jerk q (RTS covariance): {bound_a * 1e6:.3f}; bound (b) truth's dynamics: {bound_b * 1e6:.4f}"
+    )
+    print(
+        f"{'estimator':14} {'RMS vs truth':>13} {'std vs KBR':>11} {'eff. (b)':>9} {'eff. (a)':>9} {'head RMS':>11} "
+        f"{'tail RMS':>11} {'time [s]':>9}"
+    )
     errors = {}
     for name in [n for n in [*(default_estimators(cfg) or []), *opts.offline] if n in scored]:
         r = residuals(day, name, opts.options)
@@ -118,15 +133,22 @@ def main(argv: list[str] | None = None) -> int:
         ends = [residuals(edges[e], name, opts.options) for e in ("head", "tail")]
         head, tail = (_rms(x["truth"]) if x is not None else float("nan") for x in ends)
         rms = _rms(r["truth"])
-        print(f"{name:14} {rms * 1e6:13.3f} {np.std(r['kbr']) * 1e6:11.3f} {bound_b / rms:9.3g} {bound_a / rms:9.3g} "
-              f"{head * 1e6:11.1f} {tail * 1e6:11.1f} {seconds.get(name, float('nan')):9.1f}")
+        print(
+            f"{name:14} {rms * 1e6:13.3f} {np.std(r['kbr']) * 1e6:11.3f} {bound_b / rms:9.3g} {bound_a / rms:9.3g} "
+            f"{head * 1e6:11.1f} {tail * 1e6:11.1f} {seconds.get(name, float('nan')):9.1f}"
+        )
     print(f"total {time.perf_counter() - start:.0f} s")
     if args.out is not None:
         rts_all = data.estimates["kf_a_rts"]
-        path = draw_bounds_figure(args.out, errors, {"bound (b)": (t_b - first, sd_b),
-                                                     "bound (a)": (rts_all.t - first,
-                                                                   smoother_bound(rts_all, opts.options.baseline))},
-                                  (window.head_s, last - first - window.tail_s))
+        path = draw_bounds_figure(
+            args.out,
+            errors,
+            {
+                "bound (b)": (t_b - first, sd_b),
+                "bound (a)": (rts_all.t - first, smoother_bound(rts_all, opts.options.baseline)),
+            },
+            (window.head_s, last - first - window.tail_s),
+        )
         print(f"figure: {path}", file=sys.stderr)
     return 0
 

@@ -8,6 +8,7 @@ values go into scenario.yaml.
 Example:
   .venv/bin/python scripts/grace_tune_methods.py --methods rts,savgol,orbit_fit_j2
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,9 +20,18 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
 from bench_engine.settings import read
 from bench_studies.grace_velocity.pair_fit import PairFitParameters
-from bench_studies.grace_velocity.tuning import (EMPIRICAL_SIGMAS, RTS_QS, SAVGOL_DEGREES, SAVGOL_WINDOWS_S,
-                                                 TUNING_SEED, measurements, orbit_fit_score, rts_score, savgol_score,
-                                                 window_of)
+from bench_studies.grace_velocity.tuning import (
+    EMPIRICAL_SIGMAS,
+    RTS_QS,
+    SAVGOL_DEGREES,
+    SAVGOL_WINDOWS_S,
+    TUNING_SEED,
+    measurements,
+    orbit_fit_score,
+    rts_score,
+    savgol_score,
+    window_of,
+)
 
 
 def _csv(values) -> str:
@@ -48,16 +58,22 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     items, truth = measurements(cfg, args.seed)
     methods = args.methods.split(",")
-    print(f"tuning seed {args.seed}: range-rate RMS against the truth [um/s], the scoring window (the arc less "
-          f"{window.head_s:g} s at its start and {window.tail_s:g} s at its end)", flush=True)
+    print(
+        f"tuning seed {args.seed}: range-rate RMS against the truth [um/s], the scoring window (the arc less "
+        f"{window.head_s:g} s at its start and {window.tail_s:g} s at its end)",
+        flush=True,
+    )
     if "rts" in methods:
         scores = {q: rts_score(cfg, "kf_a", float(q), items, truth, window) for q in args.qs.split(",")}
         for q, s in scores.items():
             print(f"  kf_a_rts q={q}: {s * 1e6:.3f}", flush=True)
         print(f"chosen kf_a_rts q = {min(scores, key=scores.get)}", flush=True)
     if "savgol" in methods:
-        scores = {(w, o): savgol_score(items, truth, float(w), int(o), window)
-                  for w in args.windows.split(",") for o in args.orders.split(",")}
+        scores = {
+            (w, o): savgol_score(items, truth, float(w), int(o), window)
+            for w in args.windows.split(",")
+            for o in args.orders.split(",")
+        }
         for (w, o), s in scores.items():
             print(f"  savgol window {w} s, degree {o}: {s * 1e6:.3f}", flush=True)
         print(f"chosen savgol (window_s, polyorder) = {min(scores, key=scores.get)}", flush=True)

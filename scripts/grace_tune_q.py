@@ -11,6 +11,7 @@ Examples:
   .venv/bin/python scripts/grace_tune_q.py
   .venv/bin/python scripts/grace_tune_q.py --variant gnss60 --qs 1e-8,1e-7,1e-6,1e-5 --seed 2
 """
+
 from __future__ import annotations
 
 import argparse

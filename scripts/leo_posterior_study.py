@@ -16,6 +16,7 @@ Examples:
   .venv/bin/python scripts/leo_posterior_study.py --runs 40 --jobs 2 --times 1,3,10,30,60 --json out.json
   .venv/bin/python scripts/leo_posterior_study.py --estimators ekf_paper,ukf_paper --plot nees.png
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,8 +44,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     add_estimators_option(p, default_text="ekf,ukf; filters of the scenario")
     p.add_argument("--samples", type=int, default=20_000, help="importance samples (default 20000)")
     p.add_argument("--iterations", type=int, default=6, help="adaptive sampling passes (default 6)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override, repeatable (e.g. sensors.radar.sigma_azimuth=4.35e-4)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override, repeatable (e.g. sensors.radar.sigma_azimuth=4.35e-4)",
+    )
     p.add_argument("--json", type=Path, help="write the per-run NEES and the summary here")
     p.add_argument("--plot", type=Path, help="write a plot of mean NEES against time here (PNG)")
     args = p.parse_args(argv)
@@ -67,8 +74,17 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    jobs = [{"seed": s, "times": args.times, "estimators": args.estimators, "overrides": args.overrides,
-             "samples": args.samples, "iterations": args.iterations} for s in range(args.runs)]
+    jobs = [
+        {
+            "seed": s,
+            "times": args.times,
+            "estimators": args.estimators,
+            "overrides": args.overrides,
+            "samples": args.samples,
+            "iterations": args.iterations,
+        }
+        for s in range(args.runs)
+    ]
     with ProcessPoolExecutor(args.jobs) as pool:
         results = list(tqdm(pool.map(one_run, jobs), total=args.runs, unit="run", desc="leo_radar posterior"))
     summary = summarise(results, args.times)

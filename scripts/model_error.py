@@ -10,6 +10,7 @@ Examples:
   .venv/bin/python scripts/model_error.py formation_cqkf --grid tables
   .venv/bin/python scripts/model_error.py formation_cqkf --variant "" --variant e0005,size10km --json
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,11 +35,22 @@ def cases_from_args(args: argparse.Namespace) -> list[tuple[str, dict]]:
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario", help="scenario name or YAML path (a formation scenario)")
-    p.add_argument("--variant", action="append", default=None, metavar="V1,V2",
-                   help="one case: variants applied in order (repeatable; \"\" = the scenario as is)")
+    p.add_argument(
+        "--variant",
+        action="append",
+        default=None,
+        metavar="V1,V2",
+        help='one case: variants applied in order (repeatable; "" = the scenario as is)',
+    )
     p.add_argument("--grid", help="one case per distinct truth of this sweep grid (the scenario's 'sweeps')")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override applied to every case, repeatable")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override applied to every case, repeatable",
+    )
     p.add_argument("--out", type=Path, help="write model_error.md and model_error.json into this directory")
     p.add_argument("--json", action="store_true", help="print the rows as JSON instead of Markdown")
     args = p.parse_args(argv)

@@ -19,6 +19,7 @@ Exit status: 0 when every mutation run was caught; 1 when one survived (or its s
 or its run errored); 2 on bad arguments or when the unmutated tests fail. With ``--list``: 0 when every listed
 mutation can be applied here (its snippet found once, its test files present), else 1.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,8 +36,16 @@ ROOT = Path(__file__).resolve().parent.parent
 SRC = "ros_ws/src"
 COPIED = ("ros_ws/src", "tests", "scripts", "pytest.ini")
 SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache", "build", "install", "log")
-PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-            "bench_eval", "bench_studies")
+PACKAGES = (
+    "bench_engine",
+    "orbit_sim",
+    "bench_models",
+    "radar_sensor",
+    "tracker_filters",
+    "star_tracker",
+    "bench_eval",
+    "bench_studies",
+)
 """The editable packages (ros_ws/src/PKG): the copy's are put on PYTHONPATH in this order."""
 
 
@@ -67,101 +76,272 @@ METRICS = f"{SRC}/bench_eval/bench_eval/metrics.py"
 WINDOW = f"{SRC}/bench_eval/bench_eval/window.py"
 DIFFERENTIATION = f"{SRC}/tracker_filters/tracker_filters/differentiation.py"
 
-SMOOTHING_TESTS = ("tests/test_smoothing.py::test_rts_equals_the_batch_least_squares_solution",
-                   "tests/test_smoothing.py::test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates",
-                   "tests/test_smoothing.py::test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_the_whole_past",
-                   "tests/test_grace_filters.py")
+SMOOTHING_TESTS = (
+    "tests/test_smoothing.py::test_rts_equals_the_batch_least_squares_solution",
+    "tests/test_smoothing.py::test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates",
+    "tests/test_smoothing.py::test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_the_whole_past",
+    "tests/test_grace_filters.py",
+)
 
 MUTATIONS = [
     # Kalman filter (tracker_filters/kf.py): the update every linear and linearised filter shares
-    Mutation("kf_update_sign", KF, "return x + K.dot(nu), IKH", "return x - K.dot(nu), IKH",
-             ("tests/test_kf_ekf_ukf.py",), "Kalman update moves against the innovation"),
-    Mutation("kf_joseph_without_KRK", KF, "IKH.dot(P).dot(IKH.T) + K.dot(R).dot(K.T)", "IKH.dot(P).dot(IKH.T)",
-             ("tests/test_kf_ekf_ukf.py",), "Joseph form without its K R K' term"),
-    Mutation("kf_innovation_cov_without_R", KF, "    S += R\n", "    S += 0.0 * R\n",
-             ("tests/test_kf_ekf_ukf.py",), "innovation covariance S = H P H' (R left out)"),
-    Mutation("kf_predict_without_Q", KF, "self.P = F.dot(self.P).dot(F.T) + Q", "self.P = F.dot(self.P).dot(F.T)",
-             ("tests/test_kf_ekf_ukf.py", "tests/test_grace_filters.py"), "prediction without process noise"),
+    Mutation(
+        "kf_update_sign",
+        KF,
+        "return x + K.dot(nu), IKH",
+        "return x - K.dot(nu), IKH",
+        ("tests/test_kf_ekf_ukf.py",),
+        "Kalman update moves against the innovation",
+    ),
+    Mutation(
+        "kf_joseph_without_KRK",
+        KF,
+        "IKH.dot(P).dot(IKH.T) + K.dot(R).dot(K.T)",
+        "IKH.dot(P).dot(IKH.T)",
+        ("tests/test_kf_ekf_ukf.py",),
+        "Joseph form without its K R K' term",
+    ),
+    Mutation(
+        "kf_innovation_cov_without_R",
+        KF,
+        "    S += R\n",
+        "    S += 0.0 * R\n",
+        ("tests/test_kf_ekf_ukf.py",),
+        "innovation covariance S = H P H' (R left out)",
+    ),
+    Mutation(
+        "kf_predict_without_Q",
+        KF,
+        "self.P = F.dot(self.P).dot(F.T) + Q",
+        "self.P = F.dot(self.P).dot(F.T)",
+        ("tests/test_kf_ekf_ukf.py", "tests/test_grace_filters.py"),
+        "prediction without process noise",
+    ),
     # ground radar h(x) (bench_models/radar.py, paper 000 eqs. 11-14)
-    Mutation("radar_azimuth_from_east", RADAR, "z = [rng, math.atan2(e, n) % _TWO_PI, math.atan2(up, horiz)]",
-             "z = [rng, math.atan2(n, e) % _TWO_PI, math.atan2(up, horiz)]",
-             ("tests/test_radar_model.py",), "azimuth measured from east instead of north (single state)"),
-    Mutation("radar_range_rate_sign", RADAR, "z.append(float(u.dot(w)) / rng)", "z.append(-float(u.dot(w)) / rng)",
-             ("tests/test_radar_model.py",), "range rate of the wrong sign"),
-    Mutation("radar_batch_elevation", RADAR, "np.arctan2(up, horiz, out=z[..., 2])",
-             "np.arctan2(horiz, up, out=z[..., 2])",
-             ("tests/test_radar_model.py",), "elevation from the zenith in the batched h (sigma points)"),
+    Mutation(
+        "radar_azimuth_from_east",
+        RADAR,
+        "z = [rng, math.atan2(e, n) % _TWO_PI, math.atan2(up, horiz)]",
+        "z = [rng, math.atan2(n, e) % _TWO_PI, math.atan2(up, horiz)]",
+        ("tests/test_radar_model.py",),
+        "azimuth measured from east instead of north (single state)",
+    ),
+    Mutation(
+        "radar_range_rate_sign",
+        RADAR,
+        "z.append(float(u.dot(w)) / rng)",
+        "z.append(-float(u.dot(w)) / rng)",
+        ("tests/test_radar_model.py",),
+        "range rate of the wrong sign",
+    ),
+    Mutation(
+        "radar_batch_elevation",
+        RADAR,
+        "np.arctan2(up, horiz, out=z[..., 2])",
+        "np.arctan2(horiz, up, out=z[..., 2])",
+        ("tests/test_radar_model.py",),
+        "elevation from the zenith in the batched h (sigma points)",
+    ),
     # grace_velocity's range-rate metric (paper 002 eq. 27)
-    Mutation("grace_residual_sign", GRACE, '"kbr": rr - z', '"kbr": z - rr',
-             ("tests/test_grace_filters.py",), "residual KBR - estimate instead of estimate - KBR"),
-    Mutation("grace_truth_residual_sign", GRACE, '"truth": rr - range_rate(truth[:, :3], truth[:, 3:])',
-             '"truth": range_rate(truth[:, :3], truth[:, 3:]) - rr',
-             ("tests/test_grace_filters.py",), "residual against the truth of the wrong sign"),
-    Mutation("grace_nees_covariance_x4", GRACE, "np.linalg.solve(P[keep], err[..., None])",
-             "np.linalg.solve(4.0 * P[keep], err[..., None])",
-             ("tests/test_grace_filters.py",), "baseline covariance multiplied by 4 before its NEES"),
-    Mutation("grace_range_rate_over_speed", GRACE, "np.sum(b * w, axis=-1) / np.linalg.norm(b, axis=-1)",
-             "np.sum(b * w, axis=-1) / np.linalg.norm(w, axis=-1)",
-             ("tests/test_grace_filters.py",), "b.w normalised by |w| instead of |b|"),
+    Mutation(
+        "grace_residual_sign",
+        GRACE,
+        '"kbr": rr - z',
+        '"kbr": z - rr',
+        ("tests/test_grace_filters.py",),
+        "residual KBR - estimate instead of estimate - KBR",
+    ),
+    Mutation(
+        "grace_truth_residual_sign",
+        GRACE,
+        '"truth": rr - range_rate(truth[:, :3], truth[:, 3:])',
+        '"truth": range_rate(truth[:, :3], truth[:, 3:]) - rr',
+        ("tests/test_grace_filters.py",),
+        "residual against the truth of the wrong sign",
+    ),
+    Mutation(
+        "grace_nees_covariance_x4",
+        GRACE,
+        "np.linalg.solve(P[keep], err[..., None])",
+        "np.linalg.solve(4.0 * P[keep], err[..., None])",
+        ("tests/test_grace_filters.py",),
+        "baseline covariance multiplied by 4 before its NEES",
+    ),
+    Mutation(
+        "grace_range_rate_over_speed",
+        GRACE,
+        "np.sum(b * w, axis=-1) / np.linalg.norm(b, axis=-1)",
+        "np.sum(b * w, axis=-1) / np.linalg.norm(w, axis=-1)",
+        ("tests/test_grace_filters.py",),
+        "b.w normalised by |w| instead of |b|",
+    ),
     # RTS smoother (tracker_filters/smoothing.py) and the fixed-lag node that uses it
-    Mutation("rts_innovation_without_F", RTS, "return F @ x, P_pred, C", "return x, P_pred, C", SMOOTHING_TESTS,
-             "smoothed mean against x_k|k, not F x_k|k"),
-    Mutation("rts_covariance_sign", RTS, "P_s = P + C @ (P_next - P_pred) @ C.T",
-             "P_s = P - C @ (P_next - P_pred) @ C.T", SMOOTHING_TESTS, "smoothed covariance correction negated"),
-    Mutation("rts_prediction_without_Q", RTS, "P_pred = F @ P @ F.T + Q", "P_pred = F @ P @ F.T",
-             SMOOTHING_TESTS, "smoother gain from a prediction without process noise"),
-    Mutation("fixed_lag_publishes_filtered", FIXED_LAG, "list(oldest.labels), x_s,", "list(oldest.labels), oldest.x,",
-             SMOOTHING_TESTS, "fixed-lag node publishes the filtered mean instead of the smoothed one"),
+    Mutation(
+        "rts_innovation_without_F",
+        RTS,
+        "return F @ x, P_pred, C",
+        "return x, P_pred, C",
+        SMOOTHING_TESTS,
+        "smoothed mean against x_k|k, not F x_k|k",
+    ),
+    Mutation(
+        "rts_covariance_sign",
+        RTS,
+        "P_s = P + C @ (P_next - P_pred) @ C.T",
+        "P_s = P - C @ (P_next - P_pred) @ C.T",
+        SMOOTHING_TESTS,
+        "smoothed covariance correction negated",
+    ),
+    Mutation(
+        "rts_prediction_without_Q",
+        RTS,
+        "P_pred = F @ P @ F.T + Q",
+        "P_pred = F @ P @ F.T",
+        SMOOTHING_TESTS,
+        "smoother gain from a prediction without process noise",
+    ),
+    Mutation(
+        "fixed_lag_publishes_filtered",
+        FIXED_LAG,
+        "list(oldest.labels), x_s,",
+        "list(oldest.labels), oldest.x,",
+        SMOOTHING_TESTS,
+        "fixed-lag node publishes the filtered mean instead of the smoothed one",
+    ),
     # Pyramid identification (star_tracker/pyramid.py)
-    Mutation("pyramid_no_handedness", PYRAMID, "tri = tri[np.sign(s_cat) == np.sign(s_obs)]", "tri = tri",
-             ("tests/test_star_pyramid.py",), "handedness check of the triangle removed (mirror images pass)"),
-    Mutation("pyramid_confirm_any_side", PYRAMID,
-             "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)",
-             "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).any(axis=1)",
-             ("tests/test_star_pyramid.py",), "4th star confirms when any side matches, not all three"),
-    Mutation("pyramid_confirm_two_sides", PYRAMID,
-             "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)",
-             "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).sum(axis=1) >= 2",
-             ("tests/test_star_pyramid.py",), "4th star confirms when two sides of three match"),
+    Mutation(
+        "pyramid_no_handedness",
+        PYRAMID,
+        "tri = tri[np.sign(s_cat) == np.sign(s_obs)]",
+        "tri = tri",
+        ("tests/test_star_pyramid.py",),
+        "handedness check of the triangle removed (mirror images pass)",
+    ),
+    Mutation(
+        "pyramid_confirm_any_side",
+        PYRAMID,
+        "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)",
+        "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).any(axis=1)",
+        ("tests/test_star_pyramid.py",),
+        "4th star confirms when any side matches, not all three",
+    ),
+    Mutation(
+        "pyramid_confirm_two_sides",
+        PYRAMID,
+        "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)",
+        "confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).sum(axis=1) >= 2",
+        ("tests/test_star_pyramid.py",),
+        "4th star confirms when two sides of three match",
+    ),
     # JPDA weights (star_tracker/jpdaf.py, the paper 003 eqs. 8-12)
-    Mutation("jpda_cluster_without_miss_factor", JPDA, "visit(r + 1, logw + log_miss, n_assigned)",
-             "visit(r + 1, logw, n_assigned)", ("tests/test_star_tracking.py",),
-             "joint events: a missed target costs nothing (1 - P_D P_G dropped)"),
-    Mutation("jpda_cluster_clutter_count", JPDA, "logw + log_clutter[m - n_assigned]", "logw + log_clutter[n_assigned]",
-             ("tests/test_star_tracking.py",), "clutter factor of the assigned count, not the left-over count"),
-    Mutation("jpda_singleton_volume", JPDA, "log_pair = log_det + (log_v - np.log(m))[own]",
-             "log_pair = log_det + log_v[own]", ("tests/test_star_tracking.py",),
-             "single-target weights: V instead of V/m for a detection"),
-    Mutation("jpda_singleton_clutter_density", JPDA, "log_pair = log_det - np.log(max(self.clutter_density, TINY_DENSITY))",
-             "log_pair = log_det + np.log(max(self.clutter_density, TINY_DENSITY))", ("tests/test_star_tracking.py",),
-             "single-target weights: lambda instead of 1/lambda"),
+    Mutation(
+        "jpda_cluster_without_miss_factor",
+        JPDA,
+        "visit(r + 1, logw + log_miss, n_assigned)",
+        "visit(r + 1, logw, n_assigned)",
+        ("tests/test_star_tracking.py",),
+        "joint events: a missed target costs nothing (1 - P_D P_G dropped)",
+    ),
+    Mutation(
+        "jpda_cluster_clutter_count",
+        JPDA,
+        "logw + log_clutter[m - n_assigned]",
+        "logw + log_clutter[n_assigned]",
+        ("tests/test_star_tracking.py",),
+        "clutter factor of the assigned count, not the left-over count",
+    ),
+    Mutation(
+        "jpda_singleton_volume",
+        JPDA,
+        "log_pair = log_det + (log_v - np.log(m))[own]",
+        "log_pair = log_det + log_v[own]",
+        ("tests/test_star_tracking.py",),
+        "single-target weights: V instead of V/m for a detection",
+    ),
+    Mutation(
+        "jpda_singleton_clutter_density",
+        JPDA,
+        "log_pair = log_det - np.log(max(self.clutter_density, TINY_DENSITY))",
+        "log_pair = log_det + np.log(max(self.clutter_density, TINY_DENSITY))",
+        ("tests/test_star_tracking.py",),
+        "single-target weights: lambda instead of 1/lambda",
+    ),
     # CQKF points (tracker_filters/cubature.py, cqkf.py; paper 004)
-    Mutation("cqkf_points_transposed_factor", CQKF, "return self.x + self._xi @ S.T", "return self.x + self._xi @ S",
-             ("tests/test_cqkf.py",), "points x + S' xi: the transposed Cholesky factor"),
-    Mutation("cubature_radius", CUBATURE, "np.sqrt(2.0 * nodes)", "np.sqrt(nodes)",
-             ("tests/test_cqkf.py",), "radial points sqrt(lambda) instead of sqrt(2 lambda)"),
-    Mutation("cubature_weights", CUBATURE, "radial_weights / (2.0 * n * gamma(n / 2.0))", "radial_weights / (2.0 * n)",
-             ("tests/test_cqkf.py",), "weights without the 1/Gamma(n/2) normalisation"),
-    Mutation("cqkf_update_half_gain_term", CQKF, "self.P = self.P - K @ P_yy @ K.T",
-             "self.P = self.P - 0.5 * K @ P_yy @ K.T", ("tests/test_cqkf.py",), "CQKF covariance update halved"),
+    Mutation(
+        "cqkf_points_transposed_factor",
+        CQKF,
+        "return self.x + self._xi @ S.T",
+        "return self.x + self._xi @ S",
+        ("tests/test_cqkf.py",),
+        "points x + S' xi: the transposed Cholesky factor",
+    ),
+    Mutation(
+        "cubature_radius",
+        CUBATURE,
+        "np.sqrt(2.0 * nodes)",
+        "np.sqrt(nodes)",
+        ("tests/test_cqkf.py",),
+        "radial points sqrt(lambda) instead of sqrt(2 lambda)",
+    ),
+    Mutation(
+        "cubature_weights",
+        CUBATURE,
+        "radial_weights / (2.0 * n * gamma(n / 2.0))",
+        "radial_weights / (2.0 * n)",
+        ("tests/test_cqkf.py",),
+        "weights without the 1/Gamma(n/2) normalisation",
+    ),
+    Mutation(
+        "cqkf_update_half_gain_term",
+        CQKF,
+        "self.P = self.P - K @ P_yy @ K.T",
+        "self.P = self.P - 0.5 * K @ P_yy @ K.T",
+        ("tests/test_cqkf.py",),
+        "CQKF covariance update halved",
+    ),
     # SIR particle filter (tracker_filters/pf.py)
-    Mutation("sir_without_process_noise", PF, "noise = sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
-             "noise = 0.0 * sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
-             ("tests/test_pf.py",), "SIR prediction without its draw of Q"),
+    Mutation(
+        "sir_without_process_noise",
+        PF,
+        "noise = sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
+        "noise = 0.0 * sampling_factor(Q) @ self._rng.standard_normal(self._cols.shape)",
+        ("tests/test_pf.py",),
+        "SIR prediction without its draw of Q",
+    ),
     # effective samples of a NEES time average (bench_eval/metrics.py, BDA3 section 11.5)
-    Mutation("ess_without_between_runs", METRICS,
-             "var_plus = within * (n - 1) / n + (float(np.var(means, ddof=1)) if len(x) > 1 else 0.0)",
-             "var_plus = within * (n - 1) / n", ("tests/test_metrics.py",),
-             "effective samples blind to the spread of the runs' means"),
-    Mutation("ess_counts_every_step", METRICS, "return total / max(tau, 1.0)", "return float(total)",
-             ("tests/test_metrics.py",), "effective samples count every step"),
+    Mutation(
+        "ess_without_between_runs",
+        METRICS,
+        "var_plus = within * (n - 1) / n + (float(np.var(means, ddof=1)) if len(x) > 1 else 0.0)",
+        "var_plus = within * (n - 1) / n",
+        ("tests/test_metrics.py",),
+        "effective samples blind to the spread of the runs' means",
+    ),
+    Mutation(
+        "ess_counts_every_step",
+        METRICS,
+        "return total / max(tau, 1.0)",
+        "return float(total)",
+        ("tests/test_metrics.py",),
+        "effective samples count every step",
+    ),
     # the scoring window (bench_eval/window.py) and Savitzky-Golay's weights (issue 28)
-    Mutation("window_each_own_steps", WINDOW, "_rows(estimates[name], np.isin(estimates[name].steps, common))",
-             "_rows(estimates[name], _finite(estimates[name]))", ("tests/test_scoring_window.py",),
-             "each estimator scored over its own steps of the window, not the common ones"),
-    Mutation("savgol_unscaled_slope", DIFFERENTIATION, "legendre.legval((np.asarray(at, dtype=float) - half) / half, "
-             "basis_slope).T / half", "legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T",
-             ("tests/test_grace_filters.py",), "Savitzky-Golay slope without du/dk (the window's half-width)"),
+    Mutation(
+        "window_each_own_steps",
+        WINDOW,
+        "_rows(estimates[name], np.isin(estimates[name].steps, common))",
+        "_rows(estimates[name], _finite(estimates[name]))",
+        ("tests/test_scoring_window.py",),
+        "each estimator scored over its own steps of the window, not the common ones",
+    ),
+    Mutation(
+        "savgol_unscaled_slope",
+        DIFFERENTIATION,
+        "legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T / half",
+        "legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T",
+        ("tests/test_grace_filters.py",),
+        "Savitzky-Golay slope without du/dk (the window's half-width)",
+    ),
 ]
 
 
@@ -171,21 +351,35 @@ def _fail(message: str, status: int = 2) -> SystemExit:
 
 
 def _parse(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__,
-                                epilog="Mutations: " + ", ".join(m.name for m in MUTATIONS),
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        description=__doc__,
+        epilog="Mutations: " + ", ".join(m.name for m in MUTATIONS),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--list", action="store_true", help="list the mutations and their tests, run nothing")
     p.add_argument("--only", metavar="NAME[,NAME…]", help="run only these mutations (comma-separated names)")
-    p.add_argument("--tests", nargs="+", metavar="TEST",
-                   help="run these pytest arguments (files, node ids) for every chosen mutation instead of each "
-                        "one's own list: does this one test catch them?")
-    p.add_argument("--rev", metavar="REV",
-                   help="mutate this git revision (git archive) instead of the working tree. Its components are "
-                        "registered by this checkout's installed metadata (make setup), so a revision whose entry "
-                        "points differ may fail its unmutated run; pass --tests to leave such tests out")
-    p.add_argument("--timeout", type=float, default=900.0, metavar="S",
-                   help="seconds one mutation's tests may take (default 900); past it the run counts as caught "
-                        "(TIMEOUT: a hang fails a test suite too)")
+    p.add_argument(
+        "--tests",
+        nargs="+",
+        metavar="TEST",
+        help="run these pytest arguments (files, node ids) for every chosen mutation instead of each "
+        "one's own list: does this one test catch them?",
+    )
+    p.add_argument(
+        "--rev",
+        metavar="REV",
+        help="mutate this git revision (git archive) instead of the working tree. Its components are "
+        "registered by this checkout's installed metadata (make setup), so a revision whose entry "
+        "points differ may fail its unmutated run; pass --tests to leave such tests out",
+    )
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=900.0,
+        metavar="S",
+        help="seconds one mutation's tests may take (default 900); past it the run counts as caught "
+        "(TIMEOUT: a hang fails a test suite too)",
+    )
     p.add_argument("--keep", action="store_true", help="keep the scratch directory (its path is printed)")
     return p.parse_args(argv)
 
@@ -212,8 +406,9 @@ def _copy_tree(dest: Path, rev: str | None) -> None:
             elif src.is_file():
                 shutil.copy2(src, dest / rel)
         return
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev, *COPIED],
-                             capture_output=True, check=False)
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", "--format=tar", rev, *COPIED], capture_output=True, check=False
+    )
     if archive.returncode != 0:
         raise _fail(f"git archive {rev} failed: {archive.stderr.decode().strip()}")
     subprocess.run(["tar", "-x", "-C", str(dest)], input=archive.stdout, check=True)
@@ -222,15 +417,20 @@ def _copy_tree(dest: Path, rev: str | None) -> None:
 def _environment(tree: Path) -> dict[str, str]:
     paths = [str(tree / SRC / pkg) for pkg in PACKAGES]
     old = os.environ.get("PYTHONPATH")
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(paths + ([old] if old else [])),
-                ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", OPENBLAS_NUM_THREADS="1")
+    return dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(paths + ([old] if old else [])),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        OPENBLAS_NUM_THREADS="1",
+    )
 
 
 def _check_imports(tree: Path, env: dict[str, str]) -> None:
     """The copy's packages, not the checkout's, must be the ones imported."""
     code = "import importlib, sys\nfor p in sys.argv[1:]:\n    print(importlib.import_module(p).__file__)"
-    out = subprocess.run([sys.executable, "-c", code, *PACKAGES], capture_output=True, text=True, env=env,
-                         cwd=tree, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *PACKAGES], capture_output=True, text=True, env=env, cwd=tree, check=False
+    )
     files = out.stdout.split()
     if out.returncode != 0 or len(files) != len(PACKAGES) or not all(Path(f).is_relative_to(tree) for f in files):
         raise _fail(f"the scratch copy's packages are not the ones imported:\n{out.stdout}{out.stderr}")
@@ -275,8 +475,10 @@ def main(argv: list[str] | None = None) -> int:
             state = "" if count == 1 else f"  [cannot apply here: snippet found {count} times]"
             state += f"  [no test file {', '.join(missing)}]" if missing else ""
             applicable &= not state
-            print(f"{m.name}{state}\n    {m.file}: {m.what}\n    - {m.original.strip()}\n"
-                  f"    + {m.mutated.strip()}\n    tests: {' '.join(m.tests)}")
+            print(
+                f"{m.name}{state}\n    {m.file}: {m.what}\n    - {m.original.strip()}\n"
+                f"    + {m.mutated.strip()}\n    tests: {' '.join(m.tests)}"
+            )
         return 0 if applicable else 1
     scratch = Path(tempfile.mkdtemp(prefix="bench-mutate-"))
     try:
@@ -285,8 +487,11 @@ def main(argv: list[str] | None = None) -> int:
         env = _environment(pristine)
         _check_imports(pristine, env)
         tests = tuple(dict.fromkeys(t for m in chosen for t in m.tests))
-        print(f"scratch copy: {pristine} ({args.rev or 'working tree'}); unmutated run of {len(tests)} test "
-              f"selections ...", flush=True)
+        print(
+            f"scratch copy: {pristine} ({args.rev or 'working tree'}); unmutated run of {len(tests)} test "
+            f"selections ...",
+            flush=True,
+        )
         start = time.monotonic()
         rc, output = _pytest(pristine, env, tests, args.timeout * 2)
         if rc != 0:
@@ -298,7 +503,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{'mutation':<{width}}  {'result':<10}  {'seconds':>7}  caught by / note", flush=True)
         for i, m in enumerate(chosen):
             tree = scratch / f"m{i:02d}"
-            shutil.copytree(pristine, tree)                 # the pristine copy's bytecode stays valid: mtimes kept
+            shutil.copytree(pristine, tree)  # the pristine copy's bytecode stays valid: mtimes kept
             start = time.monotonic()
             problem = _apply(tree / m.file, m)
             if problem is not None:

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """The command bench_sweep run from the repository: same flags, output and exit codes. Its logic, options and
 examples: bench_eval/cli/sweep.py (or --help)."""
+
 from bench_eval.cli.sweep import command
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ References are stored compactly (``save``/``load``: the columns as arrays of one
 rounded to float32, whose relative precision 2**-24 = 6e-8 is well below the tolerance used, so the rounding never
 decides a comparison: test_bag_regression.py's regeneration checks it).
 """
+
 from __future__ import annotations
 
 import io
@@ -37,13 +38,14 @@ from rosbags.highlevel import AnyReader
 KEY_VALUE = "diagnostic_msgs/msg/KeyValue"
 STORED_FLOAT = np.float32
 """Reference floats are stored at this precision (relative 2**-24 = 6e-8)."""
-STORED_RTOL = 2.0 ** -24
+STORED_RTOL = 2.0**-24
 
 
 @dataclass
 class Column:
     """One field path of one topic over its messages: ``values`` one entry per message that has the path (an
     array for array fields); ``floats`` whether compared with a tolerance."""
+
     floats: bool
     values: list = field(default_factory=list)
     present: list[int] = field(default_factory=list)
@@ -107,6 +109,7 @@ def read(bag: Path) -> dict[str, Topic]:
 
 # --- scales -------------------------------------------------------------------------------------------------
 
+
 def _finite_max_abs(a: np.ndarray, axis=None) -> np.ndarray:
     a = np.where(np.isfinite(a), np.abs(a), 0.0)
     return a.max(axis=axis) if a.size else np.zeros(() if axis is None else a.shape[1:])
@@ -128,9 +131,11 @@ def scale(path: str, values: list[np.ndarray]) -> np.ndarray:
 
 # --- comparison ---------------------------------------------------------------------------------------------
 
+
 @dataclass
 class Deviation:
     """The largest deviation of a float column, in units of its scale."""
+
     topic: str
     path: str
     scaled: float
@@ -142,20 +147,20 @@ def _describe(v) -> str:
     return text if len(text) < 120 else text[:117] + "..."
 
 
-def compare(found: dict[str, Topic], reference: dict[str, Topic], rtol: float
-            ) -> tuple[list[str], list[Deviation]]:
+def compare(found: dict[str, Topic], reference: dict[str, Topic], rtol: float) -> tuple[list[str], list[Deviation]]:
     """(every difference beyond the rules above, one line each; each float column's largest deviation in units
     of its scale, largest first). ``reference`` gives the scales."""
     problems: list[str] = []
     deviations: list[Deviation] = []
     if sorted(found) != sorted(reference):
-        problems.append(f"topics differ: only found {sorted(set(found) - set(reference))}, "
-                        f"only in the reference {sorted(set(reference) - set(found))}")
+        problems.append(
+            f"topics differ: only found {sorted(set(found) - set(reference))}, "
+            f"only in the reference {sorted(set(reference) - set(found))}"
+        )
     for name in sorted(set(found) & set(reference)):
         got, ref = found[name], reference[name]
         if (got.msgtype, got.count) != (ref.msgtype, ref.count):
-            problems.append(f"{name}: {got.count} {got.msgtype} messages, the reference has {ref.count} "
-                            f"{ref.msgtype}")
+            problems.append(f"{name}: {got.count} {got.msgtype} messages, the reference has {ref.count} {ref.msgtype}")
             continue
         if sorted(got.columns) != sorted(ref.columns):
             problems.append(f"{name}: fields differ: {sorted(set(got.columns) ^ set(ref.columns))}")
@@ -170,8 +175,7 @@ def compare(found: dict[str, Topic], reference: dict[str, Topic], rtol: float
             else:
                 for i, a, b in zip(rc.present, gc.values, rc.values):
                     if not _same(a, b):
-                        problems.append(f"{name} message {i} {path}: {_describe(a)}, the reference has "
-                                        f"{_describe(b)}")
+                        problems.append(f"{name} message {i} {path}: {_describe(a)}, the reference has {_describe(b)}")
                         break
     deviations.sort(key=lambda d: -d.scaled)
     return problems, deviations
@@ -183,8 +187,7 @@ def _same(a, b) -> bool:
     return a == b
 
 
-def _compare_floats(topic: str, path: str, got: Column, ref: Column, rtol: float, problems: list[str]
-                    ) -> Deviation:
+def _compare_floats(topic: str, path: str, got: Column, ref: Column, rtol: float, problems: list[str]) -> Deviation:
     s = scale(path, ref.values)
     worst = Deviation(topic, path, 0.0, -1)
     for i, a, b in zip(ref.present, got.values, ref.values):
@@ -193,10 +196,14 @@ def _compare_floats(topic: str, path: str, got: Column, ref: Column, rtol: float
             problems.append(f"{topic} message {i} {path}: {a.size} values, the reference has {b.size}")
             return worst
         finite = np.isfinite(b)
-        if not (np.array_equal(np.isnan(a), np.isnan(b)) and np.array_equal(np.isinf(a), np.isinf(b))
-                and np.array_equal(a[np.isinf(b)], b[np.isinf(b)])):
-            problems.append(f"{topic} message {i} {path}: NaN/inf at other places: {_describe(a)}, the reference "
-                            f"has {_describe(b)}")
+        if not (
+            np.array_equal(np.isnan(a), np.isnan(b))
+            and np.array_equal(np.isinf(a), np.isinf(b))
+            and np.array_equal(a[np.isinf(b)], b[np.isinf(b)])
+        ):
+            problems.append(
+                f"{topic} message {i} {path}: NaN/inf at other places: {_describe(a)}, the reference has {_describe(b)}"
+            )
             return worst
         si = np.broadcast_to(s, b.shape)
         d = np.abs(np.where(finite, a - b, 0.0))
@@ -206,13 +213,16 @@ def _compare_floats(topic: str, path: str, got: Column, ref: Column, rtol: float
         if scaled.size and scaled[k] > worst.scaled:
             worst = Deviation(topic, path, float(scaled[k]), i)
         if scaled.size and scaled[k] > rtol:
-            problems.append(f"{topic} message {i} {path}[{k}]: {a[k]!r}, the reference has {b[k]!r}: off by "
-                            f"{scaled[k]:.2g} of the column's scale {float(si[k]):.3g} (tolerance {rtol:g})")
+            problems.append(
+                f"{topic} message {i} {path}[{k}]: {a[k]!r}, the reference has {b[k]!r}: off by "
+                f"{scaled[k]:.2g} of the column's scale {float(si[k]):.3g} (tolerance {rtol:g})"
+            )
             return worst
     return worst
 
 
 # --- storage ------------------------------------------------------------------------------------------------
+
 
 def _to_float_storage(values: list[np.ndarray]) -> np.ndarray:
     return np.concatenate([np.ravel(v) for v in values]).astype(STORED_FLOAT) if values else np.zeros(0)
@@ -234,8 +244,9 @@ def save(path: Path, topics: dict[str, Topic], meta: dict) -> None:
                 arrays[f"{key}.sizes"] = np.asarray([np.size(v) for v in col.values], dtype=np.int64)
                 arrays[f"{key}.shapes"] = np.asarray([np.ndim(v) for v in col.values], dtype=np.int64)
             else:
-                arrays[f"{key}.json"] = np.frombuffer(json.dumps([_jsonable(v) for v in col.values]).encode(),
-                                                      dtype=np.uint8)
+                arrays[f"{key}.json"] = np.frombuffer(
+                    json.dumps([_jsonable(v) for v in col.values]).encode(), dtype=np.uint8
+                )
         index[name] = {"msgtype": topic.msgtype, "count": topic.count, "columns": cols}
     arrays["meta.json"] = np.frombuffer(json.dumps({"meta": meta, "topics": index}).encode(), dtype=np.uint8)
     buf = io.BytesIO()

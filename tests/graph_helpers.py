@@ -1,4 +1,5 @@
 """Helpers for the headless graph tests: run the scripts as a user would, read bags with rosbags."""
+
 from __future__ import annotations
 
 import hashlib
@@ -16,11 +17,13 @@ SCRIPTS = ROOT / "scripts"
 SHORT_PASS = ["--set", "time.duration=20"]  # 201 steps from the rise of the leo_radar pass
 
 
-def script(name: str, *args: str, timeout: float = 300, extra_env: dict[str, str] | None = None,
-           **popen) -> subprocess.CompletedProcess:
+def script(
+    name: str, *args: str, timeout: float = 300, extra_env: dict[str, str] | None = None, **popen
+) -> subprocess.CompletedProcess:
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **(extra_env or {}))
-    return subprocess.run([sys.executable, str(SCRIPTS / name), *args], capture_output=True, text=True,
-                          timeout=timeout, env=env, **popen)
+    return subprocess.run(
+        [sys.executable, str(SCRIPTS / name), *args], capture_output=True, text=True, timeout=timeout, env=env, **popen
+    )
 
 
 def read_bag(path: Path) -> dict[str, list]:
@@ -40,9 +43,23 @@ def launch_in_background(out: Path, *extra: str) -> subprocess.Popen:
     """A full leo_radar pass in strict lock-step (slow enough to be disturbed in the middle) on a free ROS domain
     (the launcher takes one), its output piped."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    return subprocess.Popen([sys.executable, str(SCRIPTS / "launch.py"), "leo_radar", "--out", str(out),
-                             "--no-score", "--set", "time.pacing_window=0", *extra],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            str(SCRIPTS / "launch.py"),
+            "leo_radar",
+            "--out",
+            str(out),
+            "--no-score",
+            "--set",
+            "time.pacing_window=0",
+            *extra,
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
@@ -59,8 +76,9 @@ def wait_for_stepping(out: Path, proc: subprocess.Popen, timeout: float = 60.0) 
 
 def node_pid(out: Path, node: str) -> int:
     """The pid of node ``node`` of the run writing to ``out`` (its command line names both)."""
-    found = subprocess.run(["pgrep", "-f", "--", f"--name {node} --config {out.resolve()}"], capture_output=True,
-                           text=True)
+    found = subprocess.run(
+        ["pgrep", "-f", "--", f"--name {node} --config {out.resolve()}"], capture_output=True, text=True
+    )
     return int(found.stdout.split()[0])
 
 

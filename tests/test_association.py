@@ -1,6 +1,7 @@
 """tracker_filters.association.gaussian_hypotheses, the hypotheses of every (track, detection) pair at once that
 MahalanobisHypothesiser and the star tracker's JPDAF share: against a pair-by-pair computation (scipy's
 multivariate normal), with one noise covariance for all detections or one per detection, in 1 to 3 dimensions."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -41,14 +42,16 @@ def test_every_pair_equals_its_own_gaussian(d, per_detection):
 
 def test_the_hypothesiser_is_the_same_computation_with_the_models_residual():
     """An angle measured across the wrap: the model's residual gives the small innovation."""
+
     class Bearing:
         def residual(self, z, z_pred):
             return np.mod(np.asarray(z) - np.asarray(z_pred) + np.pi, 2 * np.pi) - np.pi
+
     preds = [MeasurementPrediction(np.array([np.pi - 0.01]), np.array([[1e-4]]))]
     Z, R = np.array([[-np.pi + 0.01], [0.0]]), np.full((2, 1, 1), 1e-4)
     hyp = MahalanobisHypothesiser(0.99).hypothesise(preds, Z, R, Bearing())
     np.testing.assert_allclose(hyp.nu[0, :, 0], [0.02, -np.pi + 0.01], atol=1e-12)
-    assert hyp.d2[0, 0] == pytest.approx(0.02 ** 2 / 2e-4) and hyp.gated.tolist() == [[True, False]]
+    assert hyp.d2[0, 0] == pytest.approx(0.02**2 / 2e-4) and hyp.gated.tolist() == [[True, False]]
     same = gaussian_hypotheses(np.array([[np.pi - 0.01]]), np.array([[[1e-4]]]), Z, R, 0.99, Bearing().residual)
     np.testing.assert_array_equal(same.d2, hyp.d2)
 

@@ -14,6 +14,7 @@ other user gets ``chmod 555``. Full disk: RLIMIT_FSIZE (``ulimit -f``) of FULL_D
 process, which then gets EFBIG on the first file larger than that, as it would get ENOSPC on a full disk; no
 mount or privilege is needed. (ENOSPC itself is checked in-process: test_no_space_names_the_path_and_the_way_out.)
 """
+
 from __future__ import annotations
 
 import errno
@@ -57,18 +58,18 @@ class Inputs:
     """The bad (and the good) inputs of the table, in one temporary directory."""
 
     root: Path
-    leo: Path            # a leo_radar bag
-    formation: Path      # a formation_pf bag
+    leo: Path  # a leo_radar bag
+    formation: Path  # a formation_pf bag
     corrupt_metadata: Path
     no_mcap: Path
     empty: Path
-    foreign: Path        # a rosbag2 bag without the bench's run config: its scenario is unknown
+    foreign: Path  # a rosbag2 bag without the bench's run config: its scenario is unknown
     unregistered_metric: Path
     corrupt_run_config: Path
-    bad_yaml: Path       # a scenario file with a syntax error
-    grid_yaml: Path      # a valid scenario with a one-cell grid
+    bad_yaml: Path  # a scenario file with a syntax error
+    grid_yaml: Path  # a valid scenario with a one-cell grid
     a_file: Path
-    read_only: Path      # an existing, empty directory nobody may write into
+    read_only: Path  # an existing, empty directory nobody may write into
     read_only_bag: Path  # a crashed bag (no metadata.yaml) in a directory nobody may write into, nor into it
 
     def out(self, name: str) -> str:
@@ -91,97 +92,277 @@ class Inputs:
 LAUNCH_SET = ["--set", "time.duration=5"]
 TABLE = [
     # --- launch
-    Case("launch-yaml-syntax-error", "launch.py", lambda i: [str(i.bad_yaml), "--out", i.out("l1")], 2,
-         "bad_scenario.yaml, line 3, column 11: not valid YAML"),
-    Case("launch-unknown-scenario", "launch.py", lambda i: ["leo_radr", "--out", i.out("l2")], 2,
-         "unknown scenario 'leo_radr'; available: "),
-    Case("launch-set-nonexistent-key", "launch.py",
-         lambda i: ["leo_radar", "--out", i.out("l3"), *LAUNCH_SET, "--set", "sensors.radar.no_such_key=1"], 2,
-         "unknown key(s) 'sensors.radar.no_such_key'"),
-    Case("launch-out-is-a-file", "launch.py", lambda i: ["leo_radar", "--out", str(i.a_file), *LAUNCH_SET], 2,
-         "a_file is a file, not a directory"),
-    Case("launch-out-read-only", "launch.py", lambda i: ["leo_radar", "--out", str(i.read_only), *LAUNCH_SET], 2,
-         "(read-only or no permission): choose a writable output directory"),
-    Case("launch-full-disk", "launch.py", lambda i: ["leo_radar", "--out", i.out("l4"), *LAUNCH_SET], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
-    Case("launch-bad-option", "launch.py", lambda i: ["leo_radar", "--seed", "seven"], 2,
-         "launch.py: error: argument --seed: invalid int value: 'seven' (see launch.py --help)"),
+    Case(
+        "launch-yaml-syntax-error",
+        "launch.py",
+        lambda i: [str(i.bad_yaml), "--out", i.out("l1")],
+        2,
+        "bad_scenario.yaml, line 3, column 11: not valid YAML",
+    ),
+    Case(
+        "launch-unknown-scenario",
+        "launch.py",
+        lambda i: ["leo_radr", "--out", i.out("l2")],
+        2,
+        "unknown scenario 'leo_radr'; available: ",
+    ),
+    Case(
+        "launch-set-nonexistent-key",
+        "launch.py",
+        lambda i: ["leo_radar", "--out", i.out("l3"), *LAUNCH_SET, "--set", "sensors.radar.no_such_key=1"],
+        2,
+        "unknown key(s) 'sensors.radar.no_such_key'",
+    ),
+    Case(
+        "launch-out-is-a-file",
+        "launch.py",
+        lambda i: ["leo_radar", "--out", str(i.a_file), *LAUNCH_SET],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "launch-out-read-only",
+        "launch.py",
+        lambda i: ["leo_radar", "--out", str(i.read_only), *LAUNCH_SET],
+        2,
+        "(read-only or no permission): choose a writable output directory",
+    ),
+    Case(
+        "launch-full-disk",
+        "launch.py",
+        lambda i: ["leo_radar", "--out", i.out("l4"), *LAUNCH_SET],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
+    Case(
+        "launch-bad-option",
+        "launch.py",
+        lambda i: ["leo_radar", "--seed", "seven"],
+        2,
+        "launch.py: error: argument --seed: invalid int value: 'seven' (see launch.py --help)",
+    ),
     # --- score
-    Case("score-two-scenarios", "score.py", lambda i: [str(i.leo), str(i.formation)], 2,
-         "bags of different scenarios cannot be scored together: ['formation_pf', 'leo_radar']"),
-    Case("score-corrupt-metadata", "score.py", lambda i: [str(i.corrupt_metadata)], 2,
-         "metadata.yaml is not rosbag2 metadata (line"),
+    Case(
+        "score-two-scenarios",
+        "score.py",
+        lambda i: [str(i.leo), str(i.formation)],
+        2,
+        "bags of different scenarios cannot be scored together: ['formation_pf', 'leo_radar']",
+    ),
+    Case(
+        "score-corrupt-metadata",
+        "score.py",
+        lambda i: [str(i.corrupt_metadata)],
+        2,
+        "metadata.yaml is not rosbag2 metadata (line",
+    ),
     Case("score-no-mcap", "score.py", lambda i: [str(i.no_mcap)], 2, "names bag_0.mcap, which is not there"),
     Case("score-empty-directory", "score.py", lambda i: [str(i.empty)], 2, "not a bag directory"),
     Case("score-foreign-bag", "score.py", lambda i: [str(i.foreign)], 2, "not a bag recorded by this bench"),
-    Case("score-unregistered-metric", "score.py", lambda i: [str(i.unregistered_metric)], 2,
-         "'scoring.metric' must be one of"),
-    Case("score-corrupt-run-config", "score.py", lambda i: [str(i.corrupt_run_config)], 2,
-         "is not a run config written by this bench"),
-    Case("score-plots-is-a-file", "score.py", lambda i: [str(i.leo), "--plots", str(i.a_file)], 2,
-         "a_file is a file, not a directory"),
-    Case("score-plots-read-only", "score.py", lambda i: [str(i.leo), "--plots", str(i.read_only)], 2,
-         "(read-only or no permission)"),
-    Case("score-plots-full-disk", "score.py", lambda i: [str(i.leo), "--plots", i.existing_out("s1")], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case(
+        "score-unregistered-metric",
+        "score.py",
+        lambda i: [str(i.unregistered_metric)],
+        2,
+        "'scoring.metric' must be one of",
+    ),
+    Case(
+        "score-corrupt-run-config",
+        "score.py",
+        lambda i: [str(i.corrupt_run_config)],
+        2,
+        "is not a run config written by this bench",
+    ),
+    Case(
+        "score-plots-is-a-file",
+        "score.py",
+        lambda i: [str(i.leo), "--plots", str(i.a_file)],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "score-plots-read-only",
+        "score.py",
+        lambda i: [str(i.leo), "--plots", str(i.read_only)],
+        2,
+        "(read-only or no permission)",
+    ),
+    Case(
+        "score-plots-full-disk",
+        "score.py",
+        lambda i: [str(i.leo), "--plots", i.existing_out("s1")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
     # --- replay
-    Case("replay-no-mcap", "replay.py", lambda i: [str(i.no_mcap), "--estimators", "ukf", "--out", i.out("r1")], 2,
-         "names bag_0.mcap, which is not there"),
-    Case("replay-corrupt-metadata", "replay.py",
-         lambda i: [str(i.corrupt_metadata), "--estimators", "ukf", "--out", i.out("r2")], 2,
-         "metadata.yaml is not rosbag2 metadata"),
-    Case("replay-foreign-bag", "replay.py", lambda i: [str(i.foreign), "--estimators", "ukf", "--out", i.out("r3")],
-         2, "is not a bag recorded by this bench (no run_config.yaml)"),
-    Case("replay-set-nonexistent-key", "replay.py",
-         lambda i: [str(i.leo), "--estimators", "ukf", "--out", i.out("r4"), "--set", "filters.ukf.no_such_key=1"], 2,
-         "unknown key(s) 'filters.ukf.no_such_key'"),
-    Case("replay-out-is-a-file", "replay.py", lambda i: [str(i.leo), "--estimators", "ukf", "--out", str(i.a_file)], 2,
-         "a_file is a file, not a directory"),
-    Case("replay-out-read-only", "replay.py",
-         lambda i: [str(i.leo), "--estimators", "ukf", "--out", str(i.read_only)], 2, "(read-only or no permission)"),
-    Case("replay-full-disk", "replay.py", lambda i: [str(i.leo), "--estimators", "ukf", "--out", i.existing_out("r5")], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case(
+        "replay-no-mcap",
+        "replay.py",
+        lambda i: [str(i.no_mcap), "--estimators", "ukf", "--out", i.out("r1")],
+        2,
+        "names bag_0.mcap, which is not there",
+    ),
+    Case(
+        "replay-corrupt-metadata",
+        "replay.py",
+        lambda i: [str(i.corrupt_metadata), "--estimators", "ukf", "--out", i.out("r2")],
+        2,
+        "metadata.yaml is not rosbag2 metadata",
+    ),
+    Case(
+        "replay-foreign-bag",
+        "replay.py",
+        lambda i: [str(i.foreign), "--estimators", "ukf", "--out", i.out("r3")],
+        2,
+        "is not a bag recorded by this bench (no run_config.yaml)",
+    ),
+    Case(
+        "replay-set-nonexistent-key",
+        "replay.py",
+        lambda i: [str(i.leo), "--estimators", "ukf", "--out", i.out("r4"), "--set", "filters.ukf.no_such_key=1"],
+        2,
+        "unknown key(s) 'filters.ukf.no_such_key'",
+    ),
+    Case(
+        "replay-out-is-a-file",
+        "replay.py",
+        lambda i: [str(i.leo), "--estimators", "ukf", "--out", str(i.a_file)],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "replay-out-read-only",
+        "replay.py",
+        lambda i: [str(i.leo), "--estimators", "ukf", "--out", str(i.read_only)],
+        2,
+        "(read-only or no permission)",
+    ),
+    Case(
+        "replay-full-disk",
+        "replay.py",
+        lambda i: [str(i.leo), "--estimators", "ukf", "--out", i.existing_out("r5")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
     # --- recover_bag
     Case("recover-no-mcap", "recover_bag.py", lambda i: [str(i.no_mcap)], 2, "no .mcap file"),
     Case("recover-not-a-directory", "recover_bag.py", lambda i: [str(i.a_file)], 2, "is not a directory"),
-    Case("recover-read-only", "recover_bag.py", lambda i: [str(i.read_only_bag)], 2,
-         "(read-only or no permission)"),
-    Case("recover-full-disk", "recover_bag.py", lambda i: [i.crashed_copy("full")], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case("recover-read-only", "recover_bag.py", lambda i: [str(i.read_only_bag)], 2, "(read-only or no permission)"),
+    Case(
+        "recover-full-disk",
+        "recover_bag.py",
+        lambda i: [i.crashed_copy("full")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
     # --- montecarlo
-    Case("montecarlo-yaml-syntax-error", "montecarlo.py",
-         lambda i: [str(i.bad_yaml), "--runs", "1", "--out", i.out("m1")], 2, "line 3, column 11: not valid YAML"),
-    Case("montecarlo-set-nonexistent-key", "montecarlo.py",
-         lambda i: ["leo_radar", "--runs", "1", "--out", i.out("m2"), *LAUNCH_SET, "--set", "no_such_section.key=1"], 2,
-         "unknown key(s) 'no_such_section'"),
-    Case("montecarlo-out-is-a-file", "montecarlo.py", lambda i: ["leo_radar", "--runs", "1", "--out", str(i.a_file)],
-         2, "a_file is a file, not a directory"),
-    Case("montecarlo-out-read-only", "montecarlo.py",
-         lambda i: ["leo_radar", "--runs", "1", "--out", str(i.read_only)], 2, "(read-only or no permission)"),
-    Case("montecarlo-full-disk", "montecarlo.py", lambda i: ["leo_radar", "--runs", "1", "--out", i.out("m3")], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case(
+        "montecarlo-yaml-syntax-error",
+        "montecarlo.py",
+        lambda i: [str(i.bad_yaml), "--runs", "1", "--out", i.out("m1")],
+        2,
+        "line 3, column 11: not valid YAML",
+    ),
+    Case(
+        "montecarlo-set-nonexistent-key",
+        "montecarlo.py",
+        lambda i: ["leo_radar", "--runs", "1", "--out", i.out("m2"), *LAUNCH_SET, "--set", "no_such_section.key=1"],
+        2,
+        "unknown key(s) 'no_such_section'",
+    ),
+    Case(
+        "montecarlo-out-is-a-file",
+        "montecarlo.py",
+        lambda i: ["leo_radar", "--runs", "1", "--out", str(i.a_file)],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "montecarlo-out-read-only",
+        "montecarlo.py",
+        lambda i: ["leo_radar", "--runs", "1", "--out", str(i.read_only)],
+        2,
+        "(read-only or no permission)",
+    ),
+    Case(
+        "montecarlo-full-disk",
+        "montecarlo.py",
+        lambda i: ["leo_radar", "--runs", "1", "--out", i.out("m3")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
     # --- sweep
-    Case("sweep-yaml-syntax-error", "sweep.py", lambda i: [str(i.bad_yaml), "--grid", "g", "--out", i.out("w1")], 2,
-         "line 3, column 11: not valid YAML"),
-    Case("sweep-set-nonexistent-key", "sweep.py",
-         lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.out("w2"), "--set", "time.no_such_key=1"], 2,
-         "unknown key(s) 'time.no_such_key'"),
-    Case("sweep-out-is-a-file", "sweep.py", lambda i: [str(i.grid_yaml), "--grid", "one", "--out", str(i.a_file)], 2,
-         "a_file is a file, not a directory"),
-    Case("sweep-out-read-only", "sweep.py",
-         lambda i: [str(i.grid_yaml), "--grid", "one", "--out", str(i.read_only)], 2, "(read-only or no permission)"),
-    Case("sweep-full-disk", "sweep.py", lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.existing_out("w3")],
-         2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case(
+        "sweep-yaml-syntax-error",
+        "sweep.py",
+        lambda i: [str(i.bad_yaml), "--grid", "g", "--out", i.out("w1")],
+        2,
+        "line 3, column 11: not valid YAML",
+    ),
+    Case(
+        "sweep-set-nonexistent-key",
+        "sweep.py",
+        lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.out("w2"), "--set", "time.no_such_key=1"],
+        2,
+        "unknown key(s) 'time.no_such_key'",
+    ),
+    Case(
+        "sweep-out-is-a-file",
+        "sweep.py",
+        lambda i: [str(i.grid_yaml), "--grid", "one", "--out", str(i.a_file)],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "sweep-out-read-only",
+        "sweep.py",
+        lambda i: [str(i.grid_yaml), "--grid", "one", "--out", str(i.read_only)],
+        2,
+        "(read-only or no permission)",
+    ),
+    Case(
+        "sweep-full-disk",
+        "sweep.py",
+        lambda i: [str(i.grid_yaml), "--grid", "one", "--out", i.existing_out("w3")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
     # --- demo
-    Case("demo-unknown-study", "demo.py", lambda i: ["--studies", "leo_radr", "--out", i.out("d1")], 2,
-         "demo.py: error: unknown study ['leo_radr']"),
-    Case("demo-out-is-a-file", "demo.py", lambda i: ["--studies", "leo_radar", "--out", str(i.a_file)], 2,
-         "a_file is a file, not a directory"),
-    Case("demo-out-read-only", "demo.py", lambda i: ["--studies", "leo_radar", "--out", str(i.read_only)], 2,
-         "(read-only or no permission)"),
-    Case("demo-full-disk", "demo.py", lambda i: ["--studies", "leo_radar", "--out", i.out("d2")], 2,
-         "(the disk is full or a file size limit is reached)", full_disk=True),
+    Case(
+        "demo-unknown-study",
+        "demo.py",
+        lambda i: ["--studies", "leo_radr", "--out", i.out("d1")],
+        2,
+        "demo.py: error: unknown study ['leo_radr']",
+    ),
+    Case(
+        "demo-out-is-a-file",
+        "demo.py",
+        lambda i: ["--studies", "leo_radar", "--out", str(i.a_file)],
+        2,
+        "a_file is a file, not a directory",
+    ),
+    Case(
+        "demo-out-read-only",
+        "demo.py",
+        lambda i: ["--studies", "leo_radar", "--out", str(i.read_only)],
+        2,
+        "(read-only or no permission)",
+    ),
+    Case(
+        "demo-full-disk",
+        "demo.py",
+        lambda i: ["--studies", "leo_radar", "--out", i.out("d2")],
+        2,
+        "(the disk is full or a file size limit is reached)",
+        full_disk=True,
+    ),
 ]
 
 
@@ -220,8 +401,9 @@ def read_only(*paths: Path) -> Iterator[None]:
 
 
 def _record(name: str, scenario: str, out: Path, duration: str) -> Path:
-    res = script("launch.py", scenario, "--out", str(out), "--no-score", "--set", f"time.duration={duration}",
-                 timeout=120)
+    res = script(
+        "launch.py", scenario, "--out", str(out), "--no-score", "--set", f"time.duration={duration}", timeout=120
+    )
     assert res.returncode == 0, f"{name}: {res.stderr[-2000:]}"
     return out / "bag"
 
@@ -263,8 +445,22 @@ def _make_inputs(root: Path) -> Inputs:
     read_only_bag = root / "read_only_bags" / "bag"
     shutil.copytree(leo, read_only_bag)
     (read_only_bag / "metadata.yaml").unlink()
-    return Inputs(root, leo, formation, corrupt_metadata, no_mcap, root / "empty", foreign, unregistered,
-                  corrupt_run_config, bad_yaml, grid_yaml, root / "a_file", root / "read_only", read_only_bag)
+    return Inputs(
+        root,
+        leo,
+        formation,
+        corrupt_metadata,
+        no_mcap,
+        root / "empty",
+        foreign,
+        unregistered,
+        corrupt_run_config,
+        bad_yaml,
+        grid_yaml,
+        root / "a_file",
+        root / "read_only",
+        read_only_bag,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -276,8 +472,11 @@ def inputs(tmp_path_factory) -> Inputs:
 def outcomes(inputs: Inputs, request) -> dict[str, subprocess.CompletedProcess]:
     """Every selected case's command, run three at a time (they wait on imports and files more than on a
     core), with the read-only directories read-only while they run."""
-    selected = {item.callspec.params["case"].id for item in request.session.items
-                if getattr(item, "callspec", None) and "case" in item.callspec.params}
+    selected = {
+        item.callspec.params["case"].id
+        for item in request.session.items
+        if getattr(item, "callspec", None) and "case" in item.callspec.params
+    }
     cases = [c for c in TABLE if c.id in selected]
 
     def run(case: Case) -> subprocess.CompletedProcess:
@@ -305,7 +504,8 @@ def test_the_read_only_and_full_cases_leave_nothing_behind(inputs: Inputs, outco
     assert not list(inputs.read_only.iterdir())
     assert [p.name for p in inputs.read_only_bag.parent.iterdir()] == ["bag"]
     assert sorted(p.name for p in inputs.read_only_bag.iterdir()) == sorted(
-        p.name for p in inputs.leo.iterdir() if p.name not in ("metadata.yaml", offline_cache.DIRECTORY))
+        p.name for p in inputs.leo.iterdir() if p.name not in ("metadata.yaml", offline_cache.DIRECTORY)
+    )
     for name in ("l4", "r5", "m3", "w3", "d2"):
         assert not list((inputs.root / "out").glob(f"{name}/**/metadata.yaml"))
 
@@ -324,9 +524,18 @@ def test_a_bag_of_a_scenario_not_registered_here_still_scores(inputs: Inputs) ->
 
 # ------------------------------------------------------------------------------ the guard, in-process
 
-COMMANDS = ["bench_eval.cli.launch", "bench_eval.cli.score", "bench_eval.cli.montecarlo", "bench_eval.cli.sweep",
-            "bench_eval.cli.replay", "bench_eval.cli.demo", "bench_engine.cli.recover_bag", "bench_engine.run",
-            "bench_ccsds.cli.export", "bench_ccsds.cli.import_tdm"]
+COMMANDS = [
+    "bench_eval.cli.launch",
+    "bench_eval.cli.score",
+    "bench_eval.cli.montecarlo",
+    "bench_eval.cli.sweep",
+    "bench_eval.cli.replay",
+    "bench_eval.cli.demo",
+    "bench_engine.cli.recover_bag",
+    "bench_engine.run",
+    "bench_ccsds.cli.export",
+    "bench_ccsds.cli.import_tdm",
+]
 
 
 @pytest.mark.parametrize("module", COMMANDS)
@@ -346,8 +555,9 @@ def test_a_bug_is_a_traceback_then_one_line_saying_so(capsys) -> None:
     assert run_main(buggy, []) == BUG
     err = capsys.readouterr().err
     assert err.startswith("Traceback") and "KeyError" in err
-    assert err.splitlines()[-1] == ("error: internal error (a bug): KeyError: 'no such key' — please report it "
-                                    "with the traceback above")
+    assert err.splitlines()[-1] == (
+        "error: internal error (a bug): KeyError: 'no such key' — please report it with the traceback above"
+    )
 
 
 def test_no_space_names_the_path_and_the_way_out(capsys) -> None:
@@ -360,9 +570,11 @@ def test_no_space_names_the_path_and_the_way_out(capsys) -> None:
         raise RuntimeError("writing bag /data/runs/x/bag failed") from OSError(errno.ENOSPC, "No space left")
 
     assert run_main(full, []) == BAD_INPUT
-    assert capsys.readouterr().err == ("error: cannot write /data/runs/x: no space left on device (the disk is "
-                                       "full or a file size limit is reached): free some space or choose another "
-                                       "output directory\n")
+    assert capsys.readouterr().err == (
+        "error: cannot write /data/runs/x: no space left on device (the disk is "
+        "full or a file size limit is reached): free some space or choose another "
+        "output directory\n"
+    )
     assert run_main(full_in_a_thread, []) == BAD_INPUT
     assert "no space left (the disk is full" in capsys.readouterr().err
 
@@ -373,8 +585,9 @@ def test_a_file_in_the_way_is_named(tmp_path: Path) -> None:
         try:
             path.mkdir(parents=True, exist_ok=True)
         except OSError as err:
-            assert os_error_line(err) == (f"{tmp_path / 'a_file'} is a file, not a directory: choose another "
-                                          "output directory or remove the file")
+            assert os_error_line(err) == (
+                f"{tmp_path / 'a_file'} is a file, not a directory: choose another output directory or remove the file"
+            )
         else:
             raise AssertionError(f"mkdir {path} succeeded")
 

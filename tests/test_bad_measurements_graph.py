@@ -1,5 +1,6 @@
 """NaN/inf and out-of-order measurements, replayed through the graph, are rejected with a warning and never
 corrupt a filter."""
+
 from __future__ import annotations
 
 import shutil
@@ -38,8 +39,16 @@ def _doctored_copy(bag: Path, out: Path) -> None:
 
 def test_bad_measurements_are_rejected_and_filters_stay_sane(tmp_path: Path) -> None:
     original = tmp_path / "orig"
-    res = script("launch.py", "leo_radar", "--out", str(original), "--no-score",
-                 "--set", "sensors.radar.p_detect=1.0", *SHORT_PASS)
+    res = script(
+        "launch.py",
+        "leo_radar",
+        "--out",
+        str(original),
+        "--no-score",
+        "--set",
+        "sensors.radar.p_detect=1.0",
+        *SHORT_PASS,
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     doctored = tmp_path / "doctored"
     _doctored_copy(original / "bag", doctored)

@@ -1,4 +1,5 @@
 """rosbag2-compatible MCAP bags: our writer, read back by independent readers (rosbags, mcap-ros2-support)."""
+
 from __future__ import annotations
 
 import os
@@ -36,8 +37,12 @@ TOPICS = {
     "/chatter": "std_msgs/msg/String",
     "/clock": "rosgraph_msgs/msg/Clock",
 }
-CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 ACK_QOS = [{"history": "keep_all", "depth": 0}, {"reliability": "best_effort", "deadline": 1_500_000_000}]
 
 
@@ -51,25 +56,49 @@ def _messages_for_step(k: int, t_ns: int, rng: np.random.Generator) -> dict[str,
     cls = {topic: message_class(t) for topic, t in TOPICS.items()}
     truth = cls["/truth"](step=k, labels=["x", "y", "z", "vx", "vy", "vz"], state=rng.normal(size=6).tolist())
     _stamp(truth, t_ns, "eci")
-    radar = cls["/radar"](step=k, sensor_id="radar_1", range=7.0e6 + k, azimuth=0.1 * k, elevation=0.2,
-                          range_rate=float(rng.normal()), has_range_rate=bool(k % 2),
-                          covariance=rng.normal(size=16))
+    radar = cls["/radar"](
+        step=k,
+        sensor_id="radar_1",
+        range=7.0e6 + k,
+        azimuth=0.1 * k,
+        elevation=0.2,
+        range_rate=float(rng.normal()),
+        has_range_rate=bool(k % 2),
+        covariance=rng.normal(size=16),
+    )
     _stamp(radar, t_ns, "radar_enu")
-    gps = cls["/gps"](step=k, sensor_id="gps", labels=["x", "y", "z"], value=rng.normal(size=3).tolist(),
-                      covariance=rng.normal(size=9).tolist())
+    gps = cls["/gps"](
+        step=k,
+        sensor_id="gps",
+        labels=["x", "y", "z"],
+        value=rng.normal(size=3).tolist(),
+        covariance=rng.normal(size=9).tolist(),
+    )
     _stamp(gps, t_ns, "eci")
-    estimate = cls["/estimate"](step=k, filter_name="ekf", labels=["x", "y", "z", "vx", "vy", "vz"],
-                                state=rng.normal(size=6).tolist(), covariance=rng.normal(size=36).tolist(),
-                                nis=float("nan") if k == 0 else float(rng.chisquare(3)),
-                                diagnostic_names=["n_eff", "iterations"],
-                                diagnostic_values=rng.uniform(size=2).tolist())
+    estimate = cls["/estimate"](
+        step=k,
+        filter_name="ekf",
+        labels=["x", "y", "z", "vx", "vy", "vz"],
+        state=rng.normal(size=6).tolist(),
+        covariance=rng.normal(size=36).tolist(),
+        nis=float("nan") if k == 0 else float(rng.chisquare(3)),
+        diagnostic_names=["n_eff", "iterations"],
+        diagnostic_values=rng.uniform(size=2).tolist(),
+    )
     _stamp(estimate, t_ns, "eci")
     ack = cls["/sim/ack"](node="radar_1", step=k, count=2 * k + 1)
     chatter = cls["/chatter"](data=f"step {k} ✓")
     clock = cls["/clock"]()
     clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
-    return {"/truth": truth, "/radar": radar, "/gps": gps, "/estimate": estimate, "/sim/ack": ack,
-            "/chatter": chatter, "/clock": clock}
+    return {
+        "/truth": truth,
+        "/radar": radar,
+        "/gps": gps,
+        "/estimate": estimate,
+        "/sim/ack": ack,
+        "/chatter": chatter,
+        "/clock": clock,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -115,20 +144,36 @@ def _by_topic(written):
 
 # --- message definitions ---------------------------------------------------------------------------------
 
+
 def test_schema_text_is_rosbag2_layout():
     sep = "\n" + SEPARATOR + "\n"
-    expected = (msg_text("bench_msgs/msg/RangeAzEl")
-                + sep + "MSG: std_msgs/Header\n" + msg_text("std_msgs/msg/Header")
-                + sep + "MSG: builtin_interfaces/Time\n" + msg_text("builtin_interfaces/msg/Time"))
+    expected = (
+        msg_text("bench_msgs/msg/RangeAzEl")
+        + sep
+        + "MSG: std_msgs/Header\n"
+        + msg_text("std_msgs/msg/Header")
+        + sep
+        + "MSG: builtin_interfaces/Time\n"
+        + msg_text("builtin_interfaces/msg/Time")
+    )
     assert schema_text("bench_msgs/msg/RangeAzEl") == expected
     assert schema_text("bench_msgs/msg/StepAck") == msg_text("bench_msgs/msg/StepAck")
 
 
 def test_dependencies_are_found_depth_first_in_sorted_order():
-    order = [line[5:] for line in schema_text("geometry_msgs/msg/PoseWithCovarianceStamped").splitlines()
-             if line.startswith("MSG: ")]
-    assert order == ["geometry_msgs/PoseWithCovariance", "geometry_msgs/Pose", "geometry_msgs/Point",
-                     "geometry_msgs/Quaternion", "std_msgs/Header", "builtin_interfaces/Time"]
+    order = [
+        line[5:]
+        for line in schema_text("geometry_msgs/msg/PoseWithCovarianceStamped").splitlines()
+        if line.startswith("MSG: ")
+    ]
+    assert order == [
+        "geometry_msgs/PoseWithCovariance",
+        "geometry_msgs/Pose",
+        "geometry_msgs/Point",
+        "geometry_msgs/Quaternion",
+        "std_msgs/Header",
+        "builtin_interfaces/Time",
+    ]
 
 
 def test_dependency_parsing_skips_primitives_constants_and_comments():
@@ -145,8 +190,12 @@ def test_dependency_parsing_skips_primitives_constants_and_comments():
         std_msgs/Header[<=2] headers
         builtin_interfaces/Time stamp
         """)
-    assert dependencies(text, "mypkg") == ["builtin_interfaces/Time", "geometry_msgs/Point", "mypkg/Pose",
-                                           "std_msgs/Header"]
+    assert dependencies(text, "mypkg") == [
+        "builtin_interfaces/Time",
+        "geometry_msgs/Point",
+        "mypkg/Pose",
+        "std_msgs/Header",
+    ]
 
 
 @pytest.mark.parametrize("type_name", [*TOPICS.values(), "nav_msgs/msg/Odometry"])
@@ -169,6 +218,7 @@ def test_message_class_and_short_type_names():
 
 
 # --- independent readers ---------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("which", ["directory", "bare_mcap"])
 def test_rosbags_reads_bag(bag, which):
@@ -197,7 +247,8 @@ def test_mcap_ros2_decoder_reads_bag(bag):
     got: dict[str, list] = {}
     with open(directory / "run_bag_0.mcap", "rb") as f:
         for schema, channel, message, decoded in make_reader(
-                f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            f, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
             got.setdefault(channel.topic, []).append((schema.name, message, decoded))
     assert set(got) == set(TOPICS)
     for topic, items in expected.items():
@@ -291,9 +342,12 @@ def test_out_of_order_log_times_are_read_whole_by_every_reader(tmp_path, which):
         assert [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)] == written
     assert [(t, n, d) for t, _, n, d in BagReader(mcap).messages()] == in_time
     assert BagReader(mcap).payloads(["/truth", "/estimate"]) == {
-        topic: [d for t, _, d in written if t == topic] for topic in ("/truth", "/estimate")}
-    assert (summary.statistics.message_start_time, summary.statistics.message_end_time) == (in_time[0][1],
-                                                                                             in_time[-1][1])
+        topic: [d for t, _, d in written if t == topic] for topic in ("/truth", "/estimate")
+    }
+    assert (summary.statistics.message_start_time, summary.statistics.message_end_time) == (
+        in_time[0][1],
+        in_time[-1][1],
+    )
     chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
     assert [(c.message_start_time, c.message_end_time) for c in chunks] == spans
     assert any(b[0] < a[1] for a, b in zip(spans, spans[1:]))  # chunks overlap in log time
@@ -317,14 +371,14 @@ def test_custom_data_is_rosbag2s_map_of_strings(tmp_path):
     info = yaml.safe_load(text)["rosbag2_bagfile_information"]
     assert info["custom_data"] == {"operator": "bench 2", "wall_clock_start_ns": "17"}
     with open(tmp_path / "custom" / "custom_0.mcap", "rb") as f:
-        opened, closed = (yaml.safe_load(r.metadata["serialized_metadata"])
-                          for r in make_reader(f).iter_metadata())
+        opened, closed = (yaml.safe_load(r.metadata["serialized_metadata"]) for r in make_reader(f).iter_metadata())
     assert opened["custom_data"] == {"operator": "bench"} and closed == info
     with AnyReader([tmp_path / "custom"]) as reader:
         assert [(c.topic, c.msgcount) for c in reader.connections] == [("/chatter", 0)]
 
 
 # --- the rosbag2 records ---------------------------------------------------------------------------------
+
 
 def test_mcap_records_are_those_rosbag2_writes(bag):
     directory, written = bag
@@ -360,27 +414,44 @@ def test_metadata_yaml_version_9(bag):
     assert info["starting_time"] == {"nanoseconds_since_epoch": first}
     assert info["duration"] == {"nanoseconds": last - first}
     assert info["relative_file_paths"] == ["run_bag_0.mcap"]
-    assert info["files"] == [{"path": "run_bag_0.mcap", "starting_time": {"nanoseconds_since_epoch": first},
-                              "duration": {"nanoseconds": last - first}, "message_count": len(written)}]
+    assert info["files"] == [
+        {
+            "path": "run_bag_0.mcap",
+            "starting_time": {"nanoseconds_since_epoch": first},
+            "duration": {"nanoseconds": last - first},
+            "message_count": len(written),
+        }
+    ]
     assert info["compression_format"] == "" and info["custom_data"] is None
     topics = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
     assert {name: t["message_count"] for name, t in topics.items()} == {**{n: STEPS for n in TOPICS}, "/unused": 0}
     clock = topics["/clock"]["topic_metadata"]
     assert clock["type_description_hash"] == type_hash("rosgraph_msgs/msg/Clock")
     assert clock["serialization_format"] == "cdr"
-    assert clock["offered_qos_profiles"] == [{
-        "history": "keep_last", "depth": 1, "reliability": "best_effort", "durability": "transient_local",
-        "deadline": {"sec": 0, "nsec": 0}, "lifespan": {"sec": 0, "nsec": 0}, "liveliness": "system_default",
-        "liveliness_lease_duration": {"sec": 0, "nsec": 0}, "avoid_ros_namespace_conventions": False}]
+    assert clock["offered_qos_profiles"] == [
+        {
+            "history": "keep_last",
+            "depth": 1,
+            "reliability": "best_effort",
+            "durability": "transient_local",
+            "deadline": {"sec": 0, "nsec": 0},
+            "lifespan": {"sec": 0, "nsec": 0},
+            "liveliness": "system_default",
+            "liveliness_lease_duration": {"sec": 0, "nsec": 0},
+            "avoid_ros_namespace_conventions": False,
+        }
+    ]
     ack = topics["/sim/ack"]["topic_metadata"]["offered_qos_profiles"]
     assert [(q["history"], q["depth"], q["reliability"], q["deadline"]) for q in ack] == [
         ("keep_all", 0, "reliable", {"sec": 9223372036, "nsec": 854775807}),
-        ("keep_last", 1000, "best_effort", {"sec": 1, "nsec": 500_000_000})]
+        ("keep_last", 1000, "best_effort", {"sec": 1, "nsec": 500_000_000}),
+    ]
     assert "  topics_with_message_count:\n    - topic_metadata:\n" in text  # yaml-cpp's sequence indentation
     assert 'compression_mode: ""' in text and "custom_data: ~" in text and "&id" not in text
 
 
 # --- writer behaviour ------------------------------------------------------------------------------------
+
 
 def test_writer_guards(tmp_path):
     data = serialize_message(message_class("std_msgs/msg/String")(data="x"))
@@ -446,8 +517,13 @@ def _run_child(directory: Path, mode: str) -> subprocess.Popen:
     env = dict(os.environ)
     src = str(Path(orbit_sim.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
-    return subprocess.Popen([sys.executable, "-c", CHILD, str(directory), mode], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(directory), mode],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _steps_read_by_rosbags(directory: Path) -> list[int]:

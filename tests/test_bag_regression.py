@@ -30,6 +30,7 @@ say why in the commit:
 
     .venv/bin/python tests/test_bag_regression.py --reason "why" [SCENARIO ...]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -99,12 +100,14 @@ def _differences(scenario: str, topic: str, change) -> list[str]:
 
 def _move(path: str, message: int, index: int, by):
     """A change: value ``index`` of ``path`` in ``message`` becomes ``by(value, its scale)``."""
+
     def change(topic: bag_values.Topic) -> None:
         col = topic.columns[path]
         scale = np.broadcast_to(bag_values.scale(path, col.values), np.size(col.values[message]))[index]
         value = np.array(col.values[message], dtype=float)
         value.flat[index] = by(value.flat[index], scale)
         col.values[message] = value
+
     return change
 
 
@@ -114,25 +117,35 @@ def test_the_comparison_tolerates_rounding_and_names_what_changed() -> None:
     an identification or of a count fails."""
     assert not _differences("leo_radar", "/ukf/estimate", _move("covariance", 100, 7, lambda v, s: v + 0.5 * RTOL * s))
     assert _differences("leo_radar", "/ukf/estimate", _move("covariance", 100, 7, lambda v, s: v + 2 * RTOL * s))[
-        0].startswith("/ukf/estimate message 100 covariance[7]:")
-    assert "NaN/inf at other places" in _differences("leo_radar", "/radar/measurement",
-                                                     _move("range", 3, 0, lambda v, s: np.nan))[0]
+        0
+    ].startswith("/ukf/estimate message 100 covariance[7]:")
+    assert (
+        "NaN/inf at other places"
+        in _differences("leo_radar", "/radar/measurement", _move("range", 3, 0, lambda v, s: np.nan))[0]
+    )
 
     def reassign(topic: bag_values.Topic) -> None:  # the same stars, given to other centroids
         topic.columns["star_id"].values[5] = topic.columns["star_id"].values[5][::-1]
+
     assert _differences("star_tracker", "/sna_wahba/stars", reassign)[0].startswith(
-        "/sna_wahba/stars message 5 star_id:")
+        "/sna_wahba/stars message 5 star_id:"
+    )
 
     def lose_one(topic: bag_values.Topic) -> None:
         topic.count -= 1
+
     assert _differences("star_tracker", "/clock", lose_one) == [
-        "/clock: 300 rosgraph_msgs/msg/Clock messages, the reference has 301 rosgraph_msgs/msg/Clock"]
+        "/clock: 300 rosgraph_msgs/msg/Clock messages, the reference has 301 rosgraph_msgs/msg/Clock"
+    ]
 
 
-@pytest.mark.parametrize("change, changed", [
-    (["--seed", "4"], None),  # another noise draw: every message but the truth's and /clock
-    (["--set", "filters.ukf.params.beta=2.02"], "/ukf/"),  # 1 % of one UKF parameter: the UKF's messages only
-])
+@pytest.mark.parametrize(
+    "change, changed",
+    [
+        (["--seed", "4"], None),  # another noise draw: every message but the truth's and /clock
+        (["--set", "filters.ukf.params.beta=2.02"], "/ukf/"),  # 1 % of one UKF parameter: the UKF's messages only
+    ],
+)
 def test_a_real_change_is_caught(tmp_path: Path, change: list[str], changed: str | None) -> None:
     """The test above can fail: another seed, or a small change of one filter's model, is reported (and, for the
     filter, only on that filter's topics)."""
@@ -142,8 +155,10 @@ def test_a_real_change_is_caught(tmp_path: Path, change: list[str], changed: str
         assert all(p.startswith(changed) for p in problems), problems
 
 
-@pytest.mark.skipif(not any(os.environ.get(k) for k in KERNEL_VARIABLES),
-                    reason="runs on this CPU's own kernels (make test-portable narrows them)")
+@pytest.mark.skipif(
+    not any(os.environ.get(k) for k in KERNEL_VARIABLES),
+    reason="runs on this CPU's own kernels (make test-portable narrows them)",
+)
 def test_the_kernels_asked_for_change_the_last_bits_within_the_tolerance(tmp_path: Path, monkeypatch) -> None:
     """Under make test-portable: numpy and OpenBLAS run the kernels the environment asks for, and these change
     the last bits of a run (some value differs from the same run on this CPU's own kernels), by less than RTOL.
@@ -152,8 +167,9 @@ def test_the_kernels_asked_for_change_the_last_bits_within_the_tolerance(tmp_pat
     disabled = os.environ.get("NPY_DISABLE_CPU_FEATURES", "").replace(",", " ").split()
     assert not [f for f in disabled if __cpu_features__.get(f)], __cpu_features__
     if os.environ.get("OPENBLAS_CORETYPE"):
-        found = {i["filepath"]: i["architecture"] for i in threadpoolctl.threadpool_info()
-                 if i["internal_api"] == "openblas"}
+        found = {
+            i["filepath"]: i["architecture"] for i in threadpoolctl.threadpool_info() if i["internal_api"] == "openblas"
+        }
         assert found and {a.lower() for a in found.values()} == {os.environ["OPENBLAS_CORETYPE"].lower()}, found
     narrowed = record("leo_radar", tmp_path / "narrowed")
     for k in KERNEL_VARIABLES:
@@ -166,10 +182,14 @@ def test_the_kernels_asked_for_change_the_last_bits_within_the_tolerance(tmp_pat
 OTHER_KERNELS = {
     "numpy AVX2": {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"},
     "OpenBLAS Haswell": {"OPENBLAS_CORETYPE": "Haswell"},
-    "numpy AVX2 + OpenBLAS Haswell": {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
-                                      "OPENBLAS_CORETYPE": "Haswell"},
-    "numpy SSE4.2 + OpenBLAS Sandybridge": {"NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
-                                            "OPENBLAS_CORETYPE": "Sandybridge"},
+    "numpy AVX2 + OpenBLAS Haswell": {
+        "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+        "OPENBLAS_CORETYPE": "Haswell",
+    },
+    "numpy SSE4.2 + OpenBLAS Sandybridge": {
+        "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
+        "OPENBLAS_CORETYPE": "Sandybridge",
+    },
 }
 """Kernel settings --measure runs: what an AVX2 CPU (an AMD Zen 2/3 runs OpenBLAS's Haswell kernels) and an
 older one would run; make test-portable runs the last."""
@@ -200,16 +220,22 @@ def measure(tmp: Path) -> None:
     own_env = {k: os.environ.pop(k) for k in KERNEL_VARIABLES if k in os.environ}  # this CPU's own kernels
     own = {scenario: record(scenario, tmp / scenario) for scenario in SCENARIOS}
     blas = sorted({i["architecture"] for i in threadpoolctl.threadpool_info() if i["internal_api"] == "openblas"})
-    print(f"largest deviation from this CPU's own kernels (numpy {np.__version__}: "
-          f"{[t for t in __cpu_dispatch__ if __cpu_features__.get(t)]}; OpenBLAS {blas}), in units of the scale; "
-          f"RTOL {RTOL:g}")
+    print(
+        f"largest deviation from this CPU's own kernels (numpy {np.__version__}: "
+        f"{[t for t in __cpu_dispatch__ if __cpu_features__.get(t)]}; OpenBLAS {blas}), in units of the scale; "
+        f"RTOL {RTOL:g}"
+    )
     print("| study | " + " | ".join(OTHER_KERNELS) + " |\n|---|" + "---|" * len(OTHER_KERNELS))
     for scenario in SCENARIOS:
-        cells = [_largest(record(scenario, tmp / f"{scenario}-{i}", env=env), own[scenario])
-                 for i, env in enumerate(OTHER_KERNELS.values())]
+        cells = [
+            _largest(record(scenario, tmp / f"{scenario}-{i}", env=env), own[scenario])
+            for i, env in enumerate(OTHER_KERNELS.values())
+        ]
         print(f"| {scenario} | " + " | ".join(cells) + " |")
-    print("\nreal changes, against the seeded runs (on this CPU's own kernels):\n| change | study | differences |"
-          "\n|---|---|---|")
+    print(
+        "\nreal changes, against the seeded runs (on this CPU's own kernels):\n| change | study | differences |"
+        "\n|---|---|---|"
+    )
     for i, (where, change) in enumerate(REAL_CHANGES):
         for scenario in SCENARIOS if where == "every study" else [where]:
             cell = _largest(record(scenario, tmp / f"change{i}-{scenario}", *change), own[scenario])
@@ -223,17 +249,26 @@ def regenerate(scenarios: list[str], reason: str, tmp: Path) -> None:
     for scenario in scenarios:
         topics = record(scenario, tmp / scenario)
         path = REFERENCE / f"{scenario}.npz.zst"
-        bag_values.save(path, topics, {"command": f"launch.py {scenario} {' '.join(run_args(scenario))}",
-                                       "reason": reason, "numpy": np.__version__})
+        bag_values.save(
+            path,
+            topics,
+            {
+                "command": f"launch.py {scenario} {' '.join(run_args(scenario))}",
+                "reason": reason,
+                "numpy": np.__version__,
+            },
+        )
         problems, deviations = bag_values.compare(topics, reference(scenario), RTOL / 10)
         assert not problems, report(problems, deviations)  # the stored precision never decides a comparison
         print(f"{path}: {len(topics)} topics, {path.stat().st_size // 1024} KiB", file=sys.stderr)
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description="Regenerate tests/data/bag_reference after a deliberate change "
-                                            "(--reason), or measure how far the runs move on other kernels "
-                                            "(--measure).")
+    p = argparse.ArgumentParser(
+        description="Regenerate tests/data/bag_reference after a deliberate change "
+        "(--reason), or measure how far the runs move on other kernels "
+        "(--measure)."
+    )
     p.add_argument("scenarios", nargs="*", default=SCENARIOS, help="studies to regenerate (default: all)")
     mode = p.add_mutually_exclusive_group(required=True)
     mode.add_argument("--reason", help="regenerate: why the reference changes (kept in the file)")

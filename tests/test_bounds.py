@@ -8,6 +8,7 @@
 - On leo_radar, the UKF's Monte Carlo error never beats the bound beyond Monte Carlo tolerance and comes
   close to it (an efficient estimator after the first re-solves).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -87,10 +88,17 @@ def _linear_formation(tmp_sigma: float = 1e-3) -> dict:
     with the bound's own model (CW with white accelerations): the KF is then the bound."""
     sensor = "sensors.radio={type: relative_position, interval: 1.0, sigma_position: 0.5, p_detect: 0.8}"
     dyn = f"{{model: cw, sigma_accel: {tmp_sigma}}}"
-    return load_scenario("formation_pf", [
-        sensor, "time.duration=60.0", f"filter_defaults.dynamics={dyn}", "filters={kf: {type: kf}}",
-        "estimators=[kf]",
-        f"scoring.bounds={{pcrb: {{bound: pcrb, params: {{dynamics: {dyn}, prior: kf}}, from_s: 10.0}}}}"])
+    return load_scenario(
+        "formation_pf",
+        [
+            sensor,
+            "time.duration=60.0",
+            f"filter_defaults.dynamics={dyn}",
+            "filters={kf: {type: kf}}",
+            "estimators=[kf]",
+            f"scoring.bounds={{pcrb: {{bound: pcrb, params: {{dynamics: {dyn}, prior: kf}}, from_s: 10.0}}}}",
+        ],
+    )
 
 
 def test_the_registered_pcrb_of_a_recorded_run_is_the_kalman_covariance_on_a_linear_model():
@@ -108,16 +116,21 @@ def test_the_registered_pcrb_of_a_recorded_run_is_the_kalman_covariance_on_a_lin
     # the report's generic pieces: the dashed curve is sqrt(trace) of the KF's own covariance, one table row a group
     [(name, t, curve)] = bound_curves(series, "position")
     np.testing.assert_allclose(curve, np.sqrt(np.trace(est.P[:, :3, :3], axis1=1, axis2=2)), rtol=1e-9)
-    assert [row[:3] for row in bounds_table(result["estimators"]).rows] == [["kf", "pcrb", "position [m]"],
-                                                                         ["kf", "pcrb", "velocity [m/s]"]]
+    assert [row[:3] for row in bounds_table(result["estimators"]).rows] == [
+        ["kf", "pcrb", "position [m]"],
+        ["kf", "pcrb", "velocity [m/s]"],
+    ]
 
 
-@pytest.mark.parametrize("entry, message", [
-    ("{pcrb: {bound: pcrb, params: {dynamics: {model: cw, sigma_accel: 0.0}}, form_s: 1.0}}", "form_s"),
-    ("{pcrb: {bound: nope, params: {}}}", "bound"),
-    ("{pcrb: {bound: pcrb, params: {dynamics: {model: cw, sigma_accel: 0.0}, prior: nobody}}}", "nobody"),
-    ("{pcrb: {bound: pcrb, params: {prior: pf}}}", "dynamics"),
-])
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ("{pcrb: {bound: pcrb, params: {dynamics: {model: cw, sigma_accel: 0.0}}, form_s: 1.0}}", "form_s"),
+        ("{pcrb: {bound: nope, params: {}}}", "bound"),
+        ("{pcrb: {bound: pcrb, params: {dynamics: {model: cw, sigma_accel: 0.0}, prior: nobody}}}", "nobody"),
+        ("{pcrb: {bound: pcrb, params: {prior: pf}}}", "dynamics"),
+    ],
+)
 def test_a_bad_bounds_entry_is_refused_before_any_run(entry, message):
     with pytest.raises(ScenarioError, match=message):
         scoring_options(load_scenario("formation_pf", [f"scoring.bounds={entry}"]))
@@ -129,8 +142,16 @@ def test_efficiency_is_one_when_the_error_is_the_bound_and_nan_steps_are_left_ou
     t = np.arange(5.0)
     P = np.stack([np.eye(6) * s for s in (np.nan, 4.0, 4.0, 1.0, 1.0)])
     err = np.array([0.0, 2.0, 2.0, 1.0, 1.0])[:, None] * np.ones((1, 6))
-    tracks = [metrics.Track(t, np.zeros((5, 6)) + sign * err, np.tile(np.eye(6), (5, 1, 1)), np.zeros((5, 6)),
-                            ["x", "y", "z", "vx", "vy", "vz"]) for sign in (1.0, -1.0)]
+    tracks = [
+        metrics.Track(
+            t,
+            np.zeros((5, 6)) + sign * err,
+            np.tile(np.eye(6), (5, 1, 1)),
+            np.zeros((5, 6)),
+            ["x", "y", "z", "vx", "vy", "vz"],
+        )
+        for sign in (1.0, -1.0)
+    ]
     bound = BoundSeries(np.arange(5), t, ["x", "y", "z", "vx", "vy", "vz"], P)
     scores, series = score_bound(tracks, [bound, bound], from_s=0.0, t0=0.0)
     assert scores["position"]["efficiency"] == pytest.approx(1.0)
@@ -143,9 +164,10 @@ def test_leo_radar_ukf_error_is_above_the_pcrb_within_monte_carlo_tolerance_and_
     start). At 150, 250 and 400 s after the first scan, sum over runs of e^T J e (J the PCRB information) would
     be chi-square with 6N dof for an efficient, unbiased Gaussian estimator: it is above the 0.1 % quantile (no
     estimator beats the bound) and below the 99.9 % one (the UKF is consistent with efficiency 1)."""
-    cfg = load_scenario("leo_radar", [
-        "scoring.bounds={pcrb: {bound: pcrb, params: {dynamics: {model: orbit_j2, sigma_accel: 0.0}, "
-        "prior: ukf}}}"])
+    cfg = load_scenario(
+        "leo_radar",
+        ["scoring.bounds={pcrb: {bound: pcrb, params: {dynamics: {model: orbit_j2, sigma_accel: 0.0}, prior: ukf}}}"],
+    )
     params = scoring_options(cfg).bounds["pcrb"].params
     runs = [bag_data(cfg, ["ukf"], seed) for seed in range(4)]
     bounds = [PCRB.run(data, params) for data in runs]
@@ -180,8 +202,13 @@ def test_formation_truth_transition_matrices_match_finite_differences_of_the_tru
     states = relative_states(np.array([120.0, 480.0, -250.0, 0.05, -0.2, 0.3]))
     F = dyn.transition_matrices(times, states)
     steps = np.array([20.0] * 3 + [0.02] * 3)  # big: the integrator's ~7e-6 m error / (2 step) small
-    fd = np.stack([(relative_states(states[0] + d) - relative_states(states[0] - d)) / (2 * d[i])
-                   for i, d in enumerate(np.diag(steps))], axis=-1)  # (K, 6, 6): d x_k / d x_0
+    fd = np.stack(
+        [
+            (relative_states(states[0] + d) - relative_states(states[0] - d)) / (2 * d[i])
+            for i, d in enumerate(np.diag(steps))
+        ],
+        axis=-1,
+    )  # (K, 6, 6): d x_k / d x_0
     Phi = np.eye(6)
     for k, Fk in enumerate(F, start=1):
         Phi = Fk @ Phi
@@ -225,5 +252,5 @@ def test_star_frame_attitude_information_matches_finite_differences_and_quest_ne
     near = b[:, :2] * 0.01
     u = np.column_stack([near, np.ones(len(near))])
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    quest = sum(np.eye(3) - np.outer(v, v) for v in u) / 1e-4 ** 2
+    quest = sum(np.eye(3) - np.outer(v, v) for v in u) / 1e-4**2
     np.testing.assert_allclose(attitude_information(near, 1e-4), quest, atol=1e-5 * np.abs(quest).max())

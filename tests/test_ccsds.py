@@ -2,6 +2,7 @@
 what an export maps and what it leaves out (bags written from items), the importer's mapping, reference
 interpolation and its refusals. Orekit's reading of the same messages: tests/test_ccsds_orekit.py; the graph
 round trip: tests/test_ccsds_roundtrip.py; hostile files: tests/test_fuzz_ccsds.py."""
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -36,8 +37,12 @@ def test_a_written_number_reads_back_as_the_same_double(value):
 
 
 @settings(max_examples=300, derandomize=True, deadline=None)
-@given(st.integers(utc_ns(dt_.datetime(1972, 1, 1, tzinfo=dt_.timezone.utc)),
-                   utc_ns(dt_.datetime(2199, 12, 31, tzinfo=dt_.timezone.utc))))
+@given(
+    st.integers(
+        utc_ns(dt_.datetime(1972, 1, 1, tzinfo=dt_.timezone.utc)),
+        utc_ns(dt_.datetime(2199, 12, 31, tzinfo=dt_.timezone.utc)),
+    )
+)
 def test_an_epoch_reads_back_to_the_nanosecond_in_either_calendar_form(ns):
     text = epoch_text(ns)
     assert parse_epoch(text, "x") == ns == parse_epoch(text + "Z", "x")
@@ -45,10 +50,18 @@ def test_an_epoch_reads_back_to_the_nanosecond_in_either_calendar_form(ns):
     assert parse_epoch(f"{day.year}-{day.timetuple().tm_yday:03d}{text[10:]}", "x") == ns
 
 
-@pytest.mark.parametrize("text, problem", [
-    ("2016-12-31T23:59:60", "leap second"), ("1960-01-01T00:00:00", "outside"), ("2019-02-30T00:00:00", "no calendar"),
-    ("2019-366T00:00:00", "no calendar"), ("2019-01-01 00:00:00", "not a CCSDS epoch"), ("2019-01-01T24:00:00", "time of day"),
-    ("nan", "not a CCSDS epoch")])
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("2016-12-31T23:59:60", "leap second"),
+        ("1960-01-01T00:00:00", "outside"),
+        ("2019-02-30T00:00:00", "no calendar"),
+        ("2019-366T00:00:00", "no calendar"),
+        ("2019-01-01 00:00:00", "not a CCSDS epoch"),
+        ("2019-01-01T24:00:00", "time of day"),
+        ("nan", "not a CCSDS epoch"),
+    ],
+)
 def test_bad_epochs_are_one_line_errors(text, problem):
     with pytest.raises(CcsdsError, match=problem):
         parse_epoch(text, "f.tdm: line 3")
@@ -89,9 +102,18 @@ def test_oem_written_and_read_back(tmp_path):
     states = _orbit(t)
     cov = np.diag([4e4, 4e4, 4e4, 1.0, 1.0, 1.0]) + 3.0
     accel = np.hstack((states, np.full((len(t), 3), 8.1)))
-    segments = [Segment("SAT A", "2019-001A", "TEME", [T0 + int(s * 1e9) for s in t], states,
-                        covariances=[(T0, cov), (T0 + 40_000_000_000, 2 * cov)], comments=["first"]),
-                Segment("SAT A", "2019-001A", "TEME", [T0 + int(s * 1e9) + 10**11 for s in t], accel)]
+    segments = [
+        Segment(
+            "SAT A",
+            "2019-001A",
+            "TEME",
+            [T0 + int(s * 1e9) for s in t],
+            states,
+            covariances=[(T0, cov), (T0 + 40_000_000_000, 2 * cov)],
+            comments=["first"],
+        ),
+        Segment("SAT A", "2019-001A", "TEME", [T0 + int(s * 1e9) + 10**11 for s in t], accel),
+    ]
     path = write_oem(tmp_path / "a.oem", segments, "TEST", T0, ["header comment"])
     back = read_oem(path)
     assert [s.object_name for s in back] == ["SAT A", "SAT A"] and back[0].frame == "TEME"
@@ -103,10 +125,24 @@ def test_oem_written_and_read_back(tmp_path):
 
 
 def test_tdm_written_and_read_back(tmp_path):
-    obs = {"RANGE": [(T0, 1.5e6), (T0 + 10**8, 1.49e6)], "ANGLE_1": [(T0, 6.2), (T0 + 10**8, 0.01)],
-           "ANGLE_2": [(T0, 0.2), (T0 + 10**8, 0.21)], "DOPPLER_INSTANTANEOUS": [(T0, -3.2e3)]}
-    seg = TdmSegment({"TIME_SYSTEM": "UTC", "PARTICIPANT_1": "radar", "PARTICIPANT_2": "sat", "MODE": "SEQUENTIAL",
-                      "PATH": "1,2,1", "ANGLE_TYPE": "AZEL", "RANGE_UNITS": "km"}, obs)
+    obs = {
+        "RANGE": [(T0, 1.5e6), (T0 + 10**8, 1.49e6)],
+        "ANGLE_1": [(T0, 6.2), (T0 + 10**8, 0.01)],
+        "ANGLE_2": [(T0, 0.2), (T0 + 10**8, 0.21)],
+        "DOPPLER_INSTANTANEOUS": [(T0, -3.2e3)],
+    }
+    seg = TdmSegment(
+        {
+            "TIME_SYSTEM": "UTC",
+            "PARTICIPANT_1": "radar",
+            "PARTICIPANT_2": "sat",
+            "MODE": "SEQUENTIAL",
+            "PATH": "1,2,1",
+            "ANGLE_TYPE": "AZEL",
+            "RANGE_UNITS": "km",
+        },
+        obs,
+    )
     back = read_tdm(write_tdm(tmp_path / "a.tdm", [seg], "TEST", T0))[0]
     assert back.metadata == seg.metadata
     for key, values in obs.items():
@@ -122,8 +158,20 @@ def _run(cfg: dict) -> dict:
 
 def _radar_scenario() -> dict:
     cfg = select_variant(load_scenario("leo_radar"), "iss")
-    return {k: cfg[k] for k in ("scenario", "earth", "time", "truth", "sensors", "filter_defaults", "filters",
-                                 "estimators", "scoring")}
+    return {
+        k: cfg[k]
+        for k in (
+            "scenario",
+            "earth",
+            "time",
+            "truth",
+            "sensors",
+            "filter_defaults",
+            "filters",
+            "estimators",
+            "scoring",
+        )
+    }
 
 
 def test_export_maps_what_ccsds_holds_and_lists_the_rest(tmp_path):
@@ -136,18 +184,42 @@ def test_export_maps_what_ccsds_holds_and_lists_the_rest(tmp_path):
     labels2 = [c + s for s in ("1", "2") for c in ORBIT]
     R3 = np.diag([1.0, 1e-6, 1e-6])
     streams = [
-        ("/truth/state", "bench_msgs/msg/TruthState", [TruthSample(k, t, "eci", labels2, pair[k]) for k, t in enumerate(t_ns)]),
-        ("/pairf/estimate", "bench_msgs/msg/StateEstimate",
-         [Estimate(k, t, "eci", "pairf", labels2, pair[k], np.eye(12) * (k + 1)) for k, t in enumerate(t_ns)]),
-        ("/rel/estimate", "bench_msgs/msg/StateEstimate",
-         [Estimate(k, t, "lvlh", "rel", ORBIT, np.ones(6), np.eye(6)) for k, t in enumerate(t_ns)]),
-        ("/isl/measurement", "bench_msgs/msg/RangeAzEl",
-         [Measurement(k, t, "lvlh", "isl", np.array([100.0 + k, 0.1, 0.2]), R3, ["range", "azimuth", "elevation"])
-          for k, t in enumerate(t_ns)]),
-        ("/kbr/measurement", "bench_msgs/msg/VectorMeasurement",
-         [Measurement(k, t, "eci", "kbr", np.array([1e-3 * k]), np.eye(1), ["range_rate"]) for k, t in enumerate(t_ns)]),
-        ("/gnss/measurement", "bench_msgs/msg/VectorMeasurement",
-         [Measurement(k, t, "eci", "gnss", np.ones(3), np.eye(3), ["x", "y", "z"]) for k, t in enumerate(t_ns)]),
+        (
+            "/truth/state",
+            "bench_msgs/msg/TruthState",
+            [TruthSample(k, t, "eci", labels2, pair[k]) for k, t in enumerate(t_ns)],
+        ),
+        (
+            "/pairf/estimate",
+            "bench_msgs/msg/StateEstimate",
+            [Estimate(k, t, "eci", "pairf", labels2, pair[k], np.eye(12) * (k + 1)) for k, t in enumerate(t_ns)],
+        ),
+        (
+            "/rel/estimate",
+            "bench_msgs/msg/StateEstimate",
+            [Estimate(k, t, "lvlh", "rel", ORBIT, np.ones(6), np.eye(6)) for k, t in enumerate(t_ns)],
+        ),
+        (
+            "/isl/measurement",
+            "bench_msgs/msg/RangeAzEl",
+            [
+                Measurement(k, t, "lvlh", "isl", np.array([100.0 + k, 0.1, 0.2]), R3, ["range", "azimuth", "elevation"])
+                for k, t in enumerate(t_ns)
+            ],
+        ),
+        (
+            "/kbr/measurement",
+            "bench_msgs/msg/VectorMeasurement",
+            [
+                Measurement(k, t, "eci", "kbr", np.array([1e-3 * k]), np.eye(1), ["range_rate"])
+                for k, t in enumerate(t_ns)
+            ],
+        ),
+        (
+            "/gnss/measurement",
+            "bench_msgs/msg/VectorMeasurement",
+            [Measurement(k, t, "eci", "gnss", np.ones(3), np.eye(3), ["x", "y", "z"]) for k, t in enumerate(t_ns)],
+        ),
     ]
     write_bag(tmp_path / "bag", {"scenario": cfg, "estimators": ["pairf", "rel"], "seed": 0}, streams)
     result = export_bag(tmp_path / "bag", tmp_path / "out")
@@ -170,8 +242,15 @@ def test_export_maps_what_ccsds_holds_and_lists_the_rest(tmp_path):
 
 
 def _radar_tdm(path: Path, epochs: list[int], metadata: dict | None = None, keys=("RANGE", "ANGLE_1", "ANGLE_2")):
-    meta = {"TIME_SYSTEM": "UTC", "PARTICIPANT_1": "radar", "PARTICIPANT_2": "sat", "MODE": "SEQUENTIAL",
-            "PATH": "1,2,1", "ANGLE_TYPE": "AZEL", **(metadata or {})}
+    meta = {
+        "TIME_SYSTEM": "UTC",
+        "PARTICIPANT_1": "radar",
+        "PARTICIPANT_2": "sat",
+        "MODE": "SEQUENTIAL",
+        "PATH": "1,2,1",
+        "ANGLE_TYPE": "AZEL",
+        **(metadata or {}),
+    }
     values = {"RANGE": 1.6e6, "ANGLE_1": 4.0, "ANGLE_2": 0.15}
     seg = TdmSegment(meta, {k: [(e, values[k]) for e in epochs] for k in keys})
     return write_tdm(path, [seg], "TEST", T0)
@@ -194,11 +273,14 @@ def test_import_maps_epochs_to_measurements_on_the_grid(tmp_path):
     np.testing.assert_allclose(data.measurements["radar"][1], [1.6e6, 4.0, 0.15], rtol=1e-15)
 
 
-@pytest.mark.parametrize("change, problem", [
-    ({"TIME_SYSTEM": "TAI"}, "reads UTC"),
-    ({"ANGLE_TYPE": "RADEC"}, "AZEL"),
-    ({"PARTICIPANT_1": "TIRA"}, None),  # the only ground radar takes it, with a note
-])
+@pytest.mark.parametrize(
+    "change, problem",
+    [
+        ({"TIME_SYSTEM": "TAI"}, "reads UTC"),
+        ({"ANGLE_TYPE": "RADEC"}, "AZEL"),
+        ({"PARTICIPANT_1": "TIRA"}, None),  # the only ground radar takes it, with a note
+    ],
+)
 def test_import_refuses_what_the_scenario_cannot_take(tmp_path, change, problem):
     cfg = _radar_scenario()
     start = T0 + int(cfg["time"]["start"] * 1e9)
@@ -214,9 +296,11 @@ def test_import_refuses_what_the_scenario_cannot_take(tmp_path, change, problem)
 def test_import_refuses_epochs_off_the_scenarios_time_line(tmp_path):
     cfg = _radar_scenario()
     start = T0 + int(cfg["time"]["start"] * 1e9)
-    for epochs, problem in (([start - 10**9], "before the scenario's time.start"),
-                            ([start, start + 10_000_000], "two epochs in step 0"),
-                            ([T0 - 10**12], "before the run's epoch")):
+    for epochs, problem in (
+        ([start - 10**9], "before the scenario's time.start"),
+        ([start, start + 10_000_000], "two epochs in step 0"),
+        ([T0 - 10**12], "before the run's epoch"),
+    ):
         with pytest.raises(CcsdsError, match=problem):
             import_tdm(_radar_tdm(tmp_path / "a.tdm", epochs), cfg, tmp_path / f"bag{len(epochs)}{epochs[0]}")
 

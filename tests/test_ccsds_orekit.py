@@ -16,6 +16,7 @@ celestial body, which Orekit loads from JPL ephemerides the bench does not ship;
 the test registers a stand-in Earth (name and GM) in place of the ephemerides. One JVM for the module (about 4 s
 to start; a JVM cannot be restarted in a process).
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -93,8 +94,9 @@ def orekit():
     file, frames = java("java.io.File"), java("org.orekit.frames.FramesFactory")
     context = java("org.orekit.data.DataContext").getDefault()
     context.getDataProvidersManager().addProvider(java("org.orekit.data.DirectoryCrawler")(file(str(DATA))))
-    context.getCelestialBodies().addCelestialBodyLoader(java("org.orekit.bodies.CelestialBodyFactory").EARTH,
-                                                        StandInLoader())
+    context.getCelestialBodies().addCelestialBodyLoader(
+        java("org.orekit.bodies.CelestialBodyFactory").EARTH, StandInLoader()
+    )
     utc = java("org.orekit.time.TimeScalesFactory").getUTC()
     parsers, source = java("org.orekit.files.ccsds.ndm.ParserBuilder"), java("org.orekit.data.DataSource")
 
@@ -123,8 +125,10 @@ def orekit():
 def exported(tmp_path_factory):
     """(bag, ccsds directory, run time) of a short run of each scenario, recorded through the graph."""
     out = {}
-    for name, args in (("iss", ["--variant", "iss", "--set", "time.duration=8"]),
-                       ("nominal", ["--set", "time.duration=4"])):
+    for name, args in (
+        ("iss", ["--variant", "iss", "--set", "time.duration=8"]),
+        ("nominal", ["--set", "time.duration=4"]),
+    ):
         run = tmp_path_factory.mktemp(f"ccsds-{name}")
         result = script("launch.py", "leo_radar", *args, "--out", str(run), "--no-score", timeout=240)
         assert result.returncode == 0, result.stderr[-2000:]
@@ -158,8 +162,14 @@ def test_orekit_reads_every_oem_value_as_the_bag_has_it(orekit, exported, bag_na
         for line, msg in zip(lines, messages):
             t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             assert _seconds_from(orekit, line.getDate(), clock.epoch_ns) == pytest.approx(t_ns * 1e-9, abs=1e-9)
-            got = [line.getPosition().getX(), line.getPosition().getY(), line.getPosition().getZ(),
-                   line.getVelocity().getX(), line.getVelocity().getY(), line.getVelocity().getZ()]
+            got = [
+                line.getPosition().getX(),
+                line.getPosition().getY(),
+                line.getPosition().getZ(),
+                line.getVelocity().getX(),
+                line.getVelocity().getY(),
+                line.getVelocity().getZ(),
+            ]
             np.testing.assert_allclose(got, msg.state[:6], rtol=RTOL, atol=0)
         covariances = list(seg.getData().getCovarianceMatrices())
         if source == "truth":
@@ -186,9 +196,10 @@ def test_orekit_reads_every_tdm_observation_as_the_bag_has_it(orekit, exported, 
     assert len(observations) == 3 * len(scans)
     for k, scan in enumerate(scans):
         t_ns = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
-        for obs, (kind, value) in zip(observations[3 * k: 3 * k + 3], (("RANGE", scan.range),
-                                                                    ("ANGLE_1", scan.azimuth),
-                                                                    ("ANGLE_2", scan.elevation))):
+        for obs, (kind, value) in zip(
+            observations[3 * k : 3 * k + 3],
+            (("RANGE", scan.range), ("ANGLE_1", scan.azimuth), ("ANGLE_2", scan.elevation)),
+        ):
             assert str(obs.getType()) == kind
             assert _seconds_from(orekit, obs.getEpoch(), clock.epoch_ns) == pytest.approx(t_ns * 1e-9, abs=1e-9)
             assert obs.getMeasurement() == pytest.approx(value, rel=RTOL, abs=0)
@@ -199,8 +210,12 @@ def test_orekit_teme_to_gtod_is_the_bench_gmst_rotation(orekit):
     from 1992 to 2031: the angle about z and the pole within 1e-7 rad each (Orekit's frames differ by a small
     offset that does not change over the years, under a metre at 7000 km; a GMST error of 1 ms of UT1 is
     7e-8 rad, a wrong formula far more)."""
-    for epoch in (dt_.datetime(1992, 8, 20, 12, 14), dt_.datetime(2000, 6, 28, 0, 50, 19, 733568),
-                  dt_.datetime(2019, 12, 9, 16, 38, 29, 363424), dt_.datetime(2031, 3, 1, 5)):
+    for epoch in (
+        dt_.datetime(1992, 8, 20, 12, 14),
+        dt_.datetime(2000, 6, 28, 0, 50, 19, 733568),
+        dt_.datetime(2019, 12, 9, 16, 38, 29, 363424),
+        dt_.datetime(2031, 3, 1, 5),
+    ):
         epoch = epoch.replace(tzinfo=dt_.timezone.utc)
         jd, fraction = julian_date(epoch)
         ns = round((jd - 2440587.5) * 86400e9) + round(fraction * 86400e9)

@@ -8,6 +8,7 @@ differences (the batch re-solves are ill-conditioned where the range is 1000 tim
 so the test allows 1e-5 of each estimate's own standard deviation in the state and 1e-7 of sigma_i sigma_j in
 its covariance: far below any difference of substance, far above the noise of the last place.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,8 +35,20 @@ def _import(original, tmp_path, *extra: str, as_json: bool = True):
     """Import the original run's TDM; the score as JSON, or (``as_json`` off) as the summary a user reads, with
     the score taken from the run directory's score.json."""
     out = tmp_path / "import"
-    result = script("import_tdm.py", str(original / "ccsds" / "radar.tdm"), "--scenario", "leo_radar", "--variant",
-                    "iss", *DURATION, "--out", str(out), *(["--json"] if as_json else []), *extra, timeout=240)
+    result = script(
+        "import_tdm.py",
+        str(original / "ccsds" / "radar.tdm"),
+        "--scenario",
+        "leo_radar",
+        "--variant",
+        "iss",
+        *DURATION,
+        "--out",
+        str(out),
+        *(["--json"] if as_json else []),
+        *extra,
+        timeout=240,
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     if as_json:
         return out, json.loads(result.stdout)

@@ -1,6 +1,7 @@
 """The bench's CDR path (bench_engine.cdr: light messages <-> bytes through rosbags' typestore) and the columnar
 bag decoder (bench_engine.columns) against rclpy's serialization, on random messages of every type the bench
 sends: its own, and the standard views (bench_engine.views) with their arrays of messages and byte fields."""
+
 from __future__ import annotations
 
 import math
@@ -18,13 +19,26 @@ from bench_engine import cdr
 from bench_engine.columns import table
 from bench_engine.msg_schema import message_class
 
-BENCH_TYPES = ["bench_msgs/msg/TruthState", "bench_msgs/msg/RangeAzEl", "bench_msgs/msg/VectorMeasurement",
-               "bench_msgs/msg/DetectionSet", "bench_msgs/msg/StateEstimate", "bench_msgs/msg/StarCentroids",
-               "bench_msgs/msg/AttitudeEstimate", "bench_msgs/msg/StepAck", "rosgraph_msgs/msg/Clock",
-               "std_msgs/msg/String", "std_msgs/msg/UInt64"]
-STANDARD_TYPES = ["nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped",
-                  "diagnostic_msgs/msg/DiagnosticArray", "visualization_msgs/msg/Marker",
-                  "visualization_msgs/msg/MarkerArray"]
+BENCH_TYPES = [
+    "bench_msgs/msg/TruthState",
+    "bench_msgs/msg/RangeAzEl",
+    "bench_msgs/msg/VectorMeasurement",
+    "bench_msgs/msg/DetectionSet",
+    "bench_msgs/msg/StateEstimate",
+    "bench_msgs/msg/StarCentroids",
+    "bench_msgs/msg/AttitudeEstimate",
+    "bench_msgs/msg/StepAck",
+    "rosgraph_msgs/msg/Clock",
+    "std_msgs/msg/String",
+    "std_msgs/msg/UInt64",
+]
+STANDARD_TYPES = [
+    "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "diagnostic_msgs/msg/DiagnosticArray",
+    "visualization_msgs/msg/Marker",
+    "visualization_msgs/msg/MarkerArray",
+]
 TYPES = BENCH_TYPES + STANDARD_TYPES
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 TEXT = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"), max_size=12)
@@ -123,8 +137,9 @@ def _same(type_name: str, a, b) -> bool:
             elif sub_type[0] == "string":
                 if list(va) != list(vb):
                     return False
-            elif len(va) and not np.array_equal(np.asarray(va, dtype=float), np.asarray(vb, dtype=float),
-                                                equal_nan=True):
+            elif len(va) and not np.array_equal(
+                np.asarray(va, dtype=float), np.asarray(vb, dtype=float), equal_nan=True
+            ):
                 return False
     return True
 
@@ -155,8 +170,15 @@ def _messages(type_name: str) -> st.SearchStrategy:
     return _values(type_name)
 
 
-@pytest.mark.parametrize("type_name", ["bench_msgs/msg/StateEstimate", "bench_msgs/msg/StarCentroids",
-                                       "bench_msgs/msg/RangeAzEl", "bench_msgs/msg/DetectionSet"])
+@pytest.mark.parametrize(
+    "type_name",
+    [
+        "bench_msgs/msg/StateEstimate",
+        "bench_msgs/msg/StarCentroids",
+        "bench_msgs/msg/RangeAzEl",
+        "bench_msgs/msg/DetectionSet",
+    ],
+)
 @SETTINGS
 @given(data=st.data())
 def test_a_topics_columns_are_its_messages_field_by_field(type_name, data):
@@ -190,8 +212,9 @@ def test_uniform_topics_give_array_columns():
 
 
 def test_bad_bytes_are_refused_with_the_reason():
-    wire = cdr.serialize("bench_msgs/msg/TruthState",
-                         cdr.lite_class("bench_msgs/msg/TruthState")(labels=["x"], state=[1.0, 2.0]))
+    wire = cdr.serialize(
+        "bench_msgs/msg/TruthState", cdr.lite_class("bench_msgs/msg/TruthState")(labels=["x"], state=[1.0, 2.0])
+    )
     with pytest.raises(ValueError, match="early"):
         cdr.deserialize("bench_msgs/msg/TruthState", wire[:-4])
     with pytest.raises(ValueError, match="not plain CDR"):
@@ -201,8 +224,14 @@ def test_bad_bytes_are_refused_with_the_reason():
     with pytest.raises(ValueError, match="3-array"):
         cdr.serialize("bench_msgs/msg/StarCentroids", cdr.lite_class("bench_msgs/msg/StarCentroids")(body_rate=[1.0]))
     with pytest.raises(TypeError, match="arrays of messages"):
-        table("visualization_msgs/msg/MarkerArray", [cdr.serialize("visualization_msgs/msg/MarkerArray",
-                                                                   cdr.lite_class("visualization_msgs/msg/MarkerArray")())])
+        table(
+            "visualization_msgs/msg/MarkerArray",
+            [
+                cdr.serialize(
+                    "visualization_msgs/msg/MarkerArray", cdr.lite_class("visualization_msgs/msg/MarkerArray")()
+                )
+            ],
+        )
 
 
 def test_big_endian_cdr_reads_as_the_same_message():
@@ -229,14 +258,21 @@ def test_nested_messages_of_another_class_and_byte_fields():
     ros_marker = Marker(ns="truth", id=4, type=Marker.SPHERE)
     ros_marker.points = [message_class("geometry_msgs/msg/Point")(x=1.0, y=2.0, z=3.0)]
     array = cdr.lite_class("visualization_msgs/msg/MarkerArray")(markers=[ros_marker])
-    marker = cdr.deserialize("visualization_msgs/msg/MarkerArray",
-                             cdr.serialize("visualization_msgs/msg/MarkerArray", array)).markers[0]
+    marker = cdr.deserialize(
+        "visualization_msgs/msg/MarkerArray", cdr.serialize("visualization_msgs/msg/MarkerArray", array)
+    ).markers[0]
     assert (marker.ns, marker.id, marker.type, marker.points[0].z) == ("truth", 4, 2, 3.0)
     Status = cdr.lite_class("diagnostic_msgs/msg/DiagnosticStatus")
     assert Status().level == 0 and Status.WARN == 1 and Status.ERROR == 2
     lite = cdr.lite_class("diagnostic_msgs/msg/DiagnosticArray")(
-        status=[Status(level=Status.ERROR, name="ukf", values=[cdr.lite_class("diagnostic_msgs/msg/KeyValue")(
-            key="nis", value="3.5")])])
+        status=[
+            Status(
+                level=Status.ERROR,
+                name="ukf",
+                values=[cdr.lite_class("diagnostic_msgs/msg/KeyValue")(key="nis", value="3.5")],
+            )
+        ]
+    )
     ros = deserialize_message(cdr.serialize("diagnostic_msgs/msg/DiagnosticArray", lite), DiagnosticArray)
     assert ros.status[0].level == DiagnosticStatus.ERROR and ros.status[0].values[0] == KeyValue(key="nis", value="3.5")
 

@@ -19,6 +19,7 @@ A larger campaign: BENCH_CHAOS_RUNS=N (runs per batch), BENCH_CHAOS_KILLS=K (dis
 kinds cycle filter, recorder, sensor), BENCH_CHAOS_SEED=S (the killer's plan), e.g.
 ``BENCH_CHAOS_RUNS=12 BENCH_CHAOS_KILLS=9 .venv/bin/python -m pytest tests/test_chaos.py``.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -40,8 +41,19 @@ from graph_helpers import digests, script
 RUNS = int(os.environ.get("BENCH_CHAOS_RUNS", "3"))
 KILLS = int(os.environ.get("BENCH_CHAOS_KILLS", "2"))
 SEED = int(os.environ.get("BENCH_CHAOS_SEED", "18"))
-ARGS = ["leo_radar", "--runs", str(RUNS), "--jobs", "2", "--multiprocess", "--set", "time.duration=30",
-        "--set", "time.pacing_window=0", "--json"]
+ARGS = [
+    "leo_radar",
+    "--runs",
+    str(RUNS),
+    "--jobs",
+    "2",
+    "--multiprocess",
+    "--set",
+    "time.duration=30",
+    "--set",
+    "time.pacing_window=0",
+    "--json",
+]
 NODES = {"filter": ("ekf", "ukf"), "recorder": ("recorder",), "sensor": ("radar",)}
 """leo_radar's node processes by kind (its truth source is not a target: the brief is sensors, filters and the
 recorder)."""
@@ -63,8 +75,10 @@ def kill_plan(root: Path, seed: int = SEED, runs: int = RUNS, kills: int = KILLS
     """Which runs of the batch in ``root`` lose which node, how long after they start stepping: seeded."""
     rng = random.Random(seed)
     kinds = itertools.cycle(("filter", "recorder", "sensor"))
-    return [Target(root / f"run_{i:03d}", rng.choice(NODES[next(kinds)]), rng.uniform(0.0, 0.3))
-            for i in sorted(rng.sample(range(runs), kills))]
+    return [
+        Target(root / f"run_{i:03d}", rng.choice(NODES[next(kinds)]), rng.uniform(0.0, 0.3))
+        for i in sorted(rng.sample(range(runs), kills))
+    ]
 
 
 def node_pids(run: Path, node: str) -> list[int]:
@@ -137,15 +151,22 @@ def fault_free(tmp_path_factory) -> Path:
 
 @pytest.mark.parametrize("executor", ["local", "dask"])
 def test_a_batch_whose_nodes_are_killed_retries_them_and_scores_as_the_fault_free_batch(
-        fault_free: Path, tmp_path: Path, executor: str) -> None:
+    fault_free: Path, tmp_path: Path, executor: str
+) -> None:
     out = tmp_path / "chaos"
     targets = kill_plan(out)
     killer = Killer(targets)
     killer.start()
     started = time.monotonic()
     try:
-        res = script("montecarlo.py", *ARGS, "--out", str(out), *(["--scheduler", "local"] if executor == "dask"
-                                                                   else []), timeout=TIMEOUT_S)
+        res = script(
+            "montecarlo.py",
+            *ARGS,
+            "--out",
+            str(out),
+            *(["--scheduler", "local"] if executor == "dask" else []),
+            timeout=TIMEOUT_S,
+        )
     finally:
         killer.stop.set()
         killer.join(timeout=5)
@@ -153,21 +174,27 @@ def test_a_batch_whose_nodes_are_killed_retries_them_and_scores_as_the_fault_fre
     assert res.returncode == 0, res.stderr[-3000:]
     for t in targets:
         assert t.killed_pid is not None, f"{t.run.name}: {t.note or 'never seen stepping'}"
-    print(f"\n[chaos] {executor}: {RUNS} runs, {len(targets)} disturbed "
-          f"({', '.join(f'{t.run.name}: {t.node}' for t in targets)}), {wall:.0f} s")
+    print(
+        f"\n[chaos] {executor}: {RUNS} runs, {len(targets)} disturbed "
+        f"({', '.join(f'{t.run.name}: {t.node}' for t in targets)}), {wall:.0f} s"
+    )
 
     disturbed = {t.run.name: t for t in targets}
     for t in targets:
         aside = t.run.with_name(t.run.name + ".killed0")
         # the launcher named the node that was killed, in the set-aside attempt's log
-        assert f"[launcher] node '{t.node}' died first (killed by SIGKILL)" in \
-            aside.with_name(aside.name + ".log").read_text()
+        assert (
+            f"[launcher] node '{t.node}' died first (killed by SIGKILL)"
+            in aside.with_name(aside.name + ".log").read_text()
+        )
         # it was killed mid-run: that attempt's truth started stepping and never finished
         truth = (aside / "logs" / "truth.log").read_text()
         assert "stepping" in truth and " steps in " not in truth, truth
         # one line per retry, naming the run and the node
-        line = (f"[montecarlo] {t.run}: node '{t.node}' (killed by SIGKILL) in attempt 1; set aside as "
-                f"{aside.name}, running it again (retry 1 of {NODE_RETRIES})")
+        line = (
+            f"[montecarlo] {t.run}: node '{t.node}' (killed by SIGKILL) in attempt 1; set aside as "
+            f"{aside.name}, running it again (retry 1 of {NODE_RETRIES})"
+        )
         assert res.stderr.count(line) == 1, res.stderr[-3000:]
         assert not t.run.with_name(t.run.name + ".killed1").exists()  # the retry was left to finish
     assert sorted(p.name for p in out.glob("*.killed*") if p.is_dir()) == sorted(f"{n}.killed0" for n in disturbed)
@@ -181,17 +208,21 @@ def test_a_batch_whose_nodes_are_killed_retries_them_and_scores_as_the_fault_fre
 
 # --- the retry rule itself, without ROS: which failures are run again, how often, and what is kept
 
-@pytest.mark.parametrize("code, log, expected", [
-    (1, "[launcher] node 'ukf' died first (killed by SIGKILL); log: x/ukf.log\n", "node 'ukf' (killed by SIGKILL)"),
-    (1, "[launcher] node 'radar' died first (killed by SIGSEGV); log: x\n", "node 'radar' (killed by SIGSEGV)"),
-    (-9, "", "its own process (killed by SIGKILL)"),
-    (1, "[launcher] node 'ekf' died first (exit code 1); log: x\n", None),  # its own failure: it would fail again
-    (1, "[launcher] node 'ekf' died first (killed by SIGTERM); log: x\n", None),  # stopped on purpose
-    (-2, "", None),
-    (130, "[launcher] interrupted; bag closed at x\n", None),
-    (0, "[launcher] node 'ukf' died first (killed by SIGKILL)\n", None),
-    (2, "error: unknown key(s) 'x'\n", None),
-])
+
+@pytest.mark.parametrize(
+    "code, log, expected",
+    [
+        (1, "[launcher] node 'ukf' died first (killed by SIGKILL); log: x/ukf.log\n", "node 'ukf' (killed by SIGKILL)"),
+        (1, "[launcher] node 'radar' died first (killed by SIGSEGV); log: x\n", "node 'radar' (killed by SIGSEGV)"),
+        (-9, "", "its own process (killed by SIGKILL)"),
+        (1, "[launcher] node 'ekf' died first (exit code 1); log: x\n", None),  # its own failure: it would fail again
+        (1, "[launcher] node 'ekf' died first (killed by SIGTERM); log: x\n", None),  # stopped on purpose
+        (-2, "", None),
+        (130, "[launcher] interrupted; bag closed at x\n", None),
+        (0, "[launcher] node 'ukf' died first (killed by SIGKILL)\n", None),
+        (2, "error: unknown key(s) 'x'\n", None),
+    ],
+)
 def test_only_runs_killed_from_outside_are_retried(tmp_path: Path, code: int, log: str, expected: str | None) -> None:
     (tmp_path / "run.log").write_text(log)
     assert killed_from_outside(code, tmp_path / "run.log") == expected
@@ -207,8 +238,7 @@ def fake_launches(monkeypatch, tmp_path: Path, codes: list[int]) -> list[int]:
         (out / "bag").mkdir(parents=True)
         (out / "bag" / "attempt").write_text(str(len(calls)))
         code = codes[len(calls)]
-        Path(log).write_text("[launcher] node 'recorder' died first (killed by SIGKILL); log: r\n" if code == 1
-                             else "")
+        Path(log).write_text("[launcher] node 'recorder' died first (killed by SIGKILL); log: r\n" if code == 1 else "")
         calls.append(code)
         return code
 
@@ -223,8 +253,10 @@ def test_a_killed_run_is_set_aside_and_run_again_a_bounded_number_of_times(monke
     result = run_one(spec, None, lines.append)
     assert len(calls) == NODE_RETRIES + 1 and result.code == 1 and not result.ok
     assert result.killed == ["node 'recorder' (killed by SIGKILL)"] * NODE_RETRIES and result.reruns == lines
-    assert lines[0] == (f"{spec.out}: node 'recorder' (killed by SIGKILL) in attempt 1; set aside as "
-                        f"run_000.killed0, running it again (retry 1 of {NODE_RETRIES})")
+    assert lines[0] == (
+        f"{spec.out}: node 'recorder' (killed by SIGKILL) in attempt 1; set aside as "
+        f"run_000.killed0, running it again (retry 1 of {NODE_RETRIES})"
+    )
     assert result.error == f"node 'recorder' (killed by SIGKILL), again after {NODE_RETRIES} retries"
     for k in range(NODE_RETRIES):  # each set-aside attempt keeps its log; its partial bag is out of run_*/bag
         aside = tmp_path / f"run_000.killed{k}"

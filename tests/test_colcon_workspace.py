@@ -15,6 +15,7 @@ importlib.metadata, like bench_engine.plugins, takes the first distribution of a
 commands see only the install space's copies. The test asserts that for every package and for the registered
 scenarios, rather than building a second venv.
 """
+
 from __future__ import annotations
 
 import ast
@@ -50,16 +51,25 @@ def console_scripts(package: str) -> list[str]:
 def user_env(**extra: str) -> dict[str, str]:
     """A fresh shell's environment, with the venv activated and DDS kept on this host."""
     keep = {k: os.environ[k] for k in ("HOME", "TMPDIR", "LANG", "OPENBLAS_NUM_THREADS") if k in os.environ}
-    return {**keep, "PATH": f"{VENV / 'bin'}:/usr/bin:/bin", "VIRTUAL_ENV": str(VENV),
-            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", **extra}
+    return {
+        **keep,
+        "PATH": f"{VENV / 'bin'}:/usr/bin:/bin",
+        "VIRTUAL_ENV": str(VENV),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        **extra,
+    }
 
 
 def sourced(install: Path, *command: str, timeout: float = 60) -> subprocess.CompletedProcess:
     """Run a command after `. install/setup.sh` on top of the venv underlay (AMENT_PREFIX_PATH, as a sourced
     /opt/ros/jazzy/setup.sh would set it)."""
-    return subprocess.run(["sh", "-c", '. "$0/setup.sh" && exec "$@"', str(install), *command],
-                          env=user_env(AMENT_PREFIX_PATH=str(VENV)), capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        ["sh", "-c", '. "$0/setup.sh" && exec "$@"', str(install), *command],
+        env=user_env(AMENT_PREFIX_PATH=str(VENV)),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -68,14 +78,30 @@ def install(tmp_path_factory) -> Path:
     scratch directory)."""
     assert COLCON.is_file(), f"{COLCON} is missing: run make setup (requirements.txt names colcon-core, colcon-ros)"
     work = tmp_path_factory.mktemp("colcon")
-    shutil.copytree(SRC, work / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__",
-                                                                     *UNDERLAY_PACKAGES))
+    shutil.copytree(SRC, work / "src", ignore=shutil.ignore_patterns("*.egg-info", "__pycache__", *UNDERLAY_PACKAGES))
     env = user_env(AMENT_PREFIX_PATH=str(VENV), CMAKE_PREFIX_PATH=str(VENV), COLCON_HOME=str(work / "colcon_home"))
     res = subprocess.run(
-        [str(COLCON), "--log-base", str(work / "log"), "build", "--base-paths", str(work / "src"),
-         "--build-base", str(work / "build"), "--install-base", str(work / "install"),
-         "--cmake-args", f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF"],
-        cwd=work, env=env, capture_output=True, text=True, timeout=300)
+        [
+            str(COLCON),
+            "--log-base",
+            str(work / "log"),
+            "build",
+            "--base-paths",
+            str(work / "src"),
+            "--build-base",
+            str(work / "build"),
+            "--install-base",
+            str(work / "install"),
+            "--cmake-args",
+            f"-DPython3_EXECUTABLE={sys.executable}",
+            "-DBUILD_TESTING=OFF",
+        ],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     return work / "install"
 
@@ -97,22 +123,29 @@ def test_make_setup_built_the_interface_package_with_colcon_into_the_venv():
 
 def test_colcon_builds_every_package_with_its_console_scripts(install):
     assert sorted(p.name for p in install.iterdir() if p.is_dir()) == PYTHON_PACKAGES
-    missing = [f"{p}/lib/{p}/{name}" for p in PYTHON_PACKAGES for name in console_scripts(p)
-               if not (install / p / "lib" / p / name).is_file()]
+    missing = [
+        f"{p}/lib/{p}/{name}"
+        for p in PYTHON_PACKAGES
+        for name in console_scripts(p)
+        if not (install / p / "lib" / p / name).is_file()
+    ]
     assert not missing, missing
-    assert {"bench_launch", "bench_score", "bench_montecarlo", "bench_replay", "bench_sweep",
-            "bench_demo"} <= set(console_scripts("bench_eval"))
+    assert {"bench_launch", "bench_score", "bench_montecarlo", "bench_replay", "bench_sweep", "bench_demo"} <= set(
+        console_scripts("bench_eval")
+    )
     assert "bench_recover_bag" in console_scripts("bench_engine")
 
 
 def test_the_install_space_shadows_the_venvs_editable_packages(install):
-    code = ("import importlib, importlib.metadata as md\n"
-            "from bench_engine import plugins\n"
-            f"for name in {PYTHON_PACKAGES!r}:\n"
-            "    print(importlib.import_module(name).__file__)\n"
-            f"for name in {PYTHON_PACKAGES!r}:\n"
-            "    print(md.distribution(name).locate_file(''))\n"
-            "print(plugins.load('scenarios', 'leo_radar'))\n")
+    code = (
+        "import importlib, importlib.metadata as md\n"
+        "from bench_engine import plugins\n"
+        f"for name in {PYTHON_PACKAGES!r}:\n"
+        "    print(importlib.import_module(name).__file__)\n"
+        f"for name in {PYTHON_PACKAGES!r}:\n"
+        "    print(md.distribution(name).locate_file(''))\n"
+        "print(plugins.load('scenarios', 'leo_radar'))\n"
+    )
     res = sourced(install, "python", "-c", code)
     assert res.returncode == 0, res.stderr[-2000:]
     outside = [line for line in res.stdout.split() if not Path(line).resolve().is_relative_to(install.resolve())]
@@ -120,8 +153,9 @@ def test_the_install_space_shadows_the_venvs_editable_packages(install):
 
 
 def test_every_installed_command_answers_help(install):
-    commands = [f"{p}/lib/{p}/{name}" for p in PYTHON_PACKAGES for name in console_scripts(p)
-                if name.startswith("bench_")]
+    commands = [
+        f"{p}/lib/{p}/{name}" for p in PYTHON_PACKAGES for name in console_scripts(p) if name.startswith("bench_")
+    ]
     loop = 'for c in "$@"; do "$0/$c" --help > /dev/null || { echo "failed: $c" >&2; exit 1; }; done'
     res = sourced(install, "sh", "-c", loop, str(install), *commands, timeout=120)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -129,7 +163,17 @@ def test_every_installed_command_answers_help(install):
 
 def test_the_installed_launcher_runs_a_short_graph(install, tmp_path):
     launch = install / "bench_eval" / "lib" / "bench_eval" / "bench_launch"
-    res = sourced(install, str(launch), "leo_radar", "--set", "time.duration=5", "--single-process", "--no-score",
-                  "--out", str(tmp_path / "run"), timeout=120)
+    res = sourced(
+        install,
+        str(launch),
+        "leo_radar",
+        "--set",
+        "time.duration=5",
+        "--single-process",
+        "--no-score",
+        "--out",
+        str(tmp_path / "run"),
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     assert (tmp_path / "run" / "bag" / "metadata.yaml").is_file() and list((tmp_path / "run" / "bag").glob("*.mcap"))

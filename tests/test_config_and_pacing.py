@@ -1,4 +1,5 @@
 """Scenario loading/validation, graph wiring and the lock-step pacing rules (no ROS needed)."""
+
 from __future__ import annotations
 
 import pytest
@@ -57,10 +58,20 @@ def test_graph_expects_every_subscriber_before_starting() -> None:
     assert graph.expected_subscribers("/truth/state") == 2  # radar + recorder
     assert graph.expected_subscribers("/radar/measurement") == 3  # ekf + ukf + recorder
     assert graph.expected_subscribers("/ukf/estimate") == 1
-    assert set(graph.data_topics()) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate",
-                                        "/ukf/estimate", "/truth/odometry", "/truth/markers",
-                                        *(f"/{n}/{v}" for n in ("ekf", "ukf")  # standard views (bench_engine.views)
-                                          for v in ("odometry", "diagnostics", "markers"))}
+    assert set(graph.data_topics()) == {
+        "/truth/state",
+        "/clock",
+        "/radar/measurement",
+        "/ekf/estimate",
+        "/ukf/estimate",
+        "/truth/odometry",
+        "/truth/markers",
+        *(
+            f"/{n}/{v}"
+            for n in ("ekf", "ukf")  # standard views (bench_engine.views)
+            for v in ("odometry", "diagnostics", "markers")
+        ),
+    }
     assert graph.expected_subscribers("/ukf/odometry") == 1  # the recorder
 
 
@@ -110,8 +121,9 @@ def test_replay_pacing_counts_its_own_publications() -> None:
 
 def test_pacing_a_three_stage_pipeline_counts_every_hop() -> None:
     """camera -> identifier -> tracker: the source waits for the last stage, and completion needs every hop."""
-    pacer = Pacer({"camera": ["/truth/state"], "ident": ["/camera/measurement"], "track": ["/ident/estimate"]},
-                  window=0)
+    pacer = Pacer(
+        {"camera": ["/truth/state"], "ident": ["/camera/measurement"], "track": ["/ident/estimate"]}, window=0
+    )
     pacer.on_published("/truth/state")
     pacer.on_ack("camera", 1, {"/camera/measurement": 1})
     pacer.on_ack("ident", 1, {"/ident/estimate": 2})  # one frame in, two outputs

@@ -1,4 +1,5 @@
 """Cowell propagation (paper 000, eq. 7): invariants, J2 secular rates, and the RK4 predictor."""
+
 import numpy as np
 import pytest
 
@@ -6,8 +7,9 @@ from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.cowell import propagate, rk4
 from orbit_sim.kepler import cartesian_to_kepler, kepler_to_cartesian
 
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
+CHAMP = kepler_to_cartesian(
+    6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+)
 PERIOD = 2 * np.pi * np.sqrt(6739137.0**3 / MU_EARTH)
 
 
@@ -30,11 +32,16 @@ def test_two_body_angular_momentum_conserved_and_matches_kepler():
     times = np.linspace(0.0, 3 * PERIOD, 301)
     s = propagate(CHAMP, times, j2=0.0)
     h = np.cross(s[:, :3], s[:, 3:])
-    np.testing.assert_allclose(h, np.tile(h[0], (len(times), 1)), rtol=0,
-                               atol=1e-10 * np.linalg.norm(h[0]))
+    np.testing.assert_allclose(h, np.tile(h[0], (len(times), 1)), rtol=0, atol=1e-10 * np.linalg.norm(h[0]))
     n = 2 * np.pi / PERIOD
-    exact = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                                np.radians(81.5653), np.radians(80.0) + n * times[-1])
+    exact = kepler_to_cartesian(
+        6739137.0,
+        0.00033,
+        np.radians(87.2346),
+        np.radians(303.3713),
+        np.radians(81.5653),
+        np.radians(80.0) + n * times[-1],
+    )
     np.testing.assert_allclose(s[-1, :3], exact[:3], atol=1e-3)
 
 

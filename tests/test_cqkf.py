@@ -1,4 +1,5 @@
 """Cubature-quadrature rule (paper 004 set-up) and the CQKF (paper 004 eqs. 14-27)."""
+
 import numpy as np
 import pytest
 from scipy.special import chdtri, gamma
@@ -38,8 +39,12 @@ def test_polynomials_up_to_degree_3_are_exact_for_any_gaussian(n, order):
     X = m + xi @ np.linalg.cholesky(P).T
     second = np.einsum("k,ki,kj->ij", w, X, X)
     third = np.einsum("k,ki,kj,kl->ijl", w, X, X, X)
-    exact_third = (np.einsum("i,j,l->ijl", m, m, m) + np.einsum("i,jl->ijl", m, P)
-                   + np.einsum("j,il->ijl", m, P) + np.einsum("l,ij->ijl", m, P))
+    exact_third = (
+        np.einsum("i,j,l->ijl", m, m, m)
+        + np.einsum("i,jl->ijl", m, P)
+        + np.einsum("j,il->ijl", m, P)
+        + np.einsum("l,ij->ijl", m, P)
+    )
     assert np.allclose(w @ X, m, atol=1e-12)
     assert np.allclose(second, P + np.outer(m, m), atol=1e-11)
     assert np.allclose(third, exact_third, atol=1e-10)
@@ -52,9 +57,9 @@ def test_radial_rule_moments(n, order):
     alpha = n / 2 - 1
     lam, A = radial_rule(n, order)
     for k in range(2 * order):
-        assert A @ lam ** k == pytest.approx(gamma(alpha + k + 1), rel=1e-10)
+        assert A @ lam**k == pytest.approx(gamma(alpha + k + 1), rel=1e-10)
     k = 2 * order
-    assert abs(A @ lam ** k / gamma(alpha + k + 1) - 1.0) > 1e-3
+    assert abs(A @ lam**k / gamma(alpha + k + 1) - 1.0) > 1e-3
 
 
 @pytest.mark.parametrize("n", [2, 4, 6, 9])
@@ -62,7 +67,7 @@ def test_fourth_radial_moment_needs_order_two(n):
     """E|x|^4 = n(n + 2): the CKF (n' = 1) gives n^2, n' >= 2 is exact."""
     for order, exact in ((1, False), (2, True), (3, True)):
         xi, w = cubature_quadrature_points(n, order)
-        value = w @ np.sum(xi ** 2, axis=1) ** 2
+        value = w @ np.sum(xi**2, axis=1) ** 2
         assert bool(value == pytest.approx(n * (n + 2), rel=1e-10)) is exact
 
 
@@ -150,8 +155,8 @@ def simulate(model, steps, seed, R):
 def test_order_one_equals_a_directly_coded_ckf():
     dynamics = ConstantVelocity(0.05, ndim=2)
     model = RangeAndProduct()
-    R = np.diag([0.5 ** 2, 2.0 ** 2])
-    x0, P0 = np.array([290.0, 160.0, 0.0, 0.0]), np.diag([20.0 ** 2, 20.0 ** 2, 3.0 ** 2, 3.0 ** 2])
+    R = np.diag([0.5**2, 2.0**2])
+    x0, P0 = np.array([290.0, 160.0, 0.0, 0.0]), np.diag([20.0**2, 20.0**2, 3.0**2, 3.0**2])
     f = CubatureQuadratureKF(dynamics, order=1)
     f.initialise(x0, P0, 0.0)
     x, P = x0.copy(), P0.copy()
@@ -166,8 +171,8 @@ def test_order_one_equals_a_directly_coded_ckf():
 def test_order_two_differs_from_the_ckf_on_a_nonlinear_model():
     dynamics = ConstantVelocity(0.05, ndim=2)
     model = RangeAndProduct()
-    R = np.diag([0.5 ** 2, 2.0 ** 2])
-    x0, P0 = np.array([290.0, 160.0, 0.0, 0.0]), np.diag([20.0 ** 2, 20.0 ** 2, 3.0 ** 2, 3.0 ** 2])
+    R = np.diag([0.5**2, 2.0**2])
+    x0, P0 = np.array([290.0, 160.0, 0.0, 0.0]), np.diag([20.0**2, 20.0**2, 3.0**2, 3.0**2])
     filters = [CubatureQuadratureKF(dynamics, order=o) for o in (1, 2)]
     for f in filters:
         f.initialise(x0, P0, 0.0)
@@ -240,7 +245,7 @@ def test_bearing_across_the_wrap_matches_the_rotated_problem(order):
     dynamics, model = ConstantVelocity(0.05, ndim=2), RangeBearing()
     R = np.diag([1.0, np.radians(0.5) ** 2])
     x0 = np.array([-500.0, 20.0, 0.0, -4.0])
-    P0 = np.diag([30.0 ** 2, 30.0 ** 2, 2.0 ** 2, 2.0 ** 2])
+    P0 = np.diag([30.0**2, 30.0**2, 2.0**2, 2.0**2])
     rng = np.random.default_rng(5)
     turn = -np.pi / 2
     wrapped, rotated = CubatureQuadratureKF(dynamics, order), CubatureQuadratureKF(dynamics, order)
@@ -272,5 +277,5 @@ def test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario():
     lo, hi = summary["bounds"]
     np.testing.assert_allclose([lo, hi], chdtri(18, [0.975, 0.025]) / 3, rtol=1e-12)
     assert lo < summary["mean"] < hi, f"NEES {summary['mean']:.2f} outside [{lo:.2f}, {hi:.2f}]"
-    assert 4.0 * summary["mean"] > hi and summary["mean"] / 4.0 < lo     # the band tells a factor 4 apart
+    assert 4.0 * summary["mean"] > hi and summary["mean"] / 4.0 < lo  # the band tells a factor 4 apart
     assert summary["fraction_inside"] > 0.7

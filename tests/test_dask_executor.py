@@ -4,6 +4,7 @@ killed is run again and records what the local executor records, and --resume ke
 Dask batch scores as the local one, value for value and bag for bag, is tests/test_chaos.py's comparison (its
 Dask batch, on ``--scheduler local``, against the fault-free local batch). Short leo_radar passes (20 s of sim
 time) keep it quick."""
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,7 @@ RUNS = ["--runs", "2", "--jobs", "2", *SHORT_PASS]
 
 @pytest.fixture(scope="module")
 def cluster():
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as c:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) as c:
         yield c
 
 
@@ -122,6 +122,7 @@ def test_resume_keeps_complete_runs_and_makes_the_others(local_mc, tmp_path):
     assert digests(out / "run_001" / "bag") == digests(local_mc / "run_001" / "bag")
     assert json.loads((out / "score.json").read_text())["runs"] == 2
     # another configuration in OUT is not silently mixed in
-    res = script("montecarlo.py", "leo_radar", *RUNS, "--set", "sensors.radar.p_detect=0.5", "--out", str(out),
-                 "--resume")
+    res = script(
+        "montecarlo.py", "leo_radar", *RUNS, "--set", "sensors.radar.p_detect=0.5", "--out", str(out), "--resume"
+    )
     assert res.returncode == 2 and "another configuration" in res.stderr

@@ -2,6 +2,7 @@
 repository or cites a paper by a file name only a local copy has; the README fits on a page; the docs build's
 step runner appends its shortening where a reader's command would take it. (The site itself is built, with
 warnings as errors, by `make docs` in CI.)"""
+
 import importlib.util
 import re
 import subprocess
@@ -26,8 +27,9 @@ FILE_CITATION = re.compile(r"\b00[0-4]_[0-9a-f]{16}\b")
 
 
 def tracked_text_files() -> list:
-    names = subprocess.run(["git", "-C", str(ROOT), "ls-files", "-z"], capture_output=True, text=True,
-                           check=True).stdout.split("\0")
+    names = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "-z"], capture_output=True, text=True, check=True
+    ).stdout.split("\0")
     files = []
     for name in filter(None, names):
         path = ROOT / name
@@ -40,9 +42,12 @@ def tracked_text_files() -> list:
 
 
 def test_no_tracked_file_points_outside_the_repository_or_cites_a_paper_by_its_file_name():
-    offending = [f"{name}:{text[:m.start()].count(chr(10)) + 1}: {m.group(0)}"
-                 for name, text in tracked_text_files()
-                 for pattern in (OUTSIDE, FILE_CITATION) for m in pattern.finditer(text)]
+    offending = [
+        f"{name}:{text[: m.start()].count(chr(10)) + 1}: {m.group(0)}"
+        for name, text in tracked_text_files()
+        for pattern in (OUTSIDE, FILE_CITATION)
+        for m in pattern.finditer(text)
+    ]
     assert offending == []
 
 
@@ -55,23 +60,53 @@ def test_the_readme_fits_on_a_page():
     assert len((ROOT / "README.md").read_text(encoding="utf-8").splitlines()) <= 200
 
 
-@pytest.mark.parametrize("text, expected", [
-    (".venv/bin/python scripts/launch.py leo_radar --out runs/a",
-     ".venv/bin/python scripts/launch.py leo_radar --out runs/a --runs 1"),
-    (".venv/bin/python scripts/launch.py leo_radar \\\n    --out runs/a  # one pass",
-     ".venv/bin/python scripts/launch.py leo_radar      --out runs/a --runs 1 # one pass"),
-    ("export X=1\n.venv/bin/python scripts/score.py a | tail -3",
-     "export X=1\n.venv/bin/python scripts/score.py a --runs 1 | tail -3"),
-    ("mkdir -p runs", "mkdir -p runs"),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (
+            ".venv/bin/python scripts/launch.py leo_radar --out runs/a",
+            ".venv/bin/python scripts/launch.py leo_radar --out runs/a --runs 1",
+        ),
+        (
+            ".venv/bin/python scripts/launch.py leo_radar \\\n    --out runs/a  # one pass",
+            ".venv/bin/python scripts/launch.py leo_radar      --out runs/a --runs 1 # one pass",
+        ),
+        (
+            "export X=1\n.venv/bin/python scripts/score.py a | tail -3",
+            "export X=1\n.venv/bin/python scripts/score.py a --runs 1 | tail -3",
+        ),
+        ("mkdir -p runs", "mkdir -p runs"),
+    ],
+)
 def test_the_docs_step_runner_shortens_only_bench_commands_at_their_end(text, expected):
     assert docs_extension("run_blocks").shortened(text, "--runs 1") == expected
 
 
 def test_the_api_pages_make_a_plain_docstring_valid_restructuredtext_without_changing_its_words():
     api = docs_extension("api_pages")
-    lines = ["Returns |x| for:", "- a list item", "  continued", "text after the list", "    an indented line",
-             "three ``Time``s", "::", "", "    |literal| kept"]
-    assert api.plain_layout(lines) == ["Returns \\|x\\| for:", "", "- a list item", "  continued", "",
-                                       "text after the list", "", "    an indented line", "",
-                                       "three ``Time``\\ s", "::", "", "    |literal| kept"]
+    lines = [
+        "Returns |x| for:",
+        "- a list item",
+        "  continued",
+        "text after the list",
+        "    an indented line",
+        "three ``Time``s",
+        "::",
+        "",
+        "    |literal| kept",
+    ]
+    assert api.plain_layout(lines) == [
+        "Returns \\|x\\| for:",
+        "",
+        "- a list item",
+        "  continued",
+        "",
+        "text after the list",
+        "",
+        "    an indented line",
+        "",
+        "three ``Time``\\ s",
+        "::",
+        "",
+        "    |literal| kept",
+    ]

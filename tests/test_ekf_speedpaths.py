@@ -2,6 +2,7 @@
 Hessians' non-zero block, the Joseph update's one-call Cholesky solve and the float conversion of the time.
 
 Each is checked against the slower formulation it replaces (equal results) or against first principles."""
+
 import numpy as np
 import pytest
 
@@ -15,8 +16,9 @@ from bench_models.orbit_dynamics import OrbitJ2Dynamics
 
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
+CHAMP = kepler_to_cartesian(
+    6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+)
 
 
 @pytest.fixture(params=[False, True], ids=["rae", "rae+rdot"])
@@ -29,8 +31,12 @@ def states(model: GroundRadarModel, extra: int = 0) -> list[tuple[float, np.ndar
     components appended to the six orbit ones."""
     rng = np.random.default_rng(11)
     out = []
-    for t, rng_m, az, el in [(4400.0, 1.2e6, 1e-4, 0.3), (10.0, 9e5, 2 * np.pi - 1e-4, 0.6),
-                             (0.0, 2e6, 3.0, 0.09), (2500.0, 6e5, 4.5, 1.2)]:
+    for t, rng_m, az, el in [
+        (4400.0, 1.2e6, 1e-4, 0.3),
+        (10.0, 9e5, 2 * np.pi - 1e-4, 0.6),
+        (0.0, 2e6, 3.0, 0.09),
+        (2500.0, 6e5, 4.5, 1.2),
+    ]:
         u = rng_m * np.array([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
         r = ecef_to_eci(model.station_ecef + enu_rotation(model.lat_rad, model.lon_rad).T @ u, t, model.theta0)
         out.append((t, np.concatenate((r, rng.normal(size=3) * 4.4e3, rng.normal(size=extra)))))
@@ -66,8 +72,9 @@ def test_derivatives_match_central_differences_of_h(model):
         fd = np.empty_like(block)
         for j in range(m):
             for k in range(m):
-                fd[:, j, k] = (h(big[j] + big[k]) - h(big[j] - big[k]) - h(big[k] - big[j])
-                               + h(-big[j] - big[k])) / (4 * big[j, j] * big[k, k])
+                fd[:, j, k] = (h(big[j] + big[k]) - h(big[j] - big[k]) - h(big[k] - big[j]) + h(-big[j] - big[k])) / (
+                    4 * big[j, j] * big[k, k]
+                )
         scale = np.abs(fd).max(axis=(1, 2), keepdims=True)
         np.testing.assert_allclose(block / scale, fd / scale, atol=1e-3)  # measured 1.3e-4
 
@@ -86,8 +93,7 @@ def test_second_order_moments_of_a_block_equal_those_of_the_padded_hessians_and_
     np.testing.assert_allclose(B, B_full, rtol=1e-13)
     np.testing.assert_allclose(bias, [0.5 * np.trace(Hi @ P[0:3, 0:3]) for Hi in block], rtol=1e-13)
     Pp = P[0:3, 0:3]
-    np.testing.assert_allclose(B, [[0.5 * np.trace(Hi @ Pp @ Hj @ Pp) for Hj in block] for Hi in block],
-                               rtol=1e-13)
+    np.testing.assert_allclose(B, [[0.5 * np.trace(Hi @ Pp @ Hj @ Pp) for Hj in block] for Hi in block], rtol=1e-13)
 
 
 class RadarWithoutSharedPass(GroundRadarModel):
@@ -100,12 +106,13 @@ def test_second_order_ekf_gives_the_same_estimates_through_derivatives_and_the_t
     other = RadarWithoutSharedPass(*STATION, theta0=THETA0, with_range_rate=model.with_range_rate)
     times = 4330.0 + 0.1 * np.arange(31)
     truth = propagate(propagate(CHAMP, np.array([0.0, times[0]]))[-1], times)
-    R = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2, 1.0][0:len(model.labels)])
+    R = np.diag([1000.0, 0.017**2, 0.017**2, 1.0][0 : len(model.labels)])
     rng = np.random.default_rng(8)
     fast, slow = SecondOrderEKF(OrbitJ2Dynamics(0.0)), SecondOrderEKF(OrbitJ2Dynamics(0.0))
     for f in (fast, slow):
-        f.initialise(truth[0] + np.array([2e3, -1e3, 1e3, 5.0, -5.0, 2.0]),
-                     np.diag([3e3 ** 2] * 3 + [30.0 ** 2] * 3), times[0])
+        f.initialise(
+            truth[0] + np.array([2e3, -1e3, 1e3, 5.0, -5.0, 2.0]), np.diag([3e3**2] * 3 + [30.0**2] * 3), times[0]
+        )
     for t, x in zip(times[1:], truth[1:]):
         z = model.h(x, t) + rng.normal(size=len(model.labels)) * np.sqrt(np.diag(R))
         nis_fast, nis_slow = fast.process(t, z, R, model).nis, slow.process(t, z, R, other).nis
@@ -140,7 +147,7 @@ def test_process_keeps_the_time_as_a_python_float():
     x0 = propagate(CHAMP, np.array([0.0, 4330.0]))[-1]
     f.initialise(x0, np.diag([1e4] * 3 + [1.0] * 3), 4330.0)
     t = np.float64(4330.1)
-    assert f.process(t, model.h(x0, 4330.1), np.diag([1000.0, 0.017 ** 2, 0.017 ** 2]), model).accepted
+    assert f.process(t, model.h(x0, 4330.1), np.diag([1000.0, 0.017**2, 0.017**2]), model).accepted
     assert type(f.t) is float and f.t == t
     f.predict(np.float64(4330.2))
     assert type(f.t) is float and f.t == 4330.2

@@ -5,6 +5,7 @@ ROS_DOMAIN_ID 54. Checks the bag's topics and counts, the estimates' frame, labe
 diagnostics, the "pf"'s accuracy after the transient against the paper's thresholds, and the SIR's
 documented degeneracy (2 cm range against a 50 m prior: its weights collapse onto one particle).
 """
+
 from __future__ import annotations
 
 import json
@@ -19,15 +20,20 @@ from graph_helpers import read_bag, script, stamp
 STEPS = 61
 N = 2000
 LABELS = ["x", "y", "z", "vx", "vy", "vz"]
-SETTINGS = ["--set", "time.duration=60", "--set", f"filters.pf.params.n_particles={N}",
-            "--set", f"filters.sir.params.n_particles={N}"]
+SETTINGS = [
+    "--set",
+    "time.duration=60",
+    "--set",
+    f"filters.pf.params.n_particles={N}",
+    "--set",
+    f"filters.sir.params.n_particles={N}",
+]
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("formation_pf") / "run"
-    res = script("launch.py", "formation_pf", "--single-process", "--out", str(out),
-                 "--seed", "2", *SETTINGS)
+    res = script("launch.py", "formation_pf", "--single-process", "--out", str(out), "--seed", "2", *SETTINGS)
     assert res.returncode == 0, res.stderr[-3000:]
     return out
 
@@ -47,7 +53,12 @@ def diagnostics(msg) -> dict[str, float]:
 
 def test_every_step_and_topic_is_recorded(bag: dict) -> None:
     assert {t for t in bag if t.rsplit("/", 1)[1] not in SUFFIXES} == {  # beside the standard views
-        "/truth/state", "/clock", "/radio/measurement", "/pf/estimate", "/sir/estimate"}
+        "/truth/state",
+        "/clock",
+        "/radio/measurement",
+        "/pf/estimate",
+        "/sir/estimate",
+    }
     truth = [m for _, m in bag["/truth/state"]]
     assert [m.step for m in truth] == list(range(STEPS))
     np.testing.assert_allclose([stamp(m) for m in truth], np.arange(STEPS, dtype=float), atol=1e-9)
@@ -77,8 +88,7 @@ def errors(bag: dict, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Times (K,) and |estimate − truth| (K, 6) of one filter, matched by lock-step index."""
     truth = {m.step: np.asarray(m.state) for _, m in bag["/truth/state"]}
     est = estimates(bag, name)
-    return (np.array([stamp(e) for e in est]),
-            np.array([np.abs(np.asarray(e.state) - truth[e.step]) for e in est]))
+    return (np.array([stamp(e) for e in est]), np.array([np.abs(np.asarray(e.state) - truth[e.step]) for e in est]))
 
 
 def test_pf_meets_the_paper_thresholds_after_the_transient(bag: dict) -> None:

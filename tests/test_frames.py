@@ -1,10 +1,19 @@
 """ECI <-> ECEF (rotation about z), WGS84 geodetic <-> ECEF, and the ENU frame (paper 000 eqs. 8-10)."""
+
 import numpy as np
 import pytest
 
 from orbit_sim.constants import OMEGA_EARTH, R_EARTH, WGS84_F
-from orbit_sim.frames import (earth_rotation_angle, ecef_to_eci, ecef_to_eci_state, ecef_to_geodetic,
-                              eci_to_ecef, eci_to_ecef_state, enu_rotation, geodetic_to_ecef)
+from orbit_sim.frames import (
+    earth_rotation_angle,
+    ecef_to_eci,
+    ecef_to_eci_state,
+    ecef_to_geodetic,
+    eci_to_ecef,
+    eci_to_ecef_state,
+    enu_rotation,
+    geodetic_to_ecef,
+)
 
 RNG = np.random.default_rng(5)
 STATES = np.hstack((RNG.normal(size=(8, 3)) * 7e6, RNG.normal(size=(8, 3)) * 7e3))
@@ -42,8 +51,7 @@ def test_ecef_velocity_is_time_derivative_of_ecef_position():
     """For straight-line inertial motion r(t) = r0 + v t, compare with a central difference."""
     r0, v = STATES[1, :3], STATES[1, 3:]
     t, h = 300.0, 1e-3
-    numeric = (eci_to_ecef(r0 + v * (t + h), t + h, 0.2)
-               - eci_to_ecef(r0 + v * (t - h), t - h, 0.2)) / (2 * h)
+    numeric = (eci_to_ecef(r0 + v * (t + h), t + h, 0.2) - eci_to_ecef(r0 + v * (t - h), t - h, 0.2)) / (2 * h)
     analytic = eci_to_ecef_state(np.concatenate((r0 + v * t, v)), t, 0.2)[3:]
     np.testing.assert_allclose(analytic, numeric, atol=1e-5)
 
@@ -56,10 +64,8 @@ def test_ground_point_moves_with_the_earth_in_eci():
 
 def test_geodetic_known_points():
     np.testing.assert_allclose(geodetic_to_ecef(0.0, 0.0, 0.0), [R_EARTH, 0.0, 0.0], atol=1e-6)
-    np.testing.assert_allclose(geodetic_to_ecef(np.pi / 2, 0.3, 0.0), [0.0, 0.0, R_EARTH * (1 - WGS84_F)],
-                               atol=1e-6)
-    np.testing.assert_allclose(geodetic_to_ecef(0.0, np.pi / 2, 1000.0), [0.0, R_EARTH + 1000.0, 0.0],
-                               atol=1e-6)
+    np.testing.assert_allclose(geodetic_to_ecef(np.pi / 2, 0.3, 0.0), [0.0, 0.0, R_EARTH * (1 - WGS84_F)], atol=1e-6)
+    np.testing.assert_allclose(geodetic_to_ecef(0.0, np.pi / 2, 1000.0), [0.0, R_EARTH + 1000.0, 0.0], atol=1e-6)
 
 
 @pytest.mark.parametrize("lat_deg", [-90.0, -60.0, -1.0, 0.0, 33.3, 78.15, 89.999, 90.0])

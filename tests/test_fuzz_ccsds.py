@@ -12,6 +12,7 @@ same every run); set it for a larger campaign with fresh random examples::
 
     BENCH_FUZZ_EXAMPLES=2000 .venv/bin/python -m pytest tests/test_fuzz_ccsds.py
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -33,30 +34,81 @@ from graph_helpers import script
 
 EXAMPLES = int(os.environ.get("BENCH_FUZZ_EXAMPLES", "40"))
 CAMPAIGN = "BENCH_FUZZ_EXAMPLES" in os.environ
-FUZZ = settings(max_examples=EXAMPLES, derandomize=not CAMPAIGN, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    derandomize=not CAMPAIGN,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 T0 = utc_ns(dt_.datetime(2019, 12, 9, 16, 38, 29, 363424, tzinfo=dt_.timezone.utc))
 START = T0 + 5_724_900_000_000
-HOSTILE_LINES = ["META_START", "META_STOP", "DATA_START", "DATA_STOP", "COVARIANCE_START", "COVARIANCE_STOP",
-                 "RANGE = 2019-12-09T18:13:54.263424 nan", "ANGLE_1 = 2019-12-09T18:13:54.263424 1e999",
-                 "EPOCH = 2016-12-31T23:59:60", "REF_FRAME = EME2000", "TIME_SYSTEM = TAI", "ANGLE_TYPE = RADEC",
-                 "2019-12-09T18:13:54.263424 1 2 3", "1.0", "= =", "lower case = x", "X" * 5000,
-                 "RANGE_UNITS = RU", "CCSDS_OEM_VERS = 9.9", "2019-343T18:13:54 1 2 3 4 5 6"]
+HOSTILE_LINES = [
+    "META_START",
+    "META_STOP",
+    "DATA_START",
+    "DATA_STOP",
+    "COVARIANCE_START",
+    "COVARIANCE_STOP",
+    "RANGE = 2019-12-09T18:13:54.263424 nan",
+    "ANGLE_1 = 2019-12-09T18:13:54.263424 1e999",
+    "EPOCH = 2016-12-31T23:59:60",
+    "REF_FRAME = EME2000",
+    "TIME_SYSTEM = TAI",
+    "ANGLE_TYPE = RADEC",
+    "2019-12-09T18:13:54.263424 1 2 3",
+    "1.0",
+    "= =",
+    "lower case = x",
+    "X" * 5000,
+    "RANGE_UNITS = RU",
+    "CCSDS_OEM_VERS = 9.9",
+    "2019-343T18:13:54 1 2 3 4 5 6",
+]
 
 
 def _messages(directory: Path) -> tuple[Path, Path]:
     """A small TDM (radar over the leo_radar iss variant's grid) and OEM (covariances, two segments)."""
     epochs = [START + k * 100_000_000 for k in range(4)]
-    tdm = write_tdm(directory / "m.tdm", [TdmSegment(
-        {"TIME_SYSTEM": "UTC", "PARTICIPANT_1": "radar", "PARTICIPANT_2": "ISS", "MODE": "SEQUENTIAL", "PATH": "1,2,1",
-         "ANGLE_TYPE": "AZEL", "RANGE_UNITS": "km"},
-        {"RANGE": [(e, 1.6e6 + k) for k, e in enumerate(epochs)], "ANGLE_1": [(e, 4.0) for e in epochs],
-         "ANGLE_2": [(e, 0.15) for e in epochs]})], "T", T0)
+    tdm = write_tdm(
+        directory / "m.tdm",
+        [
+            TdmSegment(
+                {
+                    "TIME_SYSTEM": "UTC",
+                    "PARTICIPANT_1": "radar",
+                    "PARTICIPANT_2": "ISS",
+                    "MODE": "SEQUENTIAL",
+                    "PATH": "1,2,1",
+                    "ANGLE_TYPE": "AZEL",
+                    "RANGE_UNITS": "km",
+                },
+                {
+                    "RANGE": [(e, 1.6e6 + k) for k, e in enumerate(epochs)],
+                    "ANGLE_1": [(e, 4.0) for e in epochs],
+                    "ANGLE_2": [(e, 0.15) for e in epochs],
+                },
+            )
+        ],
+        "T",
+        T0,
+    )
     state = np.array([[4.3e6, -1.9e6, 4.9e6, 2.5e3, 7.2e3, -0.5e3]])
-    oem = write_oem(directory / "m.oem", [
-        Segment("ISS", "1998-067A", "TEME", epochs[:2], np.vstack([state, state + 1.0]),
-                covariances=[(epochs[0], np.eye(6) * 4.0)]),
-        Segment("ISS", "1998-067A", "TEME", epochs[2:], np.vstack([state, state + 2.0]))], "T", T0)
+    oem = write_oem(
+        directory / "m.oem",
+        [
+            Segment(
+                "ISS",
+                "1998-067A",
+                "TEME",
+                epochs[:2],
+                np.vstack([state, state + 1.0]),
+                covariances=[(epochs[0], np.eye(6) * 4.0)],
+            ),
+            Segment("ISS", "1998-067A", "TEME", epochs[2:], np.vstack([state, state + 2.0])),
+        ],
+        "T",
+        T0,
+    )
     return tdm, oem
 
 
@@ -73,7 +125,7 @@ def damaged(draw, text: str) -> str:
     if kind == "char":
         line = lines[i]
         j = draw(st.integers(0, max(len(line) - 1, 0)))
-        lines[i] = line[:j] + draw(st.characters(max_codepoint=0x3000)) + line[j + 1:]
+        lines[i] = line[:j] + draw(st.characters(max_codepoint=0x3000)) + line[j + 1 :]
     elif kind == "drop":
         del lines[i]
     elif kind == "repeat":
@@ -115,8 +167,12 @@ def test_fuzzed_oems_are_read_or_refused_in_one_line(messages, data, tmp_path):
     _fuzz(read_oem, messages[1], data, tmp_path)
 
 
-@settings(max_examples=max(EXAMPLES // 4, 5), derandomize=not CAMPAIGN, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=max(EXAMPLES // 4, 5),
+    derandomize=not CAMPAIGN,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(data=st.data())
 def test_fuzzed_imports_finish_or_fail_in_one_line(messages, data, tmp_path_factory):
     cfg = select_variant(load_scenario("leo_radar"), "iss")
@@ -155,9 +211,22 @@ def test_hand_made_hostile_files(tmp_path, monkeypatch):
 
 def test_the_commands_say_what_is_wrong_in_one_line(messages, tmp_path):
     broken = tmp_path / "broken.tdm"
-    broken.write_text(messages[0].read_text().replace("ANGLE_2 = 2019-12-09T18:13:54.463424000", "ANGLE_2 = 2019-12-09T18:13:54.4634x"))
-    result = script("import_tdm.py", str(broken), "--scenario", "leo_radar", "--variant", "iss",
-                    "--out", str(tmp_path / "run"), timeout=120)
+    broken.write_text(
+        messages[0]
+        .read_text()
+        .replace("ANGLE_2 = 2019-12-09T18:13:54.463424000", "ANGLE_2 = 2019-12-09T18:13:54.4634x")
+    )
+    result = script(
+        "import_tdm.py",
+        str(broken),
+        "--scenario",
+        "leo_radar",
+        "--variant",
+        "iss",
+        "--out",
+        str(tmp_path / "run"),
+        timeout=120,
+    )
     assert result.returncode == 2, result.stderr
     assert result.stderr.strip().count("\n") == 0 and "Traceback" not in result.stderr
     assert f"{broken}: line" in result.stderr and "not a CCSDS epoch" in result.stderr

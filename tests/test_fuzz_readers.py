@@ -28,6 +28,7 @@ and rebuilds a bag at every record boundary::
 (``BENCH_FUZZ_SEED=N`` repeats a campaign.) ``BENCH_FUZZ_SCORE=N`` also runs N damaged copies of the leo_radar bag
 through ``scripts/score.py`` (one line on stderr, non-zero exit, no traceback); CI runs 4.
 """
+
 from __future__ import annotations
 
 import array
@@ -77,24 +78,31 @@ from graph_helpers import script
 EXAMPLES = int(os.environ.get("BENCH_FUZZ_EXAMPLES", "40"))
 CAMPAIGN = "BENCH_FUZZ_EXAMPLES" in os.environ
 SCORE_COPIES = int(os.environ.get("BENCH_FUZZ_SCORE", "4"))
-TIME_LIMIT_S = 20.0            # per example: a hang, not a slow machine (CI shares 2 cores)
-ADDRESS_HEADROOM = 256 << 20   # address space an example may map beyond what the process had (RLIMIT_AS)
-MEMORY_LIMIT = 64 << 20        # bytes a traced example may allocate beyond what was held (tracemalloc peak)
+TIME_LIMIT_S = 20.0  # per example: a hang, not a slow machine (CI shares 2 cores)
+ADDRESS_HEADROOM = 256 << 20  # address space an example may map beyond what the process had (RLIMIT_AS)
+MEMORY_LIMIT = 64 << 20  # bytes a traced example may allocate beyond what was held (tracemalloc peak)
 MAGIC = b"\x89MCAP0\r\n"
 
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, database=None, derandomize=not CAMPAIGN,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                       HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    database=None,
+    derandomize=not CAMPAIGN,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.function_scoped_fixture],
+)
 FUZZ_RECOVERY = settings(FUZZ, max_examples=max(8, EXAMPLES // 4))  # each example writes a bag
 if CAMPAIGN and "BENCH_FUZZ_SEED" in os.environ:
     from hypothesis import seed as _seed
+
     FUZZ_SEED = _seed(int(os.environ["BENCH_FUZZ_SEED"]))
 else:
+
     def FUZZ_SEED(f):  # noqa: N802 - a no-op decorator in place of hypothesis.seed
         return f
 
 
 # --- bounds on every example ---------------------------------------------------------------------------------
+
 
 class Hang(Exception):
     """An example ran past TIME_LIMIT_S."""
@@ -113,6 +121,7 @@ def bounded(what: str):
     for the example: anything larger fails with a MemoryError, which is no reader's error, C allocations
     included); and, when tracemalloc is tracing (the ``traced`` fixture), at most MEMORY_LIMIT bytes allocated
     beyond what was held when it started."""
+
     def on_alarm(signum, frame):
         raise Hang(f"{what}: still running after {TIME_LIMIT_S} s")
 
@@ -153,6 +162,7 @@ def own_error(err: BaseException, bag: Path) -> None:
 
 # --- real bags, their layout and what the readers give for them -------------------------------------------------
 
+
 @dataclass
 class Layout:
     """Where an intact MCAP file's records are: (offset, opcode, length) of each top-level record up to the footer,
@@ -160,7 +170,7 @@ class Layout:
 
     data: bytes
     records: list[tuple[int, int, int]]
-    chunks: list[tuple[int, int]]        # (offset, length of the body)
+    chunks: list[tuple[int, int]]  # (offset, length of the body)
     chunk_indexes: list[tuple[int, int]]
     summary_start: int
     footer: int
@@ -176,17 +186,28 @@ class Layout:
             pos += 9 + length
         footer = records[-1][0]
         summary_start = struct.unpack_from("<Q", data, footer + 9)[0]
-        return cls(data, records, [(o, n) for o, op, n in records if op == 0x06],
-                   [(o, n) for o, op, n in records if op == 0x08], summary_start, footer)
+        return cls(
+            data,
+            records,
+            [(o, n) for o, op, n in records if op == 0x06],
+            [(o, n) for o, op, n in records if op == 0x08],
+            summary_start,
+            footer,
+        )
 
     def chunk_messages(self) -> list[list[tuple[str, int, int, bytes]]]:
         """Per chunk, in file order: (topic, log time, publish time, data) of its messages (mcap's own reader)."""
         channels = make_reader(io.BytesIO(self.data)).get_summary().channels
         out = []
         for offset, length in self.chunks:
-            chunk = Chunk.read(ReadDataStream(io.BytesIO(self.data[offset + 9:offset + 9 + length])))
-            out.append([(channels[r.channel_id].topic, r.log_time, r.publish_time, r.data)
-                        for r in breakup_chunk(chunk) if isinstance(r, Message)])
+            chunk = Chunk.read(ReadDataStream(io.BytesIO(self.data[offset + 9 : offset + 9 + length])))
+            out.append(
+                [
+                    (channels[r.channel_id].topic, r.log_time, r.publish_time, r.data)
+                    for r in breakup_chunk(chunk)
+                    if isinstance(r, Message)
+                ]
+            )
         return out
 
 
@@ -208,10 +229,12 @@ def rewrite(src: Path, dst: Path, compression: CompressionType, chunked: bool = 
             if schema.id not in schemas:
                 schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
             if channel.id not in channels:
-                channels[channel.id] = writer.register_channel(channel.topic, channel.message_encoding,
-                                                               schemas[schema.id], channel.metadata)
-            writer.add_message(channels[channel.id], message.log_time, message.data, message.publish_time,
-                               message.sequence)
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id], channel.metadata
+                )
+            writer.add_message(
+                channels[channel.id], message.log_time, message.data, message.publish_time, message.sequence
+            )
         writer.finish()
 
 
@@ -295,7 +318,9 @@ def same(name: str, got: Any, want: Any) -> bool:
         return equal(got, want)
     return got.keys() == want.keys() and all(
         got[t].columns.keys() == want[t].columns.keys()
-        and all(equal(got[t].columns[c], want[t].columns[c]) for c in got[t].columns) for t in got)
+        and all(equal(got[t].columns[c], want[t].columns[c]) for c in got[t].columns)
+        for t in got
+    )
 
 
 @pytest.fixture(scope="session")
@@ -304,8 +329,16 @@ def recorded(tmp_path_factory) -> dict[str, Path]:
     out = {}
     for name, scenario, duration in (("leo", "leo_radar", "10"), ("star", "star_tracker", "1")):
         run = tmp_path_factory.mktemp(f"fuzz_{name}")
-        res = script("launch.py", scenario, "--set", f"time.duration={duration}", "--single-process", "--no-score",
-                     "--out", str(run / "run"))
+        res = script(
+            "launch.py",
+            scenario,
+            "--set",
+            f"time.duration={duration}",
+            "--single-process",
+            "--no-score",
+            "--out",
+            str(run / "run"),
+        )
         assert res.returncode == 0, res.stderr[-2000:]
         out[name] = run / "run" / "bag"
     return out
@@ -316,16 +349,19 @@ def bags(recorded, tmp_path_factory) -> dict[str, Bag]:
     """The recorded bags (zstd, as the recorder writes them) and the leo_radar one rewritten with LZ4, without
     compression, and without chunks; what the reader gives for each is checked against mcap's own reader."""
     out = {"leo": Bag.of("leo", recorded["leo"]), "star": Bag.of("star", recorded["star"])}
-    for name, compression, chunked in (("leo_lz4", CompressionType.LZ4, True),
-                                       ("leo_none", CompressionType.NONE, True),
-                                       ("leo_unchunked", CompressionType.NONE, False)):
+    for name, compression, chunked in (
+        ("leo_lz4", CompressionType.LZ4, True),
+        ("leo_none", CompressionType.NONE, True),
+        ("leo_unchunked", CompressionType.NONE, False),
+    ):
         directory = tmp_path_factory.mktemp(f"fuzz_{name}") / "bag"
         rewrite(recorded["leo"], directory, compression, chunked)
         out[name] = Bag.of(name, directory)
     for bag in out.values():  # the reader's order is mcap's; its payloads, mcap's in file order
         with open(next(bag.directory.glob("*.mcap")), "rb") as f:
-            assert bag.reference["messages"] == [(c.topic, s.name, m.log_time, m.data)
-                                                 for s, c, m in make_reader(f).iter_messages()], bag.name
+            assert bag.reference["messages"] == [
+                (c.topic, s.name, m.log_time, m.data) for s, c, m in make_reader(f).iter_messages()
+            ], bag.name
             f.seek(0)
             in_file_order: dict[str, list[bytes]] = {}
             for _, c, m in make_reader(f).iter_messages(log_time_order=False):
@@ -344,8 +380,11 @@ HUGE = [2**32 - 1, 2**40, 2**63, 2**64 - 1, MAX_CHUNK_BYTES, MAX_CHUNK_BYTES + 1
 def mutation(draw, layout: Layout, inner: bool = False) -> tuple:
     """One mutation of a file with ``layout`` (a tuple, so hypothesis shows and shrinks it)."""
     n = len(layout.data)
-    kinds = ["flip", "cut", "inflate", "zero", "opcode"] + (["chunk_field", "dup", "claim"] if layout.chunks
-                                                             else []) + (["inner"] * 4 if inner else [])
+    kinds = (
+        ["flip", "cut", "inflate", "zero", "opcode"]
+        + (["chunk_field", "dup", "claim"] if layout.chunks else [])
+        + (["inner"] * 4 if inner else [])
+    )
     kind = draw(st.sampled_from(kinds))
     if kind == "flip":
         return kind, draw(st.integers(0, n - 1)), draw(st.integers(0, 7))
@@ -357,16 +396,24 @@ def mutation(draw, layout: Layout, inner: bool = False) -> tuple:
     if kind == "opcode":  # a record made another (a chunk a message index, a footer, a private record, ...)
         return kind, draw(st.integers(0, len(layout.records) - 1)), draw(st.integers(0, 255))
     if kind == "chunk_field":  # the chunk's own compressed length (u64) or compression name length (u32)
-        return (kind, draw(st.integers(0, len(layout.chunks) - 1)), draw(st.sampled_from(["data", "name"])),
-                draw(st.sampled_from([1, 9, 2**20, 2**31, 2**32 - 1, 2**40, 2**64 - 1])))
+        return (
+            kind,
+            draw(st.integers(0, len(layout.chunks) - 1)),
+            draw(st.sampled_from(["data", "name"])),
+            draw(st.sampled_from([1, 9, 2**20, 2**31, 2**32 - 1, 2**40, 2**64 - 1])),
+        )
     if kind == "dup":
         return kind, draw(st.integers(0, len(layout.chunks) - 1))
     if kind == "zero":
         return kind, draw(st.integers(0, n - 1)), draw(st.integers(1, 4096))
     if kind == "claim":  # the chunk's uncompressed size, also in its index (then the summary CRC is zeroed)
         actual = struct.unpack_from("<Q", layout.data, layout.chunks[0][0] + 9 + 16)[0]
-        return (kind, draw(st.integers(0, len(layout.chunks) - 1)),
-                draw(st.sampled_from([0, 1, actual - 1, actual + 1, 2 * actual, *HUGE])), draw(st.booleans()))
+        return (
+            kind,
+            draw(st.integers(0, len(layout.chunks) - 1)),
+            draw(st.sampled_from([0, 1, actual - 1, actual + 1, 2 * actual, *HUGE])),
+            draw(st.booleans()),
+        )
     # inside a chunk's records (an uncompressed file), then its CRC made to match again
     chunk = draw(st.integers(0, len(layout.chunks) - 1))
     op = draw(st.sampled_from(["flip", "zero", "u32", "u64"]))
@@ -388,7 +435,7 @@ def apply(layout: Layout, muts: list[tuple]) -> bytes:
             if m[1] < len(data):
                 data[m[1]] ^= 1 << m[2]
         elif kind == "cut":
-            del data[m[1]:]
+            del data[m[1] :]
         elif kind == "opcode":
             if layout.records[m[1]][0] < len(data):
                 data[layout.records[m[1]][0]] = m[2]
@@ -400,16 +447,16 @@ def apply(layout: Layout, muts: list[tuple]) -> bytes:
         elif kind == "chunk_field":
             offset, _ = layout.chunks[m[1]]
             name_length = struct.unpack_from("<I", layout.data, offset + 9 + 28)[0]
-            at, fmt = ((offset + 9 + 32 + name_length, "<Q") if m[2] == "data" else (offset + 9 + 28, "<I"))
+            at, fmt = (offset + 9 + 32 + name_length, "<Q") if m[2] == "data" else (offset + 9 + 28, "<I")
             if at + struct.calcsize(fmt) <= len(data):
                 value = struct.unpack_from(fmt, data, at)[0]
                 struct.pack_into(fmt, data, at, (value + m[3]) % 2 ** (8 * struct.calcsize(fmt)))
         elif kind == "dup":
             offset, length = layout.chunks[m[1]]
-            record = layout.data[offset:offset + 9 + length]
-            data[offset + 9 + length:offset + 9 + length] = record
+            record = layout.data[offset : offset + 9 + length]
+            data[offset + 9 + length : offset + 9 + length] = record
         elif kind == "zero":
-            data[m[1]:m[1] + m[2]] = bytes(len(data[m[1]:m[1] + m[2]]))
+            data[m[1] : m[1] + m[2]] = bytes(len(data[m[1] : m[1] + m[2]]))
         elif kind == "claim":
             offset, _ = layout.chunks[m[1]]
             if offset + 9 + 24 <= len(data):
@@ -431,7 +478,7 @@ def apply(layout: Layout, muts: list[tuple]) -> bytes:
             if op == "flip":
                 data[at] ^= 1 << (value % 8)
             elif op == "zero":
-                data[at:at + 8] = bytes(8)
+                data[at : at + 8] = bytes(8)
             elif op == "u32":
                 struct.pack_into("<I", data, at, value % 2**32)
             else:
@@ -453,6 +500,7 @@ def with_file(bag: Bag, work: Path, data: bytes, metadata: bool = True) -> Path:
 
 
 # --- the bag reader -------------------------------------------------------------------------------------------
+
 
 def check_reader(bag: Bag, directory: Path, what: str, intact: bool = True) -> dict[str, Any]:
     """Every BagReader method on ``directory``: the undamaged bag's result (``intact``) or the reader's own error."""
@@ -491,8 +539,7 @@ def test_bag_reader_inside_chunks_whose_crc_matches(bags, tmp_path):
 
     @FUZZ_SEED
     @FUZZ
-    @given(muts=st.lists(mutation(bag.layout, inner=True).filter(lambda m: m[0] == "inner"), min_size=1,
-                         max_size=3))
+    @given(muts=st.lists(mutation(bag.layout, inner=True).filter(lambda m: m[0] == "inner"), min_size=1, max_size=3))
     def check(muts):
         directory = with_file(bag, tmp_path, apply(bag.layout, muts))
         check_reader(bag, directory, f"inner {muts}", intact=False)
@@ -513,8 +560,10 @@ def test_truncation_at_every_record_boundary(bags, tmp_path):
         data = bag.layout.data[:cut]
         kept = sum(1 for o, n in bag.layout.chunks if o + 9 + n <= cut)
         expected = [m for chunk in bag.chunks[:kept] for m in chunk]
-        good = min(bag.layout.summary_start,  # the scan ends at DataEnd, where the summary starts
-                   max([8] + [o + 9 + n for o, _, n in bag.layout.records if o + 9 + n <= cut]))
+        good = min(
+            bag.layout.summary_start,  # the scan ends at DataEnd, where the summary starts
+            max([8] + [o + 9 + n for o, _, n in bag.layout.records if o + 9 + n <= cut]),
+        )
         directory = with_file(bag, tmp_path, data)
         with bounded(f"cut at {cut}"), pytest.raises(BagDamaged) as refused:  # every read starts at the summary
             BagReader(directory, recover=False).topics()
@@ -554,10 +603,12 @@ def test_the_reader_limits_refuse_before_reading(bags, monkeypatch):
     """The sane bounds the reader holds every file to (bench_engine.mcap_records: MAX_SUMMARY_BYTES, MAX_RECORD_BYTES,
     MAX_CHUNK_BYTES), lowered below what the leo_radar bag needs: each read is refused, naming the limit."""
     bag = bags["leo"]
-    for limit, read in (("MAX_SUMMARY_BYTES", lambda r: r.topics()),
-                        ("MAX_RECORD_BYTES", lambda r: r.payloads(list(bag.topics))),
-                        ("MAX_CHUNK_BYTES", lambda r: r.payloads(list(bag.topics))),
-                        ("MAX_RECORD_BYTES", lambda r: list(RecordScan(next(bag.directory.glob("*.mcap")))))):
+    for limit, read in (
+        ("MAX_SUMMARY_BYTES", lambda r: r.topics()),
+        ("MAX_RECORD_BYTES", lambda r: r.payloads(list(bag.topics))),
+        ("MAX_CHUNK_BYTES", lambda r: r.payloads(list(bag.topics))),
+        ("MAX_RECORD_BYTES", lambda r: list(RecordScan(next(bag.directory.glob("*.mcap"))))),
+    ):
         with monkeypatch.context() as patch:
             patch.setattr(bag_module, limit, 1000)
             with pytest.raises(BagDamaged, match=f"bench_engine.mcap_records.{limit}"):
@@ -566,11 +617,14 @@ def test_the_reader_limits_refuse_before_reading(bags, monkeypatch):
 
 # --- recovery ---------------------------------------------------------------------------------------------------
 
+
 def rebuilt(directory: Path) -> list[tuple[str, int, int, bytes]]:
     """(topic, log time, publish time, data) of a rebuilt bag's messages in file order (mcap's own reader)."""
     with open(next(directory.glob("*.mcap")), "rb") as f:
-        return [(c.topic, m.log_time, m.publish_time, m.data)
-                for _, c, m in make_reader(f).iter_messages(log_time_order=False)]
+        return [
+            (c.topic, m.log_time, m.publish_time, m.data)
+            for _, c, m in make_reader(f).iter_messages(log_time_order=False)
+        ]
 
 
 @pytest.mark.parametrize("which", ["leo", "leo_lz4", "star"])
@@ -623,7 +677,7 @@ def test_recovery_streams_a_large_bag(tmp_path, traced):
         while total < 48 << 20:
             size = int(rng.integers(1_000, 40_000))
             start = int(rng.integers(0, len(blob) - size))
-            writer.write("/truth/state" if k % 3 else "/ukf/estimate", blob[start:start + size], 1_000 + k)
+            writer.write("/truth/state" if k % 3 else "/ukf/estimate", blob[start : start + size], 1_000 + k)
             total += size
             sizes.append(size)
             k += 1
@@ -643,6 +697,7 @@ def test_recovery_streams_a_large_bag(tmp_path, traced):
 
 # --- the columnar and CDR decoders --------------------------------------------------------------------------------
 
+
 @st.composite
 def payload_mutation(draw, length: int) -> tuple:
     kind = draw(st.sampled_from(["flip", "cut", "u32", "nul", "grow"]))
@@ -651,8 +706,11 @@ def payload_mutation(draw, length: int) -> tuple:
     if kind == "cut":
         return kind, draw(st.integers(0, length - 1))
     if kind == "u32":  # a count or string length (4-aligned after the 4-byte encapsulation)
-        return (kind, 4 * draw(st.integers(0, max(0, length // 4 - 1))),
-                draw(st.sampled_from([0, 1, 2, 3, 7, 0x7FFFFFFF, 0xFFFFFFFF, 0x10000, length, length + 1])))
+        return (
+            kind,
+            4 * draw(st.integers(0, max(0, length // 4 - 1))),
+            draw(st.sampled_from([0, 1, 2, 3, 7, 0x7FFFFFFF, 0xFFFFFFFF, 0x10000, length, length + 1])),
+        )
     if kind == "nul":  # the first NUL at or after a position: a string loses its terminator
         return kind, draw(st.integers(0, length - 1))
     return kind, draw(st.integers(1, 64))
@@ -663,7 +721,7 @@ def apply_payload(data: bytes, m: tuple) -> bytes:
     if m[0] == "flip":
         b[m[1] % len(b)] ^= 1 << m[2]
     elif m[0] == "cut":
-        del b[m[1]:]
+        del b[m[1] :]
     elif m[0] == "u32":
         if m[1] + 4 <= len(b):
             struct.pack_into("<I", b, m[1], m[2])
@@ -744,6 +802,7 @@ def assert_agrees(row: Any, message: Any, what: str, path: str = "") -> None:
 
 # --- hand-made hostile files ----------------------------------------------------------------------------------
 
+
 def _rec(opcode: int, body: bytes) -> bytes:
     return bytes([opcode]) + struct.pack("<Q", len(body)) + body
 
@@ -760,6 +819,7 @@ def _xxh32(data: bytes, seed: int = 0) -> int:
 
     def rotl(x, r):
         return ((x << r) | (x >> (32 - r))) & mask
+
     n, i = len(data), 0
     if n >= 16:
         v = [(seed + p1 + p2) & mask, (seed + p2) & mask, seed, (seed - p1) & mask]
@@ -809,28 +869,43 @@ def valid_truth(labels=("x", "y"), state=(1.0, 2.0)) -> bytes:
     return cdr.serialize(TRUTH, cdr.lite_class(TRUTH)(labels=list(labels), state=list(state)))
 
 
-def hostile_file(records: bytes, compression: str = "zstd", compressed: bytes | None = None,
-                 claim: int | None = None, index_claim: int | None = None, index_length_delta: int = 0) -> bytes:
+def hostile_file(
+    records: bytes,
+    compression: str = "zstd",
+    compressed: bytes | None = None,
+    claim: int | None = None,
+    index_claim: int | None = None,
+    index_length_delta: int = 0,
+) -> bytes:
     """A small MCAP file (one TruthState channel; its schema and channel records, then one chunk of ``records``)
     built by hand with the lie asked for: the chunk's ``compressed`` bytes, its claimed uncompressed size
     (``claim``), its index's (``index_claim``), its index's length; no CRCs (0: not computed), so only the lie
     is wrong."""
     if compressed is None:
-        compressed = {"zstd": zstandard.ZstdCompressor().compress, "lz4": lz4.frame.compress,
-                      "": bytes}[compression](records)
+        compressed = {"zstd": zstandard.ZstdCompressor().compress, "lz4": lz4.frame.compress, "": bytes}[compression](
+            records
+        )
     size = len(records) if claim is None else claim
     schema = _rec(0x03, struct.pack("<H", 1) + _str(TRUTH) + _str("ros2msg") + _str(b""))
     channel = _rec(0x04, struct.pack("<HH", 1, 1) + _str("/truth/state") + _str("cdr") + struct.pack("<I", 0))
     out = bytearray(MAGIC + _rec(0x01, _str("ros2") + _str("hostile")) + schema + channel)
     chunk_at = len(out)
-    chunk = _rec(0x06, struct.pack("<QQQI", 10, 20, size, 0) + _str(compression)
-                 + struct.pack("<Q", len(compressed)) + compressed)
+    chunk = _rec(
+        0x06,
+        struct.pack("<QQQI", 10, 20, size, 0) + _str(compression) + struct.pack("<Q", len(compressed)) + compressed,
+    )
     out += chunk + _rec(0x0F, struct.pack("<I", 0))
     summary_start = len(out)
     out += schema + channel
-    out += _rec(0x08, struct.pack("<QQQQ", 10, 20, chunk_at, len(chunk) + index_length_delta)
-                + struct.pack("<I", 10) + struct.pack("<HQ", 1, 0) + struct.pack("<Q", 0) + _str(compression)
-                + struct.pack("<QQ", len(compressed), len(records) if index_claim is None else index_claim))
+    out += _rec(
+        0x08,
+        struct.pack("<QQQQ", 10, 20, chunk_at, len(chunk) + index_length_delta)
+        + struct.pack("<I", 10)
+        + struct.pack("<HQ", 1, 0)
+        + struct.pack("<Q", 0)
+        + _str(compression)
+        + struct.pack("<QQ", len(compressed), len(records) if index_claim is None else index_claim),
+    )
     out += _rec(0x02, struct.pack("<QQI", summary_start, 0, 0)) + MAGIC
     return bytes(out)
 
@@ -874,28 +949,38 @@ def hostile_cases() -> dict[str, Case]:
         "chunk and index claim 2^40 bytes": Case(hostile_file(one, claim=2**40, index_claim=2**40), READS, 0),
         "chunk claims 2^40 bytes, its index the truth": Case(hostile_file(one, claim=2**40), reads, 0),
         "chunk and index claim 2^63 bytes (lz4)": Case(
-            hostile_file(one, "lz4", claim=2**63, index_claim=2**63), READS, 0),
+            hostile_file(one, "lz4", claim=2**63, index_claim=2**63), READS, 0
+        ),
         "chunk claims 1 GiB, holds 99 bytes": Case(
-            hostile_file(one, claim=MAX_CHUNK_BYTES, index_claim=MAX_CHUNK_BYTES), reads, 0),
+            hostile_file(one, claim=MAX_CHUNK_BYTES, index_claim=MAX_CHUNK_BYTES), reads, 0
+        ),
         "zstd frame claims 2 GiB": Case(hostile_file(many, compressed=_zstd_claiming(many, 2**31 - 1)), reads, 0),
         "zstd frame and chunk claim 900 MiB": Case(
             hostile_file(many, compressed=_zstd_claiming(many, 900 << 20), claim=900 << 20, index_claim=900 << 20),
-            reads, 0),
-        "lz4 frame claims 2^40 bytes": Case(
-            hostile_file(many, "lz4", compressed=_lz4_claiming(many, 2**40)), reads, 0),
+            reads,
+            0,
+        ),
+        "lz4 frame claims 2^40 bytes": Case(hostile_file(many, "lz4", compressed=_lz4_claiming(many, 2**40)), reads, 0),
         "lz4 frame and chunk claim 900 MiB": Case(
-            hostile_file(many, "lz4", compressed=_lz4_claiming(many, 900 << 20), claim=900 << 20,
-                         index_claim=900 << 20), reads, 0),
+            hostile_file(
+                many, "lz4", compressed=_lz4_claiming(many, 900 << 20), claim=900 << 20, index_claim=900 << 20
+            ),
+            reads,
+            0,
+        ),
         "zstd bomb: 64 MiB of zeros claimed as 1 KiB": Case(
-            hostile_file(bytes(1024), compressed=zstandard.ZstdCompressor().compress(bytes(64 << 20))), reads, 0),
+            hostile_file(bytes(1024), compressed=zstandard.ZstdCompressor().compress(bytes(64 << 20))), reads, 0
+        ),
         "chunk record past the end of the file": Case(hostile_file(one, index_length_delta=2**40), READS, 1),
         "message record past the end of its chunk": Case(
-            hostile_file(b"\x05" + struct.pack("<Q", 2**40) + one[9:], ""), reads, 0),
+            hostile_file(b"\x05" + struct.pack("<Q", 2**40) + one[9:], ""), reads, 0
+        ),
         "message record shorter than its header": Case(hostile_file(_rec(0x05, b"\x01\x00"), ""), reads, 0),
         "CDR sequence length 2^32-1 (strings)": Case(hostile_file(_messages(bytes(huge_labels))), cdr_reads, 1),
         "CDR sequence length 2^32-1 (numbers)": Case(hostile_file(_messages(bytes(huge_state))), cdr_reads, 1),
-        "string without its terminator": Case(hostile_file(_messages(bytes(no_nul))), ("tables",), 1,
-                                              either=("decoded",)),
+        "string without its terminator": Case(
+            hostile_file(_messages(bytes(no_nul))), ("tables",), 1, either=("decoded",)
+        ),
         "message of 3 bytes": Case(hostile_file(_messages(b"\x00\x01\x00")), cdr_reads, 1),
     }
 
@@ -905,8 +990,9 @@ def hostile_bag(directory: Path, data: bytes, template: Path) -> Path:
     bag = directory / "bag"
     bag.mkdir(parents=True)
     (bag / "bag_0.mcap").write_bytes(data)
-    (bag / "metadata.yaml").write_text((template / "metadata.yaml").read_text().replace(
-        next(template.glob("*.mcap")).name, "bag_0.mcap"))
+    (bag / "metadata.yaml").write_text(
+        (template / "metadata.yaml").read_text().replace(next(template.glob("*.mcap")).name, "bag_0.mcap")
+    )
     return bag
 
 
@@ -941,9 +1027,13 @@ def test_hostile_files_are_refused_or_read_as_built(bags, hostile, tmp_path):
 def read_hostile(bag: Path, what: str) -> dict[str, Any]:
     """Each read of a hand-made bag, bounded: its result or the reader's error."""
     reader = BagReader(bag, recover=False)
-    calls = {"topics": reader.topics, "messages": lambda: list(reader.messages()),
-             "payloads": lambda: reader.payloads(["/truth/state"]),
-             "tables": lambda: reader.tables(["/truth/state"]), "decoded": lambda: list(reader.decoded())}
+    calls = {
+        "topics": reader.topics,
+        "messages": lambda: list(reader.messages()),
+        "payloads": lambda: reader.payloads(["/truth/state"]),
+        "tables": lambda: reader.tables(["/truth/state"]),
+        "decoded": lambda: list(reader.decoded()),
+    }
     out = {}
     for call_name, call in calls.items():
         with bounded(f"{what}: {call_name}"):
@@ -967,7 +1057,7 @@ def test_huge_claims_are_refused_before_allocating(bags, hostile, tmp_path, trac
             list(scan_messages(RecordScan(bag / "bag_0.mcap")))
 
 
-HOSTILE_READ = r'''
+HOSTILE_READ = r"""
 import json, resource, sys
 from pathlib import Path
 from bench_engine.bag_reader import BagReader
@@ -996,7 +1086,7 @@ for directory in sorted(Path(sys.argv[1]).iterdir()):
             results.append(f"ESCAPED {type(err).__name__}: {err}")
     out[directory.name] = results
 print(json.dumps(out))
-'''
+"""
 
 
 def test_hostile_files_under_an_address_space_cap(bags, hostile, tmp_path):
@@ -1007,8 +1097,13 @@ def test_hostile_files_under_an_address_space_cap(bags, hostile, tmp_path):
     for name, case in cases.items():
         hostile_bag(tmp_path / _dirname(name), case.data, bags["leo"].directory)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    res = subprocess.run([sys.executable, "-c", HOSTILE_READ, str(tmp_path), str(768 << 20)], capture_output=True,
-                         text=True, timeout=300, env=env)
+    res = subprocess.run(
+        [sys.executable, "-c", HOSTILE_READ, str(tmp_path), str(768 << 20)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     results = json.loads(res.stdout.strip().splitlines()[-1])
     assert results.keys() == {_dirname(name) for name in cases}
@@ -1016,10 +1111,12 @@ def test_hostile_files_under_an_address_space_cap(bags, hostile, tmp_path):
     assert not escaped, escaped
     for name, case in cases.items():
         assert [r == "ok" for r in results[_dirname(name)][:5]] == [
-            call not in case.refused for call in READS] or case.either, (name, results[_dirname(name)])
+            call not in case.refused for call in READS
+        ] or case.either, (name, results[_dirname(name)])
 
 
 # --- the user's view: scripts/score.py on damaged bags ------------------------------------------------------------
+
 
 def damaged_copies(bag: Bag, n: int, seed: int = 18) -> list[tuple[str, bytes]]:
     """``n`` damaged copies of a bag's file: truncated, bytes flipped, an 8-byte length inflated, a block zeroed
@@ -1030,7 +1127,7 @@ def damaged_copies(bag: Bag, n: int, seed: int = 18) -> list[tuple[str, bytes]]:
         kind = ("truncated", "flipped", "inflated", "zeroed")[i % 4]
         b = bytearray(data)
         if kind == "truncated":
-            b = b[:rng.randrange(8, len(b))]
+            b = b[: rng.randrange(8, len(b))]
         elif kind == "flipped":
             for _ in range(rng.randint(1, 8)):
                 p = rng.randrange(len(b))
@@ -1042,7 +1139,7 @@ def damaged_copies(bag: Bag, n: int, seed: int = 18) -> list[tuple[str, bytes]]:
         else:
             p = rng.randrange(len(b))
             n_zero = rng.randint(16, 4096)
-            b[p:p + n_zero] = bytes(len(b[p:p + n_zero]))
+            b[p : p + n_zero] = bytes(len(b[p : p + n_zero]))
         out.append((f"{kind}_{i}", bytes(b)))
     return out
 

@@ -1,5 +1,6 @@
 """GRACE study building blocks: labelled measurement models, GNSS and KBR sensors, derived measurements
 (difference, Newton velocities) and the range-rate metric (paper 002, eqs. 27-29)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,8 +15,26 @@ from radar_sensor.sensor import build_sensor
 from tracker_filters.derived import DerivedConfig, DifferenceStage, DifferentiatedStage
 from tracker_filters.differentiation import newton_weights
 
-PAIR = ("x1", "y1", "z1", "vx1", "vy1", "vz1", "x2", "y2", "z2", "vx2", "vy2", "vz2",
-        "bx", "by", "bz", "bvx", "bvy", "bvz")
+PAIR = (
+    "x1",
+    "y1",
+    "z1",
+    "vx1",
+    "vy1",
+    "vz1",
+    "x2",
+    "y2",
+    "z2",
+    "vx2",
+    "vy2",
+    "vz2",
+    "bx",
+    "by",
+    "bz",
+    "bvx",
+    "bvy",
+    "bvz",
+)
 BASELINE = ("bx", "by", "bz", "bvx", "bvy", "bvz", "bax", "bay", "baz")
 
 
@@ -55,9 +74,12 @@ def test_range_rate_is_the_derivative_of_the_range() -> None:
 
 
 def _gnss_cfg(**extra) -> dict:
-    return {"time": {"start": 0.0, "duration": 100.0, "dt": 10.0},
-            "sensors": {"g": {"type": "gnss", "position": ["x1", "y1", "z1"], "interval": 10.0,
-                              "sigma_position": 0.02, **extra}}}
+    return {
+        "time": {"start": 0.0, "duration": 100.0, "dt": 10.0},
+        "sensors": {
+            "g": {"type": "gnss", "position": ["x1", "y1", "z1"], "interval": 10.0, "sigma_position": 0.02, **extra}
+        },
+    }
 
 
 @pytest.mark.parametrize("tau", [0.0, 300.0])
@@ -78,8 +100,14 @@ def test_gnss_and_kbr_sections_are_read_strictly() -> None:
     with pytest.raises(ScenarioError, match="correlation_time"):
         build_sensor(_gnss_cfg(correlation_time=-1.0), "g")
     cfg = _gnss_cfg()
-    cfg["sensors"]["k"] = {"type": "kbr", "position": ["bx", "by", "bz"], "velocity": ["bvx", "bvy", "bvz"],
-                           "interval": 10.0, "sigma_range_rate": 1e-6, "sigma_range": 1e-3}
+    cfg["sensors"]["k"] = {
+        "type": "kbr",
+        "position": ["bx", "by", "bz"],
+        "velocity": ["bvx", "bvy", "bvz"],
+        "interval": 10.0,
+        "sigma_range_rate": 1e-6,
+        "sigma_range": 1e-3,
+    }
     with pytest.raises(ScenarioError, match="sigma_range"):  # range is not measured: its sigma is a mistake
         build_sensor(cfg, "k")
 
@@ -90,10 +118,16 @@ def _m(step: int, z, source: str = "a", R=None) -> Measurement:
 
 
 def test_difference_pairs_steps_in_any_arrival_order() -> None:
-    stage = DifferenceStage("b", read(DerivedConfig, {"type": "difference", "of": ["a", "c"],
-                                                      "labels": ["bx", "by", "bz"]}, "derived_measurements.b"))
+    stage = DifferenceStage(
+        "b",
+        read(
+            DerivedConfig,
+            {"type": "difference", "of": ["a", "c"], "labels": ["bx", "by", "bz"]},
+            "derived_measurements.b",
+        ),
+    )
     assert stage.on_input("/a/measurement", _m(0, [5, 5, 5])) == []
-    assert stage.on_input("/c/measurement", _m(1, [1, 1, 1], "c")) == []        # a missed step 1
+    assert stage.on_input("/c/measurement", _m(1, [1, 1, 1], "c")) == []  # a missed step 1
     assert stage.on_input("/c/measurement", _m(2, [1, 2, 3], "c", 2 * np.eye(3))) == []
     ((topic, out),) = stage.on_input("/a/measurement", _m(2, [4, 4, 4]))
     assert topic == "/b/measurement" and out.step == 2 and out.labels == ["bx", "by", "bz"]
@@ -104,8 +138,14 @@ def test_difference_pairs_steps_in_any_arrival_order() -> None:
 
 def test_newton_velocity_is_exact_on_a_polynomial_and_lags_half_a_window() -> None:
     labels = ("bx", "by", "bz", "bvx", "bvy", "bvz")
-    stage = DifferentiatedStage("pv", read(DerivedConfig, {"type": "differentiated", "of": "b", "labels": list(labels),
-                                                           "order": 4, "max_gap": 300.0}, "derived_measurements.pv"))
+    stage = DifferentiatedStage(
+        "pv",
+        read(
+            DerivedConfig,
+            {"type": "differentiated", "of": "b", "labels": list(labels), "order": 4, "max_gap": 300.0},
+            "derived_measurements.pv",
+        ),
+    )
 
     def p(t):
         return np.array([1e5 + 3 * t - 0.02 * t**2 + 1e-4 * t**3, 2 * t, 1e-6 * t**4])
@@ -116,7 +156,7 @@ def test_newton_velocity_is_exact_on_a_polynomial_and_lags_half_a_window() -> No
     outs = [stage.on_input("/b/measurement", _m(k, p(10.0 * k), "b", 4e-4 * np.eye(3))) for k in range(8)]
     assert [len(o) for o in outs] == [0, 0, 0, 0, 1, 1, 1, 1]
     for k, ((_, out),) in enumerate(outs[4:]):
-        assert out.step == k + 2 and out.labels == list(labels)           # the centre sample, 2 steps back
+        assert out.step == k + 2 and out.labels == list(labels)  # the centre sample, 2 steps back
         np.testing.assert_allclose(out.z, np.concatenate([p(10.0 * (k + 2)), v(10.0 * (k + 2))]), rtol=1e-9)
     w = newton_weights(np.arange(5) * 10.0, 20.0)
     R = outs[4][0][1].R

@@ -3,6 +3,7 @@
 Every run stays on localhost (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) on its own ROS_DOMAIN_ID.
 Bags are read back with rosbags, an independent reader.
 """
+
 from __future__ import annotations
 
 import json
@@ -18,18 +19,24 @@ STEPS = 201
 @pytest.fixture(scope="module")
 def multiprocess_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("mp") / "run"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--seed", "3", "--json",
-                 *SHORT_PASS)
+    res = script("launch.py", "leo_radar", "--out", str(out), "--seed", "3", "--json", *SHORT_PASS)
     assert res.returncode == 0, res.stderr[-3000:]
     return out
 
 
 def test_bag_has_every_step_and_topic(multiprocess_run: Path) -> None:
     bag = read_bag(multiprocess_run / "bag")
-    assert set(bag) == {"/truth/state", "/clock", "/radar/measurement", "/ekf/estimate", "/ukf/estimate",
-                        # the standard views that have messages (bench_engine.views)
-                        "/truth/odometry", "/truth/markers",
-                        *(f"/{n}/{v}" for n in ("ekf", "ukf") for v in ("odometry", "diagnostics", "markers"))}
+    assert set(bag) == {
+        "/truth/state",
+        "/clock",
+        "/radar/measurement",
+        "/ekf/estimate",
+        "/ukf/estimate",
+        # the standard views that have messages (bench_engine.views)
+        "/truth/odometry",
+        "/truth/markers",
+        *(f"/{n}/{v}" for n in ("ekf", "ukf") for v in ("odometry", "diagnostics", "markers")),
+    }
     truth = [m for _, m in bag["/truth/state"]]
     assert [m.step for m in truth] == list(range(STEPS))
     t = np.array([stamp(m) for m in truth])
@@ -66,8 +73,9 @@ def test_scores_printed_and_saved(multiprocess_run: Path) -> None:
 def test_single_process_gives_identical_data(multiprocess_run: Path, tmp_path: Path) -> None:
     """Same seed, all nodes in one process: identical measurements and estimates."""
     out = tmp_path / "sp"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--seed", "3",
-                 "--single-process", "--no-score", *SHORT_PASS)
+    res = script(
+        "launch.py", "leo_radar", "--out", str(out), "--seed", "3", "--single-process", "--no-score", *SHORT_PASS
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     a, b = read_bag(multiprocess_run / "bag"), read_bag(out / "bag")
     for topic in ("/radar/measurement", "/ukf/estimate", "/ekf/estimate"):
@@ -76,8 +84,9 @@ def test_single_process_gives_identical_data(multiprocess_run: Path, tmp_path: P
     za = np.array([[m.range, m.azimuth, m.elevation] for _, m in a["/radar/measurement"]])
     zb = np.array([[m.range, m.azimuth, m.elevation] for _, m in b["/radar/measurement"]])
     np.testing.assert_array_equal(za, zb)
-    np.testing.assert_array_equal(np.array([m.state for _, m in a["/ukf/estimate"]]),
-                                  np.array([m.state for _, m in b["/ukf/estimate"]]))
+    np.testing.assert_array_equal(
+        np.array([m.state for _, m in a["/ukf/estimate"]]), np.array([m.state for _, m in b["/ukf/estimate"]])
+    )
 
 
 def test_replay_reproduces_the_filter(multiprocess_run: Path, tmp_path: Path) -> None:
@@ -88,8 +97,9 @@ def test_replay_reproduces_the_filter(multiprocess_run: Path, tmp_path: Path) ->
     a, b = read_bag(multiprocess_run / "bag"), read_bag(out / "bag")
     assert "/ekf/estimate" not in b
     assert [m.step for _, m in b["/truth/state"]] == list(range(STEPS))
-    np.testing.assert_array_equal(np.array([m.state for _, m in a["/ukf/estimate"]]),
-                                  np.array([m.state for _, m in b["/ukf/estimate"]]))
+    np.testing.assert_array_equal(
+        np.array([m.state for _, m in a["/ukf/estimate"]]), np.array([m.state for _, m in b["/ukf/estimate"]])
+    )
 
 
 def test_score_script_reads_bags(multiprocess_run: Path, tmp_path: Path) -> None:
@@ -104,8 +114,19 @@ def test_score_script_reads_bags(multiprocess_run: Path, tmp_path: Path) -> None
 def test_pass_through_north_gives_no_innovation_spike(tmp_path: Path) -> None:
     """The leo_radar pass crosses azimuth 0/2pi at t ~ 4446 s: wrapped innovations keep the NIS bounded."""
     out = tmp_path / "north"
-    res = script("launch.py", "leo_radar", "--out", str(out), "--no-score",
-                 "--estimators", "ekf,ukf", "--set", "time.start=4426.0", "--set", "time.duration=40")
+    res = script(
+        "launch.py",
+        "leo_radar",
+        "--out",
+        str(out),
+        "--no-score",
+        "--estimators",
+        "ekf,ukf",
+        "--set",
+        "time.start=4426.0",
+        "--set",
+        "time.duration=40",
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     az = np.array([m.azimuth for _, m in bag["/radar/measurement"]])

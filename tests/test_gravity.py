@@ -1,4 +1,5 @@
 """Two-body + J2 acceleration (paper 000, eqs. 4-7) and its analytic Jacobian."""
+
 import numpy as np
 import pytest
 
@@ -18,15 +19,13 @@ def potential_energy(r: np.ndarray) -> float:
 
 def test_two_body_when_j2_is_zero():
     r = POSITIONS[0]
-    np.testing.assert_allclose(acceleration(r, j2=0.0), -MU_EARTH * r / np.linalg.norm(r) ** 3,
-                               rtol=1e-14)
+    np.testing.assert_allclose(acceleration(r, j2=0.0), -MU_EARTH * r / np.linalg.norm(r) ** 3, rtol=1e-14)
 
 
 @pytest.mark.parametrize("r", POSITIONS)
 def test_acceleration_is_minus_gradient_of_eq4_potential(r):
     h = 1.0
-    grad = np.array([(potential_energy(r + h * e) - potential_energy(r - h * e)) / (2 * h)
-                     for e in np.eye(3)])
+    grad = np.array([(potential_energy(r + h * e) - potential_energy(r - h * e)) / (2 * h) for e in np.eye(3)])
     np.testing.assert_allclose(acceleration(r), -grad, rtol=1e-7)
 
 
@@ -48,16 +47,16 @@ def test_j2_pulls_towards_equator():
 
 def test_batch_matches_rows():
     batch = np.array(POSITIONS)
-    np.testing.assert_allclose(acceleration(batch), np.array([acceleration(r) for r in POSITIONS]),
-                               rtol=1e-15)
+    np.testing.assert_allclose(acceleration(batch), np.array([acceleration(r) for r in POSITIONS]), rtol=1e-15)
 
 
 @pytest.mark.parametrize("j2", [J2_EARTH, 0.0])
 @pytest.mark.parametrize("r", POSITIONS)
 def test_jacobian_matches_finite_differences(r, j2):
     h = 1.0
-    numeric = np.column_stack([(acceleration(r + h * e, j2=j2) - acceleration(r - h * e, j2=j2))
-                               / (2 * h) for e in np.eye(3)])
+    numeric = np.column_stack(
+        [(acceleration(r + h * e, j2=j2) - acceleration(r - h * e, j2=j2)) / (2 * h) for e in np.eye(3)]
+    )
     jac = acceleration_jacobian(r, j2=j2)
     np.testing.assert_allclose(jac, numeric, rtol=0, atol=1e-7 * np.abs(jac).max())
 

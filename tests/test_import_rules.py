@@ -14,6 +14,7 @@
 4. No module of the packages or scripts/ is longer than MAX_MODULE_LINES unless its first lines say why
    (a line starting ``Longer than 500 lines:``).
 """
+
 from __future__ import annotations
 
 import ast
@@ -27,8 +28,17 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
-PACKAGES = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-            "bench_eval", "bench_ccsds", "bench_studies")
+PACKAGES = (
+    "bench_engine",
+    "orbit_sim",
+    "bench_models",
+    "radar_sensor",
+    "tracker_filters",
+    "star_tracker",
+    "bench_eval",
+    "bench_ccsds",
+    "bench_studies",
+)
 
 TREE = [ROOT / "ros_ws" / "src", ROOT / "scripts", ROOT / "tests"]
 """Where the rules on function-level imports apply."""
@@ -79,7 +89,7 @@ def imports(name: str, path: Path) -> list[tuple[int, str, bool]]:
             return [a.name for a in node.names]
         base = node.module or ""
         if node.level:
-            base = ".".join(package[:len(package) - node.level + 1] + ([node.module] if node.module else []))
+            base = ".".join(package[: len(package) - node.level + 1] + ([node.module] if node.module else []))
         return [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
 
     def visit(node: ast.AST, module_level: bool) -> None:
@@ -92,8 +102,9 @@ def imports(name: str, path: Path) -> list[tuple[int, str, bool]]:
                         if module in MODULES and module != name:
                             found.append((child.lineno, module, module_level))
             else:
-                visit(child, module_level and not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef,
-                                                                     ast.Lambda)))
+                visit(
+                    child, module_level and not isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+                )
 
     visit(ast.parse(path.read_text(), str(path)), True)
     return found
@@ -152,7 +163,7 @@ def describe(component: list[str], graph: dict[str, dict[str, int]]) -> str:
     members, start = set(component), component[0]
     parent: dict[str, str] = {}
     frontier = [start]
-    while frontier and start not in parent:   # breadth first, inside the component, back to start
+    while frontier and start not in parent:  # breadth first, inside the component, back to start
         nxt = []
         for a in frontier:
             for b in sorted(graph[a]):
@@ -171,11 +182,11 @@ def test_the_import_graph_sees_the_bench():
     graph = import_graph(module_level_only=True)
     assert len(graph) > 100
     assert "bench_engine.plugins" in graph["bench_engine.graph"]
-    assert "orbit_sim.constants" in graph["orbit_sim.cowell"]        # a relative import
+    assert "orbit_sim.constants" in graph["orbit_sim.cowell"]  # a relative import
     assert "bench_engine.batch_run" in graph["bench_engine.batch"]
-    assert "bench_engine.executors" not in graph["bench_engine.batch"]          # imported when a scheduler is given
+    assert "bench_engine.executors" not in graph["bench_engine.batch"]  # imported when a scheduler is given
     assert "bench_engine.executors" in import_graph(module_level_only=False)["bench_engine.batch"]
-    assert "tracker_filters.smoothing" not in graph["tracker_filters.fixed_lag"]   # imported where it smooths
+    assert "tracker_filters.smoothing" not in graph["tracker_filters.fixed_lag"]  # imported where it smooths
     assert "tracker_filters.smoothing" in import_graph(module_level_only=False)["tracker_filters.fixed_lag"]
 
 
@@ -183,14 +194,17 @@ def test_no_module_level_import_closes_a_circle():
     graph = import_graph(module_level_only=True)
     found = circles(graph)
     assert not found, "import circles among the bench's modules (module-level imports):\n" + "\n".join(
-        describe(c, graph) for c in found)
+        describe(c, graph) for c in found
+    )
 
 
 def test_function_level_imports_hide_no_circle():
     graph = import_graph(module_level_only=False)
     found = circles(graph)
-    assert not found, ("import circles held apart only by function-level imports (move what both modules need "
-                       "below them):\n" + "\n".join(describe(c, graph) for c in found))
+    assert not found, (
+        "import circles held apart only by function-level imports (move what both modules need "
+        "below them):\n" + "\n".join(describe(c, graph) for c in found)
+    )
 
 
 def test_the_cycle_finder_names_a_cycle():
@@ -223,16 +237,17 @@ print(json.dumps({"kinds": sorted(kinds), "modules": sorted(sys.modules)}))
 @pytest.mark.parametrize("script", [LOAD_KINDS, BUILD_GRAPHS], ids=["load the kinds", "build every study's graph"])
 def test_node_kinds_are_cheap_to_import(script):
     """Every node does both (bench_engine.bench_node): neither may load a heavy module."""
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT,
-                         timeout=120)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr[-3000:]
     loaded = json.loads(out.stdout.splitlines()[-1])
     assert {"filter", "sensor", "fixed_lag", "star_camera", "star_tracker", "tracker"} <= set(loaded["kinds"])
     heavy = sorted(m for m in loaded["modules"] if any(m == h or m.startswith(h + ".") for h in HEAVY))
     roots = sorted({h for h in HEAVY for m in heavy if m == h or m.startswith(h + ".")})
-    assert not heavy, (f"importing the node kinds loads {', '.join(roots)} "
-                       f"({'; '.join(f'{h}: {HEAVY[h]}' for h in roots)}); import it where the core is built. "
-                       f"Loaded: {heavy[:20]}")
+    assert not heavy, (
+        f"importing the node kinds loads {', '.join(roots)} "
+        f"({'; '.join(f'{h}: {HEAVY[h]}' for h in roots)}); import it where the core is built. "
+        f"Loaded: {heavy[:20]}"
+    )
 
 
 @pytest.mark.parametrize("module", sorted(HEAVY))
@@ -243,8 +258,12 @@ def test_every_heavy_module_is_a_real_one(module):
 
 def python_files(roots: list[Path]) -> list[Path]:
     """The tree's Python files (a venv or a colcon build inside it left out)."""
-    return sorted(p for root in roots for p in root.rglob("*.py")
-                  if not {".venv", "build", "install", "__pycache__"} & set(p.relative_to(ROOT).parts))
+    return sorted(
+        p
+        for root in roots
+        for p in root.rglob("*.py")
+        if not {".venv", "build", "install", "__pycache__"} & set(p.relative_to(ROOT).parts)
+    )
 
 
 def function_level_imports(path: Path) -> list[tuple[int, str]]:
@@ -274,18 +293,23 @@ def has_reason(line: str) -> bool:
 def test_every_function_level_import_says_why_and_there_are_few():
     found = [(path, line, text) for path in python_files(TREE) for line, text in function_level_imports(path)]
     silent = [f"{path.relative_to(ROOT)}:{line}: {text.strip()}" for path, line, text in found if not has_reason(text)]
-    assert not silent, ("imports inside a function without their reason on the line (move them to the top of the "
-                        "module, or say what importing here buys, e.g. '# scipy: not for every node reading the "
-                        "kind'):\n" + "\n".join(silent))
+    assert not silent, (
+        "imports inside a function without their reason on the line (move them to the top of the "
+        "module, or say what importing here buys, e.g. '# scipy: not for every node reading the "
+        "kind'):\n" + "\n".join(silent)
+    )
     assert len(found) <= MAX_FUNCTION_LEVEL_IMPORTS, (
         f"{len(found)} function-level imports, more than {MAX_FUNCTION_LEVEL_IMPORTS}:\n"
-        + "\n".join(f"{path.relative_to(ROOT)}:{line}: {text.strip()}" for path, line, text in found))
+        + "\n".join(f"{path.relative_to(ROOT)}:{line}: {text.strip()}" for path, line, text in found)
+    )
 
 
 def test_the_import_checks_see_a_function_level_import(tmp_path):
     bad = tmp_path / "bad.py"
-    bad.write_text("import os\n\ndef f():\n    import json\n    from math import (pi,\n        tau)  # only here\n"
-                   "    return lambda: __import__('re')\n\nclass C:\n    import sys\n")
+    bad.write_text(
+        "import os\n\ndef f():\n    import json\n    from math import (pi,\n        tau)  # only here\n"
+        "    return lambda: __import__('re')\n\nclass C:\n    import sys\n"
+    )
     found = function_level_imports(bad)
     assert [line for line, _ in found] == [4, 5]
     assert [has_reason(text) for _, text in found] == [False, True]
@@ -298,5 +322,7 @@ def test_no_module_is_long_without_a_stated_reason():
         lines = path.read_text().splitlines()
         if len(lines) > MAX_MODULE_LINES and not any(LONG_MODULE_REASON in line for line in lines[:5]):
             long.append(f"{path.relative_to(ROOT)}: {len(lines)} lines")
-    assert not long, (f"modules over {MAX_MODULE_LINES} lines: split them along their seams, or say why not in "
-                      f"their first lines ('{LONG_MODULE_REASON} ...'):\n" + "\n".join(long))
+    assert not long, (
+        f"modules over {MAX_MODULE_LINES} lines: split them along their seams, or say why not in "
+        f"their first lines ('{LONG_MODULE_REASON} ...'):\n" + "\n".join(long)
+    )

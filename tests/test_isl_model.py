@@ -1,4 +1,5 @@
 """Inter-satellite-link measurement models (bench_models.isl): geometry, Jacobians, wrapping, batches."""
+
 import numpy as np
 import pytest
 

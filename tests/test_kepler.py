@@ -1,12 +1,19 @@
 """Kepler's equation and element <-> Cartesian conversions (CHAMP orbit of paper 000, Table 1)."""
+
 import numpy as np
 import pytest
 
 from orbit_sim.constants import MU_EARTH, R_EARTH
 from orbit_sim.kepler import cartesian_to_kepler, kepler_to_cartesian, solve_kepler
 
-CHAMP = dict(a=6739137.0, e=0.00033, i=np.radians(87.2346), raan=np.radians(303.3713),
-             argp=np.radians(81.5653), M=np.radians(80.0))
+CHAMP = dict(
+    a=6739137.0,
+    e=0.00033,
+    i=np.radians(87.2346),
+    raan=np.radians(303.3713),
+    argp=np.radians(81.5653),
+    M=np.radians(80.0),
+)
 
 
 def assert_elements_close(got: dict, want: dict, angle_tol: float = 1e-9) -> None:
@@ -51,9 +58,14 @@ def test_champ_state_invariants():
 def test_random_orbits_round_trip():
     rng = np.random.default_rng(7)
     for _ in range(50):
-        el = dict(a=rng.uniform(6.6e6, 4.5e7), e=rng.uniform(0.001, 0.8), i=rng.uniform(0.05, 3.09),
-                  raan=rng.uniform(0, 2 * np.pi), argp=rng.uniform(0, 2 * np.pi),
-                  M=rng.uniform(0, 2 * np.pi))
+        el = dict(
+            a=rng.uniform(6.6e6, 4.5e7),
+            e=rng.uniform(0.001, 0.8),
+            i=rng.uniform(0.05, 3.09),
+            raan=rng.uniform(0, 2 * np.pi),
+            argp=rng.uniform(0, 2 * np.pi),
+            M=rng.uniform(0, 2 * np.pi),
+        )
         assert_elements_close(cartesian_to_kepler(kepler_to_cartesian(**el)), el, angle_tol=1e-8)
 
 

@@ -1,4 +1,5 @@
 """KF / EKF / UKF, the orbit and linear models they run on, and the filter registry."""
+
 import numpy as np
 import pytest
 from scipy.integrate import trapezoid
@@ -19,21 +20,27 @@ from tracker_filters.relinearisation import PassBatch
 from tracker_filters.sigma_points import ScaledSigmaPoints
 from tracker_filters.ukf import UnscentedKalmanFilter
 
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
+CHAMP = kepler_to_cartesian(
+    6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+)
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
-R_RADAR = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
+R_RADAR = np.diag([1000.0, 0.017**2, 0.017**2])
 
 
 # ----------------------------------------------------------------------------------------- models
+
 
 @pytest.mark.parametrize("dt", [0.1, -0.1, 10.0, 60.0, 300.0])
 def test_orbit_transition_matrix_matches_finite_differences_of_propagate(dt):
     dyn = OrbitJ2Dynamics(sigma_accel=0.0)
     Phi = dyn.transition_matrix(CHAMP, dt)
     steps = np.array([100.0, 100.0, 100.0, 1.0, 1.0, 1.0])
-    Phi_fd = np.column_stack([(dyn.propagate(CHAMP + s * e, dt) - dyn.propagate(CHAMP - s * e, dt)) / (2 * s)
-                              for s, e in zip(steps, np.eye(6))])
+    Phi_fd = np.column_stack(
+        [
+            (dyn.propagate(CHAMP + s * e, dt) - dyn.propagate(CHAMP - s * e, dt)) / (2 * s)
+            for s, e in zip(steps, np.eye(6))
+        ]
+    )
     # The gravity-gradient part of each 3x3 block (Phi minus the force-free [[I, dt I], [0, I]]): the
     # midpoint-frozen G leaves a second-order ~(h |dG/dt| / |G|)^2 (~2e-4 at h = 10 s) of it in d r / d v
     # and d v / d r, and a first-order ~h |dG/dt| / 6 |G| (3e-3) in d r / d r and d v / d v.
@@ -41,9 +48,9 @@ def test_orbit_transition_matrix_matches_finite_differences_of_propagate(dt):
     free[0:3, 3:6] = dt * np.eye(3)
     tolerance = {(0, 0): 1e-2, (0, 3): 1e-3, (3, 0): 1e-3, (3, 3): 1e-2}
     for (r, c), tol in tolerance.items():
-        error = np.abs(Phi - Phi_fd)[r:r + 3, c:c + 3].max()
+        error = np.abs(Phi - Phi_fd)[r : r + 3, c : c + 3].max()
         fd_noise = 1e-8  # rounding of 7e6 m positions over the 1 m/s velocity steps
-        assert error <= tol * np.abs(Phi_fd - free)[r:r + 3, c:c + 3].max() + fd_noise, (r, c)
+        assert error <= tol * np.abs(Phi_fd - free)[r : r + 3, c : c + 3].max() + fd_noise, (r, c)
     assert np.abs(Phi - Phi_fd).max() < 2e-5 * np.abs(Phi_fd).max()
 
 
@@ -85,6 +92,7 @@ def test_constant_velocity_model_is_the_exact_discretisation():
 
 # --------------------------------------------------------------------------------- sigma points
 
+
 def test_sigma_points_reproduce_mean_and_covariance():
     rng = np.random.default_rng(0)
     A = rng.normal(size=(6, 6))
@@ -114,6 +122,7 @@ def test_angle_mean_has_no_wrap_artefact():
 
 
 # -------------------------------------------------------------------------- linear-model filters
+
 
 def linear_problem(seed: int, steps: int = 80):
     """Truth and measurements of a 3-D constant-velocity target sampled from the filter's own model."""
@@ -199,6 +208,7 @@ def test_a_mistuned_filter_fails_the_nees_check():
 
 # ------------------------------------------------------------------------------ second-order EKF
 
+
 class PositionMeasurementWithHessian(PositionMeasurement):
     """The linear position measurement with its (zero) Hessians, for the second-order EKF."""
 
@@ -245,8 +255,8 @@ def test_second_order_moments_are_the_radar_measurement_moments_after_a_first_sc
     mc_cov = D.T @ D / len(D)
     H = model.jacobian(x, t)
     bias, B = second_order_moments(model.hessian(x, t), P)
-    assert bias[0] > 300.0 and np.sqrt(B[0, 0]) > 300.0                  # >> sigma_r = 31.6 m
-    assert abs(mc_mean[0] - (z0[0] + bias[0])) < 3.0                       # MC error ~1 m
+    assert bias[0] > 300.0 and np.sqrt(B[0, 0]) > 300.0  # >> sigma_r = 31.6 m
+    assert abs(mc_mean[0] - (z0[0] + bias[0])) < 3.0  # MC error ~1 m
     assert abs(mc_mean[0] - z0[0]) > 100 * abs(mc_mean[0] - (z0[0] + bias[0]))
     S = H @ P @ H.T + B
     np.testing.assert_allclose(np.diag(S), np.diag(mc_cov), rtol=0.01)
@@ -257,6 +267,7 @@ def test_second_order_moments_are_the_radar_measurement_moments_after_a_first_sc
 
 
 # --------------------------------------------------------------------- batch re-linearisation
+
 
 @pytest.mark.parametrize("name", ["ekf", "ekf2", "ukf"])
 def test_relinearised_filters_equal_the_kf_on_a_linear_deterministic_model(name, monkeypatch):
@@ -330,6 +341,7 @@ def test_relinearise_needs_a_deterministic_model_and_a_growth_factor():
 
 # ---------------------------------------------------------------------------- guarded processing
 
+
 @pytest.mark.parametrize("name", ["kf", "ekf", "ukf"])
 def test_bad_and_out_of_order_measurements_leave_the_filter_untouched(name):
     dyn, meas, R, P0, times, _, zs = linear_problem(seed=3, steps=5)
@@ -337,11 +349,13 @@ def test_bad_and_out_of_order_measurements_leave_the_filter_untouched(name):
     f.initialise(np.zeros(6), P0, 0.0)
     f.process(times[1], zs[1], R, meas)
     x, P, t = f.x.copy(), f.P.copy(), f.t
-    for bad_t, bad_z, bad_R in [(times[2], np.array([1.0, np.nan, 0.0]), R),
-                                (times[2], np.array([np.inf, 0.0, 0.0]), R),
-                                (times[2], zs[2], np.diag([np.inf, 1.0, 1.0])),
-                                (np.nan, zs[2], R),
-                                (times[0], zs[0], R)]:
+    for bad_t, bad_z, bad_R in [
+        (times[2], np.array([1.0, np.nan, 0.0]), R),
+        (times[2], np.array([np.inf, 0.0, 0.0]), R),
+        (times[2], zs[2], np.diag([np.inf, 1.0, 1.0])),
+        (np.nan, zs[2], R),
+        (times[0], zs[0], R),
+    ]:
         result = f.process(bad_t, bad_z, bad_R, meas)
         assert not result.accepted and result.reason
         np.testing.assert_array_equal(f.x, x)
@@ -362,6 +376,7 @@ def test_covariance_repair_is_reported(name):
 
 
 # ------------------------------------------------------------------------ radar: azimuth wrap
+
 
 def state_at_look_angles(model, t, rng_m, az, el, vel_enu):
     T = model.eci_to_enu_rotation(t)
@@ -385,7 +400,7 @@ def crossing_run(name: str, model: GroundRadarModel, az0: float) -> tuple[np.nda
     t0 = 100.0
     x0 = state_at_look_angles(model, t0, 1.2e6, az0, 0.4, np.array([7e3, 0.0, 0.0]))
     f = make_filter(name, dyn)
-    f.initialise(x0, np.diag([2e3 ** 2] * 3 + [30.0 ** 2] * 3), t0)  # sigma points span +-4 mrad
+    f.initialise(x0, np.diag([2e3**2] * 3 + [30.0**2] * 3), t0)  # sigma points span +-4 mrad
     rng = np.random.default_rng(5)
     truth, nis = x0, []
     for k in range(1, 31):
@@ -414,6 +429,7 @@ def test_azimuth_crossing_north_gives_no_innovation_spike(name):
 
 
 # ------------------------------------------------------------------------------------ registry
+
 
 def test_registry_builds_filters_and_names_errors():
     dyn = OrbitJ2Dynamics(sigma_accel=1e-3)

@@ -1,5 +1,6 @@
 """The launcher's promises: bad input stops it before anything starts; signals and dead nodes leave a
 complete bag (a killed recorder's is recovered); normal runs leave no shared-memory files behind."""
+
 from __future__ import annotations
 
 import json
@@ -16,21 +17,23 @@ import pytest
 
 from bench_engine import launcher
 from bench_engine.domains import reserve
-from graph_helpers import (ROOT, SHORT_PASS, launch_in_background, node_pid, read_bag, script,
-                           wait_for_stepping)
+from graph_helpers import ROOT, SHORT_PASS, launch_in_background, node_pid, read_bag, script, wait_for_stepping
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--estimators", "ekf,kalman9000"], "'filters.kalman9000.type' must be one of"),
-    (["--set", "sensors.radar.sigma_rnge=3"], "unknown key(s) 'sensors.radar.sigma_rnge'"),
-    (["--set", "sensors.radar.sigma_range=-1"], "'sensors.radar.sigma_range' must be > 0, got -1.0"),
-    (["--set", "sensors.radar.p_detect=1.5"], "'sensors.radar.p_detect' must be in [0, 1], got 1.5"),
-    (["--set", "colour=blue"], "unknown key(s) 'colour' in the scenario's top level"),
-    (["--set", "filters.ukf.params.alpha=-1"], "alpha"),
-    (["--variant", "nope"], "unknown variant 'nope'; allowed: iss, table3_angles"),
-    (["--set", "filters.ukf.params.alpha=abc"], "'filters.ukf.params.alpha' must be a number, got 'abc'"),
-    (["--set", "time.duration=1e12"], "gives 10000000000001 steps; a run may have at most 10000000"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--estimators", "ekf,kalman9000"], "'filters.kalman9000.type' must be one of"),
+        (["--set", "sensors.radar.sigma_rnge=3"], "unknown key(s) 'sensors.radar.sigma_rnge'"),
+        (["--set", "sensors.radar.sigma_range=-1"], "'sensors.radar.sigma_range' must be > 0, got -1.0"),
+        (["--set", "sensors.radar.p_detect=1.5"], "'sensors.radar.p_detect' must be in [0, 1], got 1.5"),
+        (["--set", "colour=blue"], "unknown key(s) 'colour' in the scenario's top level"),
+        (["--set", "filters.ukf.params.alpha=-1"], "alpha"),
+        (["--variant", "nope"], "unknown variant 'nope'; allowed: iss, table3_angles"),
+        (["--set", "filters.ukf.params.alpha=abc"], "'filters.ukf.params.alpha' must be a number, got 'abc'"),
+        (["--set", "time.duration=1e12"], "gives 10000000000001 steps; a run may have at most 10000000"),
+    ],
+)
 def test_bad_input_stops_before_anything_starts(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "bad"
     res = script("launch.py", "leo_radar", "--out", str(out), *args, timeout=60)
@@ -101,7 +104,7 @@ def _shm_files_of(pids: Iterable[str]) -> set[str]:
             for fd in Path(f"/proc/{pid}/fd").iterdir():
                 target = os.readlink(fd)
                 if target.startswith("/dev/shm/fastrtps_"):
-                    found.add(target[len("/dev/shm/"):])
+                    found.add(target[len("/dev/shm/") :])
         except OSError:  # the process ended meanwhile, or is not ours to read
             continue
     return found
@@ -132,8 +135,21 @@ def test_normal_runs_leave_no_shared_memory_behind(tmp_path: Path) -> None:
     before = {p.name for p in SHM.glob("fastrtps_*")}
     log = tmp_path / "launch.log"
     with open(log, "w") as f:
-        proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                                 "--no-score", "--set", "time.duration=5"], env=env, stdout=f, stderr=f)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                str(ROOT / "scripts" / "launch.py"),
+                "leo_radar",
+                "--out",
+                str(out),
+                "--no-score",
+                "--set",
+                "time.duration=5",
+            ],
+            env=env,
+            stdout=f,
+            stderr=f,
+        )
     ours: set[str] = set()
     while proc.poll() is None:
         ours |= _shm_files_of(_pids(command_with=str(out), also=proc.pid))
@@ -146,8 +162,19 @@ def test_normal_runs_leave_no_shared_memory_behind(tmp_path: Path) -> None:
 
 def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> None:
     out = tmp_path / "mc"
-    res = script("montecarlo.py", "leo_radar", "--runs", "2", "--jobs", "2", "--out", str(out), "--json",
-                 *SHORT_PASS, timeout=600)
+    res = script(
+        "montecarlo.py",
+        "leo_radar",
+        "--runs",
+        "2",
+        "--jobs",
+        "2",
+        "--out",
+        str(out),
+        "--json",
+        *SHORT_PASS,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     scored = json.loads(res.stdout)
     assert scored["runs"] == 2 and set(scored["estimators"]) == {"ekf", "ukf"}
@@ -162,8 +189,9 @@ def test_montecarlo_runs_in_parallel_domains_and_aggregates(tmp_path: Path) -> N
 def test_a_domain_held_by_another_run_is_refused(tmp_path: Path) -> None:
     held = reserve(None)  # a free one: another test session may hold any fixed id
     try:
-        res = script("launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", str(held.domain),
-                     timeout=60)
+        res = script(
+            "launch.py", "leo_radar", "--out", str(tmp_path / "busy"), "--domain-id", str(held.domain), timeout=60
+        )
     finally:
         held.release()
     assert res.returncode == 2
@@ -190,8 +218,17 @@ def test_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path: Path
 
 def test_a_run_with_nothing_to_score_ends_with_one_line(tmp_path: Path) -> None:
     """A radar that never detects: the filters publish nothing; the launcher says so in one line, exit 1."""
-    res = script("launch.py", "leo_radar", "--out", str(tmp_path / "none"),
-                 "--set", "time.duration=5", "--set", "sensors.radar.p_detect=0.0", timeout=120)
+    res = script(
+        "launch.py",
+        "leo_radar",
+        "--out",
+        str(tmp_path / "none"),
+        "--set",
+        "time.duration=5",
+        "--set",
+        "sensors.radar.p_detect=0.0",
+        timeout=120,
+    )
     assert res.returncode == 1 and "Traceback" not in res.stderr
     assert "error: no estimates in" in res.stderr and (tmp_path / "none" / "bag" / "metadata.yaml").is_file()
 
@@ -203,18 +240,22 @@ def test_a_node_lingering_after_a_complete_run_is_stopped_and_named(tmp_path: Pa
     plan = launcher.prepare_run("leo_radar", tmp_path / "linger", record=False, overrides=list(SHORT_PASS[1::2]))
     plan.logs.mkdir(exist_ok=True)
     monkeypatch.setattr(launcher, "LINGER_S", 1.0)
+
     def default_sigint() -> None:  # as a node has, even where the test runs with SIGINT ignored (a background job)
         signal.signal(signal.SIGINT, signal.SIG_DFL)
 
-    procs = {spec.name: subprocess.Popen(["sleep", "60"] if spec.name == "ekf" else ["true"], preexec_fn=default_sigint)
-             for spec in plan.graph.nodes}
+    procs = {
+        spec.name: subprocess.Popen(["sleep", "60"] if spec.name == "ekf" else ["true"], preexec_fn=default_sigint)
+        for spec in plan.graph.nodes
+    }
     assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
     assert "node 'ekf' had not exited 1 s after the run completed" in capsys.readouterr().err
     assert procs["ekf"].returncode == -signal.SIGINT
 
 
-def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeeds(tmp_path: Path, monkeypatch,
-                                                                                   capsys) -> None:
+def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeeds(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
     """Once the bag is closed (its metadata.yaml written) the run is complete even if the recorder never exits
     (seen under load: the recorder spinning in Fast DDS's destroy_participant after closing its bag, and the Monte
     Carlo waiting for it for good). Here the recorder and the source hang with SIGINT ignored: both are stopped,
@@ -225,8 +266,10 @@ def test_a_recorder_hanging_after_closing_its_bag_is_stopped_and_the_run_succeed
     monkeypatch.setattr(launcher, "LINGER_S", 1.0)
     monkeypatch.setattr(launcher, "_recover_bag", lambda plan: None)  # the stand-in bag has no data to check
     hanging = {"recorder", "truth"}
-    procs = {spec.name: subprocess.Popen(["sh", "-c", "trap '' INT; exec sleep 60"] if spec.name in hanging else ["true"])
-             for spec in plan.graph.nodes}
+    procs = {
+        spec.name: subprocess.Popen(["sh", "-c", "trap '' INT; exec sleep 60"] if spec.name in hanging else ["true"])
+        for spec in plan.graph.nodes
+    }
     (plan.bag_dir / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
     assert launcher._supervise(plan, procs, [], timeout_s=60, quiet=True) == 0
     err = capsys.readouterr().err
@@ -258,8 +301,7 @@ def test_a_process_whose_ros_teardown_hangs_ends_after_the_teardown_deadline(tmp
     thread's traceback and exit code 1, instead of hanging. (A single-process run tears nothing down: below.)"""
     domain = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain.domain))
-    res = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN], env=env, capture_output=True, text=True,
-                         timeout=60)
+    res = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN], env=env, capture_output=True, text=True, timeout=60)
     domain.release()
     assert res.returncode == 1 and "destroying" in res.stdout and "spin_nodes returned" not in res.stdout
     assert "Timeout (0:00:01)!" in res.stderr and "destroy_node" in res.stderr
@@ -295,10 +337,24 @@ def test_a_single_process_run_ends_with_its_results_whatever_rclpy_teardown_woul
     out = tmp_path / "spin"
     before = {p.name for p in SHM.glob("fastrtps_*")} if SHM.is_dir() else set()
     with open(tmp_path / "out.txt", "w+") as stdout, open(tmp_path / "err.txt", "w+") as stderr:
-        proc = subprocess.Popen([sys.executable, "-c", SPINNING_TEARDOWN, "leo_radar", "--single-process", "--out",
-                                 str(out), "--set", "time.duration=5", "--json"],
-                                env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), stdout=stdout,
-                                stderr=stderr, text=True)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                SPINNING_TEARDOWN,
+                "leo_radar",
+                "--single-process",
+                "--out",
+                str(out),
+                "--set",
+                "time.duration=5",
+                "--json",
+            ],
+            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"),
+            stdout=stdout,
+            stderr=stderr,
+            text=True,
+        )
         ours: set[str] = set()
         hung = time.monotonic() + 240.0  # a hang's limit, not a speed: the run takes a few seconds
         try:

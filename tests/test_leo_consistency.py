@@ -14,6 +14,7 @@ The first 50 s are not asserted: there the posterior is far from Gaussian and no
 consistent; see the scenario file. The paper's recursive filters
 (``ekf_paper``, ``ukf_paper``) fail the same windows by orders of magnitude, which the last test checks.
 """
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -88,6 +89,7 @@ def test_no_divergence_and_rmse_well_below_the_raw_radar_error(runs, name):
 def test_ukf_is_no_worse_than_the_ekf(runs):
     def rmse(results):
         return np.sqrt(np.mean(np.concatenate([r["error"][r["t"] >= 50.0] ** 2 for r in results])))
+
     assert rmse(runs["ukf"]) <= 1.01 * rmse(runs["ekf"])
     assert window_anees(runs["ukf"], 0.0, 50.0) <= window_anees(runs["ekf"], 0.0, 50.0)
 

@@ -1,5 +1,6 @@
 """The measurement codecs' columnar read (``measurement_vectors``), which the scorer uses instead of decoding each
 message of a topic: the same vectors as ``decode``, bit for bit, or None where they cannot be columns."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,13 +21,21 @@ def _table(type_name: str, codec, items: list[Measurement]):
 
 
 def _items(rng, dims: list[int]) -> list[Measurement]:
-    return [Measurement(k, 10**9 * k, "eci", "s", rng.normal(size=d) * 1e3, np.eye(d), [f"c{i}" for i in range(d)])
-            for k, d in enumerate(dims)]
+    return [
+        Measurement(k, 10**9 * k, "eci", "s", rng.normal(size=d) * 1e3, np.eye(d), [f"c{i}" for i in range(d)])
+        for k, d in enumerate(dims)
+    ]
 
 
-@pytest.mark.parametrize("type_name, codec, dims", [
-    (RANGE_AZ_EL_TYPE, RANGE_AZ_EL, [3] * 40), (RANGE_AZ_EL_TYPE, RANGE_AZ_EL, [4] * 40),
-    (VECTOR_TYPE, VECTOR_MEASUREMENT, [3] * 40), (VECTOR_TYPE, VECTOR_MEASUREMENT, [6] * 7)])
+@pytest.mark.parametrize(
+    "type_name, codec, dims",
+    [
+        (RANGE_AZ_EL_TYPE, RANGE_AZ_EL, [3] * 40),
+        (RANGE_AZ_EL_TYPE, RANGE_AZ_EL, [4] * 40),
+        (VECTOR_TYPE, VECTOR_MEASUREMENT, [3] * 40),
+        (VECTOR_TYPE, VECTOR_MEASUREMENT, [6] * 7),
+    ],
+)
 def test_the_columns_are_the_decoded_vectors(type_name, codec, dims):
     tab = _table(type_name, codec, _items(np.random.default_rng(len(dims)), dims))
     vectors = codec.measurement_vectors(tab)

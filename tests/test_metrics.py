@@ -1,4 +1,5 @@
 """Scoring metrics: eq. 35 RMSE, Table 2 summary, NEES consistency, radar-coordinate RMSE, formation metrics."""
+
 import json
 
 import numpy as np
@@ -6,8 +7,21 @@ import pytest
 from scipy.stats import chi2
 
 from bench_eval.metrics import (
-    Track, fraction_within_sigma, axes_settling_time, convergence_series, effective_samples, mean_absolute_error, nees,
-    nees_series, nees_summary, rmse_over_runs, score_errors, score_convergence, settling_time, summarise, time_grid,
+    Track,
+    fraction_within_sigma,
+    axes_settling_time,
+    convergence_series,
+    effective_samples,
+    mean_absolute_error,
+    nees,
+    nees_series,
+    nees_summary,
+    rmse_over_runs,
+    score_errors,
+    score_convergence,
+    settling_time,
+    summarise,
+    time_grid,
 )
 from bench_studies.leo_radar.metrics import RadarSamples, radar_coordinate_rmse, score_radar_convergence
 
@@ -20,7 +34,7 @@ def track_from_errors(t, err, P=None):
     err = np.asarray(err, dtype=float)
     if P is None:
         P = np.tile(np.eye(err.shape[1]), (len(t), 1, 1))
-    return Track(t, err, P, np.zeros_like(err), LABELS[:err.shape[1]])
+    return Track(t, err, P, np.zeros_like(err), LABELS[: err.shape[1]])
 
 
 def test_rmse_hand_computed_with_missing_step_and_stamp_jitter():
@@ -103,8 +117,10 @@ def gaussian_runs(n_runs, k, scale_reported, seed):
     P_true = A @ A.T + 6.0 * np.eye(6)
     L = np.linalg.cholesky(P_true)
     t = np.arange(k) * 0.1
-    return [track_from_errors(t, rng.standard_normal((k, 6)) @ L.T, np.tile(scale_reported * P_true, (k, 1, 1)))
-            for _ in range(n_runs)]
+    return [
+        track_from_errors(t, rng.standard_normal((k, 6)) @ L.T, np.tile(scale_reported * P_true, (k, 1, 1)))
+        for _ in range(n_runs)
+    ]
 
 
 def test_nees_consistent_and_overconfident():
@@ -135,8 +151,9 @@ def test_radar_rmse_wraps_angles_across_zero():
     z_est = np.array([[1003.0, 1e-4, 0.3 + 4e-4], [1996.0, two_pi - 1e-4, 0.2]])
     z_meas = np.array([[1030.0, 3e-4, 0.3], [np.nan, np.nan, np.nan]])  # second scan missed
     r = radar_coordinate_rmse(z_est, z_meas, z_true, angle_indices=(1, 2))
-    np.testing.assert_allclose(r["filter"], [np.sqrt((9 + 16) / 2), np.sqrt((16e-8 + 4e-8) / 2),
-                                             np.sqrt(16e-8 / 2)], rtol=1e-6)
+    np.testing.assert_allclose(
+        r["filter"], [np.sqrt((9 + 16) / 2), np.sqrt((16e-8 + 4e-8) / 2), np.sqrt(16e-8 / 2)], rtol=1e-6
+    )
     np.testing.assert_allclose(r["measurement"], [30.0, 6e-4, 0.0], atol=1e-12)
     per_run = radar_coordinate_rmse([z_est[:1], z_est[1:]], [z_meas[:1], z_meas[1:]], [z_true[:1], z_true[1:]])
     np.testing.assert_allclose(per_run["filter"], r["filter"])
@@ -182,8 +199,10 @@ def test_each_runs_own_convergence_time():
     error 1000 exp(-t/tau) + 10 m per axis settles below 1.5 x its 10 m floor at tau ln(200); the later run's
     time counts from the earliest first stamp, as the pooled curve's does."""
     t = np.arange(0.0, 120.0, 0.1)
-    runs = [track_from_errors(t + start, np.column_stack([1000.0 * np.exp(-t / tau) + 10.0] * 3 + [0.0 * t] * 3))
-            for tau, start in ((5.0, 0.0), (10.0, 2.0))]
+    runs = [
+        track_from_errors(t + start, np.column_stack([1000.0 * np.exp(-t / tau) + 10.0] * 3 + [0.0 * t] * 3))
+        for tau, start in ((5.0, 0.0), (10.0, 2.0))
+    ]
     got = score_convergence({"f": runs})["f"]["convergence_time_s_runs"]
     assert got == pytest.approx([5.0 * np.log(200.0), 2.0 + 10.0 * np.log(200.0)], abs=0.6)
 
@@ -222,6 +241,6 @@ def test_runs_that_sit_at_their_own_levels_are_worth_about_one_sample_each():
     levels = rng.chisquare(6, runs)
     fitted = [level + 0.3 * level * np.sin(phase + rng.uniform(0, 6.3)) for level in levels]
     assert 0.3 * runs < effective_samples(fitted) <= 1.2 * runs
-    assert effective_samples(fitted[:1]) > 10                    # one run alone cannot see its own level
+    assert effective_samples(fitted[:1]) > 10  # one run alone cannot see its own level
     steady = [6.0 + rng.standard_normal(n) for _ in range(runs)]
     assert effective_samples(steady) > 0.9 * runs * n

@@ -1,5 +1,6 @@
 """What filters and sensors need of a measurement model is declared once and checked when they are built: the
 angles among its components (bench_engine.labels) and what an initialiser requires of it."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,7 +31,7 @@ def test_a_state_error_wraps_exactly_the_declared_angles() -> None:
 
 class _MislabelledModel:
     labels = ("range", "azimuth", "elevation")
-    angle_indices = (1,)          # forgets the elevation
+    angle_indices = (1,)  # forgets the elevation
 
 
 def test_a_sensor_whose_model_wraps_other_components_than_its_angles_is_refused() -> None:

@@ -1,5 +1,6 @@
 """The offline-estimator stage (bench_eval.offline): read strictly from ``scoring.offline``, run over a recorded
 run's estimates by the generic scorer, and its output joins the estimates like another filter's."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,14 +20,19 @@ def cqkf_with(offline) -> dict:
     return cfg
 
 
-@pytest.mark.parametrize("offline, message", [
-    ({"s": {"estimator": "kalman_smoother", "source": "ss"}}, "'scoring.offline.s.estimator' must be one of"),
-    ({"s": {"estimator": "rts", "source": "nope"}}, "source 'nope' is not a filter of the scenario"),
-    ({"s": {"estimator": "rts", "sorce": "ss"}}, "missing key 'scoring.offline.s.source'"),
-    ({"s": {"estimator": "rts", "source": "ss", "lag": 3}}, "lag"),
-    ({"s": {"estimator": "rts", "source": "ss", "params": {"lag": 3}}},
-     "unknown key\\(s\\) .scoring.offline.s.params.lag."),
-])
+@pytest.mark.parametrize(
+    "offline, message",
+    [
+        ({"s": {"estimator": "kalman_smoother", "source": "ss"}}, "'scoring.offline.s.estimator' must be one of"),
+        ({"s": {"estimator": "rts", "source": "nope"}}, "source 'nope' is not a filter of the scenario"),
+        ({"s": {"estimator": "rts", "sorce": "ss"}}, "missing key 'scoring.offline.s.source'"),
+        ({"s": {"estimator": "rts", "source": "ss", "lag": 3}}, "lag"),
+        (
+            {"s": {"estimator": "rts", "source": "ss", "params": {"lag": 3}}},
+            "unknown key\\(s\\) .scoring.offline.s.params.lag.",
+        ),
+    ],
+)
 def test_a_bad_offline_entry_is_refused_naming_it(offline, message):
     with pytest.raises(ScenarioError, match=message):
         scoring_options(cqkf_with(offline))
@@ -36,8 +42,11 @@ def test_the_registered_offline_estimators_and_the_study_variant():
     assert "rts" in plugins.names("offline")
     assert scoring_options(load_scenario("formation_cqkf")).offline == {}
     opts = scoring_options(select_variant(load_scenario("formation_cqkf"), "smoothed"))
-    assert {n: (o.estimator, o.source) for n, o in opts.offline.items()} == \
-        {"ss_rts": ("rts", "ss"), "cw_rts": ("rts", "cw"), "cwb_rts": ("rts", "cwb")}
+    assert {n: (o.estimator, o.source) for n, o in opts.offline.items()} == {
+        "ss_rts": ("rts", "ss"),
+        "cw_rts": ("rts", "cw"),
+        "cwb_rts": ("rts", "cwb"),
+    }
 
 
 def synthetic_run(cfg: dict, steps: int = 300, seed: int = 3) -> tuple[BagData, np.ndarray]:

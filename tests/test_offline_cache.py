@@ -7,6 +7,7 @@ rtol 1e-12 (worker processes may be given other BLAS kernels than the parent, wh
 second scoring reads every offline result (estimates and bounds) back instead of computing it, exactly; a change of the
 parameters or of the code is a miss; a damaged, truncated or hostile cache file is ignored with a warning naming
 it, and replaced."""
+
 from __future__ import annotations
 
 import io
@@ -35,8 +36,21 @@ def recorded(tmp_path_factory) -> list[Path]:
     bags = []
     for seed in (1, 2, 3):
         out = root / f"run_{seed}"
-        res = script("launch.py", "formation_cqkf", "--variant", "smoothed", "--seed", str(seed), "--set",
-                     "time.duration=120", "--out", str(out), "--no-score", "--single-process", timeout=300)
+        res = script(
+            "launch.py",
+            "formation_cqkf",
+            "--variant",
+            "smoothed",
+            "--seed",
+            str(seed),
+            "--set",
+            "time.duration=120",
+            "--out",
+            str(out),
+            "--no-score",
+            "--single-process",
+            timeout=300,
+        )
         assert res.returncode == 0, res.stderr[-2000:]
         bags.append(out / "bag")
     return bags
@@ -61,9 +75,12 @@ def calls(monkeypatch) -> list[str]:
     def counting_pcrb(data, params):
         seen.append("pcrb")
         return pcrb.run(data, params)
+
     original = plugins.load
-    wrapped = {("offline", "rts"): type(rts)(counting_rts, rts.check, rts.params),
-               ("bounds", "pcrb"): type(pcrb)(counting_pcrb, pcrb.check, pcrb.params)}
+    wrapped = {
+        ("offline", "rts"): type(rts)(counting_rts, rts.check, rts.params),
+        ("bounds", "pcrb"): type(pcrb)(counting_pcrb, pcrb.check, pcrb.params),
+    }
     monkeypatch.setattr(plugins, "load", lambda group, name: wrapped.get((group, name)) or original(group, name))
     return seen
 
@@ -144,6 +161,7 @@ def test_the_code_version_follows_every_module_the_estimator_imports(tmp_path, m
     def version() -> str:
         offline_cache.code_version.cache_clear()
         return offline_cache.code_version("cache_probe.estimator")
+
     before = version()
     (pkg / "unrelated.py").write_text("X = 2\n")
     assert version() == before
@@ -188,7 +206,7 @@ def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, 
     if damage == "garbage":
         file.write_bytes(b"PK\x03\x04 this is not a cache file" * 10)
     elif damage == "truncated":
-        file.write_bytes(good[:len(good) // 2])
+        file.write_bytes(good[: len(good) // 2])
     elif damage == "empty":
         file.write_bytes(b"")
     elif damage == "pickle":

@@ -1,4 +1,5 @@
 """orbit_sim.orbit_fit: the batch least-squares orbit fit behind grace_velocity's dynamic estimator."""
+
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -13,11 +14,26 @@ from bench_studies.grace_velocity.metrics import range_rate_bounds, range_rate_s
 from bench_studies.grace_velocity.report import _draw_residuals
 from orbit_sim import kepler
 from orbit_sim.constants import J2_EARTH, MU_EARTH
-from orbit_sim.geopotential import (ZONALS, drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
-                                    zonal_acceleration_xyz)
+from orbit_sim.geopotential import (
+    ZONALS,
+    drag_acceleration,
+    drag_acceleration_xyz,
+    zonal_acceleration,
+    zonal_acceleration_xyz,
+)
 from orbit_sim.gravity import gravity_gradient
-from orbit_sim.orbit_fit import (ForceModel, _rate, edges, fit_orbit, information, normal_equations, position_change,
-                                propagate, rtn_frame, state_covariance)
+from orbit_sim.orbit_fit import (
+    ForceModel,
+    _rate,
+    edges,
+    fit_orbit,
+    information,
+    normal_equations,
+    position_change,
+    propagate,
+    rtn_frame,
+    state_covariance,
+)
 
 X0 = kepler.kepler_to_cartesian(6858137.0, 0.001, np.radians(89.0), 0.3, 0.2, 0.1, mu=MU_EARTH)
 FULL = ForceModel(MU_EARTH, zonals={n: (J2_EARTH if n == 2 else ZONALS[n]) for n in range(2, 7)}, drag=True)
@@ -47,7 +63,7 @@ def _dense_partials(traj) -> np.ndarray:
     for k in range(K):
         for j in range(traj.segment[k] + 1):
             upper = traj.W_edges[j + 1] if j < traj.segment[k] else traj.W[k]
-            H[k, :, 7 + 3 * j:10 + 3 * j] = traj.phi[k] @ (upper - traj.W_edges[j])
+            H[k, :, 7 + 3 * j : 10 + 3 * j] = traj.phi[k] @ (upper - traj.W_edges[j])
     return H
 
 
@@ -61,11 +77,19 @@ def test_the_single_state_forces_are_the_vectorised_ones():
         r *= rng.uniform(6.55e6, 7.2e6) / np.linalg.norm(r)
         v = rng.normal(size=3) * 5e3
         expected = zonal_acceleration(r, MU_EARTH, FULL.re, FULL.zonals)
-        np.testing.assert_allclose(zonal_acceleration_xyz(*r, MU_EARTH, FULL.re, FULL.zonals), expected,
-                                   rtol=0, atol=1e-14 * np.linalg.norm(expected))
+        np.testing.assert_allclose(
+            zonal_acceleration_xyz(*r, MU_EARTH, FULL.re, FULL.zonals),
+            expected,
+            rtol=0,
+            atol=1e-14 * np.linalg.norm(expected),
+        )
         expected = drag_acceleration(r, v, B_TRUE, FULL.rotation_rate, FULL.re)
-        np.testing.assert_allclose(drag_acceleration_xyz(*r, *v, B_TRUE, FULL.rotation_rate, FULL.re), expected,
-                                   rtol=0, atol=1e-14 * np.linalg.norm(expected))
+        np.testing.assert_allclose(
+            drag_acceleration_xyz(*r, *v, B_TRUE, FULL.rotation_rate, FULL.re),
+            expected,
+            rtol=0,
+            atol=1e-14 * np.linalg.norm(expected),
+        )
 
 
 def test_the_right_hand_side_is_the_variational_equations_written_out():
@@ -84,11 +108,22 @@ def test_the_right_hand_side_is_the_variational_equations_written_out():
         rtn = rtn_frame(*y[:6])
         np.testing.assert_allclose(rtn.T @ rtn, np.eye(3), atol=1e-15)
         np.testing.assert_allclose(rtn[:, 0], r / np.linalg.norm(r), atol=1e-15)
-        accel = zonal_acceleration(r, MU_EARTH, model.re, model.zonals) + B_TRUE * drag + (
-            rtn @ e if e is not None else 0.0)
+        accel = (
+            zonal_acceleration(r, MU_EARTH, model.re, model.zonals)
+            + B_TRUE * drag
+            + (rtn @ e if e is not None else 0.0)
+        )
         phi, psi, s = y[6:42].reshape(6, 6), y[42:78].reshape(6, 6), y[78:84]
-        expected = np.concatenate([v, accel, (A @ phi).ravel(), (-psi @ A).ravel(),
-                                   A @ s + np.concatenate([np.zeros(3), drag]), (psi[:, 3:] @ rtn).ravel()])
+        expected = np.concatenate(
+            [
+                v,
+                accel,
+                (A @ phi).ravel(),
+                (-psi @ A).ravel(),
+                A @ s + np.concatenate([np.zeros(3), drag]),
+                (psi[:, 3:] @ rtn).ravel(),
+            ]
+        )
         np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(expected).max())
         np.testing.assert_allclose(_rate(0.0, y[:6], model, B_TRUE, e, False), expected[:6], rtol=1e-14)
 
@@ -106,8 +141,7 @@ def test_the_variational_partials_match_finite_differences():
         for sign in (1.0, -1.0):
             p = p0.copy()
             p[i] += sign * h
-            states.append(propagate(p[:6], p[6], p[7:].reshape(3, 3), EMPIRICAL, ARC, t_edges,
-                                    with_partials=False).x)
+            states.append(propagate(p[:6], p[6], p[7:].reshape(3, 3), EMPIRICAL, ARC, t_edges, with_partials=False).x)
         fd = (states[0] - states[1]) / (2 * h)
         analytic = partials[:, :, i]
         scale = np.max(np.abs(analytic), axis=0) + 1e-12
@@ -142,8 +176,8 @@ def test_noise_free_fixes_recover_the_orbit():
     truth = _truth()
     fit = fit_orbit(T, truth[:, :3], SIGMA, FULL, ballistic_guess=0.003)
     x, _ = fit.states(T, with_covariance=False)
-    assert np.max(np.abs(x[:, :3] - truth[:, :3])) < 1e-3     # m
-    assert np.max(np.abs(x[:, 3:] - truth[:, 3:])) < 1e-6     # m/s
+    assert np.max(np.abs(x[:, :3] - truth[:, :3])) < 1e-3  # m
+    assert np.max(np.abs(x[:, 3:] - truth[:, 3:])) < 1e-6  # m/s
     assert fit.residual_rms < 1e-3
 
 
@@ -182,9 +216,10 @@ def test_pair_orbit_fit_scores_in_grace_velocity():
     far closer to the truth than Savitzky-Golay's, its covariance matches bound (b) at the truth, and the
     report's residual figure draws that bound (the metric's series carry it mapped to the range rate)."""
 
-    cfg = apply_overrides(select_variant(load_scenario("grace_velocity"), "dynamic"),
-                          ["time.duration=3600.0", "scoring.window.head_s=600", "scoring.window.tail_s=600",
-                           "estimators=[kf_a]"])
+    cfg = apply_overrides(
+        select_variant(load_scenario("grace_velocity"), "dynamic"),
+        ["time.duration=3600.0", "scoring.window.head_s=600", "scoring.window.tail_s=600", "estimators=[kf_a]"],
+    )
     data = bag_data(cfg, ["kf_a"], seed=3)
     opts = scoring_options(cfg)
     opts = replaced(opts, offline={k: v for k, v in opts.offline.items() if k in ("orbit_fit", "savgol")})

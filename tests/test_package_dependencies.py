@@ -11,6 +11,7 @@ workspace that runs: each ROS package (a name in the ament index) under its own 
 module under its rosdep key (ROSDEP_KEYS), test-only modules as test_depend. The keys ros/rosdistro does not
 define are pip keys defined in ros_ws/rosdep.yaml.
 """
+
 from __future__ import annotations
 
 import ast
@@ -26,8 +27,17 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
-LAYERS = ("bench_engine", "orbit_sim", "bench_models", "radar_sensor", "tracker_filters", "star_tracker",
-          "bench_eval", "bench_ccsds", "bench_studies")
+LAYERS = (
+    "bench_engine",
+    "orbit_sim",
+    "bench_models",
+    "radar_sensor",
+    "tracker_filters",
+    "star_tracker",
+    "bench_eval",
+    "bench_ccsds",
+    "bench_studies",
+)
 """Lowest first. bench_msgs (generated messages) is below all of them."""
 PRESENT = [p for p in LAYERS if (SRC / p / p).is_dir()]
 WORKSPACE_PACKAGES = {p.parent.name for p in SRC.glob("*/package.xml")}
@@ -84,7 +94,9 @@ def references(path: Path) -> list[tuple[int, str]]:
             names = [node.module]
         elif isinstance(node, ast.Constant) and isinstance(node.value, str) and MODULE_STRING.match(node.value):
             names = [node.value]
-        found += [(node.lineno, n.split(".")[0].split(":")[0]) for n in names if n.split(".")[0].split(":")[0] in LAYERS]
+        found += [
+            (node.lineno, n.split(".")[0].split(":")[0]) for n in names if n.split(".")[0].split(":")[0] in LAYERS
+        ]
     return found
 
 
@@ -102,8 +114,11 @@ def imported_modules(path: Path) -> list[tuple[int, str]]:
 def ros_packages() -> set[str]:
     """Names in the ament index of the venv and of AMENT_PREFIX_PATH: ROS packages, whose rosdep key is their name."""
     prefixes = [sys.prefix, *filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep))]
-    return {p.name for prefix in prefixes
-            for p in (Path(prefix) / "share" / "ament_index" / "resource_index" / "packages").glob("*")}
+    return {
+        p.name
+        for prefix in prefixes
+        for p in (Path(prefix) / "share" / "ament_index" / "resource_index" / "packages").glob("*")
+    }
 
 
 def third_party(module: str, local: set[str]) -> bool:
@@ -117,8 +132,7 @@ def keys_of(module: str, ros: set[str]) -> tuple[str, ...] | None:
     top = module.split(".")[0]
     if top in ros | WORKSPACE_PACKAGES:
         return (top,)
-    keys = [k for prefix, ks in ROSDEP_KEYS.items() if module == prefix or module.startswith(prefix + ".")
-            for k in ks]
+    keys = [k for prefix, ks in ROSDEP_KEYS.items() if module == prefix or module.startswith(prefix + ".") for k in ks]
     return tuple(keys) if top in ROSDEP_KEYS else None
 
 
@@ -135,9 +149,12 @@ def test_the_layers_list_every_package_of_the_workspace():
 
 @pytest.mark.parametrize("package", PRESENT)
 def test_a_package_references_nothing_above_it(package):
-    upward = [f"{path.relative_to(ROOT)}:{line} -> {other}"
-              for path in sorted((SRC / package).rglob("*.py"))
-              for line, other in references(path) if rank(other) > rank(package)]
+    upward = [
+        f"{path.relative_to(ROOT)}:{line} -> {other}"
+        for path in sorted((SRC / package).rglob("*.py"))
+        for line, other in references(path)
+        if rank(other) > rank(package)
+    ]
     assert not upward, f"{package} reaches packages above it:\n" + "\n".join(upward)
 
 
@@ -161,12 +178,15 @@ def test_package_xml_declares_every_third_party_and_ros_module_its_package_impor
             where = f"{path.relative_to(ROOT)}:{line} imports {module}"
             keys = keys_of(module, ros)
             if keys is None:
-                problems.append(f"{where}: unknown module; add it to ROSDEP_KEYS in {Path(__file__).name} with its "
-                                f"rosdep key (a pip key in ros_ws/rosdep.yaml if rosdistro has none) and declare it")
+                problems.append(
+                    f"{where}: unknown module; add it to ROSDEP_KEYS in {Path(__file__).name} with its "
+                    f"rosdep key (a pip key in ros_ws/rosdep.yaml if rosdistro has none) and declare it"
+                )
                 continue
             allowed = runtime | tests if module.split(".")[0] in OPTIONAL else runtime
-            problems += [f"{where}: {package}/package.xml lacks <exec_depend>{k}</exec_depend>"
-                         for k in keys if k not in allowed]
+            problems += [
+                f"{where}: {package}/package.xml lacks <exec_depend>{k}</exec_depend>" for k in keys if k not in allowed
+            ]
     assert not problems, "\n".join(sorted(set(problems)))
 
 
@@ -226,13 +246,20 @@ def test_entry_points_register_only_the_packages_own_components(package):
 
 @pytest.mark.parametrize("package", [p for p in PRESENT if p != LAYERS[-1]])
 def test_importing_a_package_loads_nothing_above_it(package):
-    modules = sorted(f"{package}.{p.stem}" for p in (SRC / package / package).glob("*.py")
-                     if p.stem != "__init__" and not p.stem.endswith("_node"))
-    code = ("import sys\n" + "".join(f"import {m}\n" for m in modules)
-            + "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
-    loaded = set(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
-                                text=True).stdout.split())
-    above = loaded & set(LAYERS[rank(package) + 1:])
+    modules = sorted(
+        f"{package}.{p.stem}"
+        for p in (SRC / package / package).glob("*.py")
+        if p.stem != "__init__" and not p.stem.endswith("_node")
+    )
+    code = (
+        "import sys\n"
+        + "".join(f"import {m}\n" for m in modules)
+        + "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))"
+    )
+    loaded = set(
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.split()
+    )
+    above = loaded & set(LAYERS[rank(package) + 1 :])
     assert package in loaded and not above, f"{package} loads {above}"
 
 
@@ -242,11 +269,19 @@ def test_scripts_import_no_other_script_and_nothing_edits_sys_path():
     for path in sorted((ROOT / "scripts").glob("*.py")) + sorted((ROOT / "tests").glob("*.py")):
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
-            if isinstance(node, ast.Import) and any(a.name in scripts for a in node.names) \
-                    or isinstance(node, ast.ImportFrom) and node.module in scripts:
+            if (
+                isinstance(node, ast.Import)
+                and any(a.name in scripts for a in node.names)
+                or isinstance(node, ast.ImportFrom)
+                and node.module in scripts
+            ):
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} imports a script")
-            if isinstance(node, ast.Attribute) and node.attr == "path" and isinstance(node.value, ast.Name) \
-                    and node.value.id == "sys":
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr == "path"
+                and isinstance(node.value, ast.Name)
+                and node.value.id == "sys"
+            ):
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} uses sys.path")
     assert not offenders, "\n".join(offenders)
 
@@ -290,13 +325,18 @@ def test_generic_packages_name_no_study(package):
     """Generic code names no study: a study's code, constants and names live in bench_studies/<study>/. (A
     package sharing a study's name, star_tracker, is not a mention of it; documentation may give examples.)"""
     studies = [s for s in STUDIES if s not in LAYERS]
-    named = [f"{path.relative_to(ROOT)}:{line} names {study}" for path in sorted((SRC / package / package).rglob("*.py"))
-             for line, study in study_names_in_code(path, studies)]
+    named = [
+        f"{path.relative_to(ROOT)}:{line} names {study}"
+        for path in sorted((SRC / package / package).rglob("*.py"))
+        for line, study in study_names_in_code(path, studies)
+    ]
     assert not named, "study code in a generic package (move it to its study):\n" + "\n".join(named)
 
 
 def test_the_study_check_sees_a_study_name(tmp_path):
     bad = tmp_path / "bad.py"
-    bad.write_text('"""Examples: leo_radar."""\nSCENARIO = "leo_radar"\ndef f():\n    """leo_radar"""\n    return '
-                   'grace_velocity_sections\n')
+    bad.write_text(
+        '"""Examples: leo_radar."""\nSCENARIO = "leo_radar"\ndef f():\n    """leo_radar"""\n    return '
+        "grace_velocity_sections\n"
+    )
     assert study_names_in_code(bad, ["leo_radar", "grace_velocity"]) == [(2, "leo_radar")]

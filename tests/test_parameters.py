@@ -1,6 +1,7 @@
 """A node's settings as ROS parameters (bench_engine.parameters): flatten/unflatten round-trip any scenario-like
 tree, every node of every study gets exactly its kind's settings back, and rcl's own parser reads the
 parameters files the launcher writes as the values written (types included)."""
+
 from __future__ import annotations
 
 import math
@@ -19,20 +20,29 @@ from bench_engine.scenario import coerce_scenario
 from bench_engine.settings_reference import entries
 
 KEYS = st.from_regex(r"[a-z][a-z0-9_]{0,8}", fullmatch=True).filter(lambda k: not k.endswith(YAML_SUFFIX))
-SCALAR = st.one_of(st.booleans(), st.integers(-2**62, 2**62), st.floats(allow_nan=False, width=64),
-                   st.text(max_size=12))
-LEAF = st.one_of(SCALAR, st.none(), st.lists(SCALAR, max_size=4), st.lists(st.lists(st.integers(), max_size=3),
-                                                                           max_size=3))
-TREES = st.recursive(st.dictionaries(KEYS, LEAF, max_size=4),
-                     lambda children: st.dictionaries(KEYS, st.one_of(LEAF, children), max_size=4), max_leaves=20)
+SCALAR = st.one_of(
+    st.booleans(), st.integers(-(2**62), 2**62), st.floats(allow_nan=False, width=64), st.text(max_size=12)
+)
+LEAF = st.one_of(
+    SCALAR, st.none(), st.lists(SCALAR, max_size=4), st.lists(st.lists(st.integers(), max_size=3), max_size=3)
+)
+TREES = st.recursive(
+    st.dictionaries(KEYS, LEAF, max_size=4),
+    lambda children: st.dictionaries(KEYS, st.one_of(LEAF, children), max_size=4),
+    max_leaves=20,
+)
 
 
 def _numbers_as_floats(value):
     """What a list mixing integers and doubles becomes (doubles); everything else is unchanged."""
     if isinstance(value, dict):
         return {k: _numbers_as_floats(v) for k, v in value.items()}
-    if isinstance(value, list) and value and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                 for v in value) and not all(isinstance(v, int) for v in value):
+    if (
+        isinstance(value, list)
+        and value
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        and not all(isinstance(v, int) for v in value)
+    ):
         return [float(v) for v in value]
     return value
 
@@ -51,8 +61,12 @@ def test_flatten_then_unflatten_gives_the_tree_back(tree: dict) -> None:
 
 def test_values_ros_cannot_hold_travel_as_yaml_text() -> None:
     flat = flatten({"sensors": {"gnss1": {"outages": [[3600, 4200]], "bias": None, "tags": []}}, "n": [1, 2.5]})
-    assert flat == {f"sensors.gnss1.outages{YAML_SUFFIX}": "[[3600, 4200]]", f"sensors.gnss1.bias{YAML_SUFFIX}": "null",
-                    f"sensors.gnss1.tags{YAML_SUFFIX}": "[]", "n": [1.0, 2.5]}
+    assert flat == {
+        f"sensors.gnss1.outages{YAML_SUFFIX}": "[[3600, 4200]]",
+        f"sensors.gnss1.bias{YAML_SUFFIX}": "null",
+        f"sensors.gnss1.tags{YAML_SUFFIX}": "[]",
+        "n": [1.0, 2.5],
+    }
     assert unflatten(flat)["sensors"]["gnss1"] == {"outages": [[3600, 4200]], "bias": None, "tags": []}
 
 
@@ -80,7 +94,8 @@ def test_every_node_of_every_study_gets_its_kinds_settings_back(scenario: str) -
     graph = build_graph(cfg, resolve_estimators(cfg, None))
     for spec in graph.nodes:
         assert node_settings(cfg, spec.kind, spec.name) == _numbers_as_floats(
-            coerce_scenario(node_kinds()[spec.kind].settings(cfg, spec.name))), spec.name
+            coerce_scenario(node_kinds()[spec.kind].settings(cfg, spec.name))
+        ), spec.name
 
 
 def test_a_filter_is_given_its_own_settings_and_the_models_it_reads_only() -> None:
@@ -109,7 +124,8 @@ def test_rcl_reads_the_parameters_files_as_written(tmp_path, scenario: str) -> N
             for name, value in flat.items():
                 got = node.get_parameter(name).value
                 assert type(got if not isinstance(got, (list, tuple)) else got[0]) is type(
-                    value if not isinstance(value, list) else value[0]), name
+                    value if not isinstance(value, list) else value[0]
+                ), name
                 if isinstance(value, float) and math.isnan(value):
                     assert math.isnan(got)
                 else:
@@ -119,8 +135,11 @@ def test_rcl_reads_the_parameters_files_as_written(tmp_path, scenario: str) -> N
         rclpy.shutdown(context=context)
 
 
-NUMBERS = [re.compile("^" + re.escape(e.path).replace(re.escape("<name>"), "[A-Za-z0-9_]+") + "$")
-           for e in entries() if e.type.startswith("number")]
+NUMBERS = [
+    re.compile("^" + re.escape(e.path).replace(re.escape("<name>"), "[A-Za-z0-9_]+") + "$")
+    for e in entries()
+    if e.type.startswith("number")
+]
 """Key paths the settings declare as numbers (``float``)."""
 
 
@@ -140,7 +159,7 @@ def test_a_key_declared_a_number_is_a_double_parameter(scenario: str) -> None:
 
 
 def test_earth_mu_is_a_double_whatever_yaml_1_1_reads(tmp_path) -> None:
-    cfg = load_scenario("leo_radar", ["earth.mu=3.986004418e14"])   # YAML 1.1: a string
+    cfg = load_scenario("leo_radar", ["earth.mu=3.986004418e14"])  # YAML 1.1: a string
     assert cfg["earth"]["mu"] == "3.986004418e14"
     flat = node_parameters(cfg, "filter", "ukf")
     assert flat["earth.mu"] == 3.986004418e14 and type(flat["earth.mu"]) is float

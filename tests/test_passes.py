@@ -5,6 +5,7 @@ Svalbard Radar (78°09'11" N, 16°01'44" E, 445 m) and an Earth rotation angle o
 first pass of the CHAMP orbit of ~420 s above the 5° mask, ~72 min after the epoch, whose azimuth
 crosses north (0 / 2 pi).
 """
+
 import numpy as np
 import pytest
 
@@ -16,8 +17,9 @@ from orbit_sim.passes import elevation_series, find_pass, look_angles, visibilit
 LEO_RADAR_STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 LEO_RADAR_THETA0 = np.radians(40.0)
 MASK = np.radians(5.0)
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
+CHAMP = kepler_to_cartesian(
+    6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+)
 
 
 def test_visibility_windows_interpolates_crossings():
@@ -40,8 +42,7 @@ def test_look_angles_known_directions():
     el = np.radians([90.0, 45.0, 10.0, 5.0, 30.0])
     enu = rng[:, None] * np.column_stack((np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)))
     r_ecef = geodetic_to_ecef(lat, lon, h) + enu @ enu_rotation(lat, lon)
-    got_rng, got_az, got_el = look_angles(np.full(5, t), ecef_to_eci(r_ecef, t, theta0), lat, lon, h,
-                                          theta0)
+    got_rng, got_az, got_el = look_angles(np.full(5, t), ecef_to_eci(r_ecef, t, theta0), lat, lon, h, theta0)
     np.testing.assert_allclose(got_rng, rng, atol=1e-6)
     np.testing.assert_allclose(got_el, el, atol=1e-9)
     np.testing.assert_allclose(got_az[1:], az[1:], atol=1e-9)  # azimuth undefined at the zenith

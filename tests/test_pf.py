@@ -1,4 +1,5 @@
 """Particle filters: agreement with the Kalman filter on linear-Gaussian problems, degeneracy, recovery."""
+
 import numpy as np
 import pytest
 from scipy.special import chdtri, logsumexp
@@ -68,7 +69,7 @@ def test_narrow_likelihood_degenerates_the_sir_but_not_the_pf():
     """Paper 001's regime: 50 m prior cloud, 2 cm measurement. The SIR keeps a handful of particles;
     the regularised PF with the linearised optimal proposal keeps > 5 % and still matches the KF."""
     P0_wide = np.diag([2500.0, 2500.0, 1.0, 1.0])
-    R_narrow = np.diag([0.02 ** 2, 0.02 ** 2])
+    R_narrow = np.diag([0.02**2, 0.02**2])
     n = 10_000
     sir, _ = run_against_kf(SIRParticleFilter, n, seed=1, times=[1.0], R=R_narrow, P0=P0_wide)
     pf, kf = run_against_kf(RegularisedParticleFilter, n, seed=1, times=[1.0], R=R_narrow, P0=P0_wide)
@@ -192,15 +193,16 @@ def test_same_seed_same_result():
 
 
 @pytest.mark.parametrize("cls", FILTERS)
-@pytest.mark.parametrize("params", [{"n_particles": 1}, {"n_particles": 10.5}, {"resampling": "stratified?"},
-                                    {"threshold": 0.0}, {"threshold": 1.5}])
+@pytest.mark.parametrize(
+    "params",
+    [{"n_particles": 1}, {"n_particles": 10.5}, {"resampling": "stratified?"}, {"threshold": 0.0}, {"threshold": 1.5}],
+)
 def test_invalid_parameters_raise(cls, params):
     with pytest.raises(ValueError):
         cls(DYN, **params)
 
 
-@pytest.mark.parametrize("params", [{"bandwidth": 0.0}, {"bandwidth": 10.0}, {"iterations": -1},
-                                    {"iterations": 1.5}])
+@pytest.mark.parametrize("params", [{"bandwidth": 0.0}, {"bandwidth": 10.0}, {"iterations": -1}, {"iterations": 1.5}])
 def test_invalid_pf_parameters_raise(params):
     with pytest.raises(ValueError):
         RegularisedParticleFilter(DYN, **params)
@@ -208,7 +210,7 @@ def test_invalid_pf_parameters_raise(params):
 
 # --- paper 001's measurement model: exact weights, nonlinear posterior, azimuth wrap, consistency ---
 
-PAPER_R = np.diag([0.02 ** 2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
+PAPER_R = np.diag([0.02**2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])
 CW = CWDynamics(2.0 * np.pi / 7200.0, sigma_accel=1e-4)
 RAE = RangeAzElModel("along_radial")
 
@@ -233,7 +235,7 @@ def test_pf_log_weights_equal_the_direct_importance_ratio(iterations, expect_pas
     log N(x; m', Σ) computed directly, with and without Gauss–Newton passes (50 m cloud, 2 cm range)."""
     f = RegularisedParticleFilter(CW, n_particles=4000, seed=7, threshold=1e-9, iterations=iterations)
     x0 = np.array([500.0, 400.0, -200.0, 0.0, 0.0, 0.0])
-    f.initialise(x0, np.diag([50.0 ** 2] * 3 + [1.0] * 3), 1.0)
+    f.initialise(x0, np.diag([50.0**2] * 3 + [1.0] * 3), 1.0)
     f._rng = RecordingRng(f._rng)
     before, x_bar, C = f.particles.copy(), f._cloud_mean.copy(), f._cloud_cov.copy()
     z = RAE.h(x0 + [20.0, -30.0, 10.0, 0.0, 0.0, 0.0])
@@ -244,9 +246,11 @@ def test_pf_log_weights_equal_the_direct_importance_ratio(iterations, expect_pas
     S = f._h2 * C
     d = f.particles - centres
     nu = RAE.residual(z, RAE.h(f.particles))
-    direct = (-0.5 * np.einsum("ij,ij->i", nu, np.linalg.solve(PAPER_R, nu.T).T)
-              - 0.5 * np.einsum("ij,ij->i", d, np.linalg.solve(S, d.T).T)
-              + 0.5 * np.sum(f._rng.last ** 2, axis=0))
+    direct = (
+        -0.5 * np.einsum("ij,ij->i", nu, np.linalg.solve(PAPER_R, nu.T).T)
+        - 0.5 * np.einsum("ij,ij->i", d, np.linalg.solve(S, d.T).T)
+        + 0.5 * np.sum(f._rng.last**2, axis=0)
+    )
     direct -= logsumexp(direct)
     assert np.all(np.isfinite(direct)) and np.ptp(direct) > 10.0
     np.testing.assert_allclose(f._logw, direct, rtol=1e-9, atol=1e-6)
@@ -258,9 +262,9 @@ def test_pf_matches_a_brute_force_posterior_on_a_curved_likelihood():
     differs by 0.07 σ, 10 %). Measured over 6 seeds of the "pf": mean within 0.11 σ, variances within 13 %.
     The exact-weight test above is the sharp check; this one guards the whole update."""
     x0 = np.array([500.0, 400.0, -200.0, 0.0, 0.0, 0.0])
-    P0 = np.diag([50.0 ** 2] * 3 + [1.0] * 3)
+    P0 = np.diag([50.0**2] * 3 + [1.0] * 3)
     P0[0, 3] = P0[3, 0] = 30.0
-    R_wide = np.diag([2.0 ** 2, np.radians(1.0) ** 2, np.radians(1.0) ** 2])
+    R_wide = np.diag([2.0**2, np.radians(1.0) ** 2, np.radians(1.0) ** 2])
     rng = np.random.default_rng(5)
     z = RAE.h(x0 + rng.normal(size=6) * np.sqrt(np.diag(P0))) + rng.normal(size=3) * np.sqrt(np.diag(R_wide))
     ref = SIRParticleFilter(CW, n_particles=1_000_000, seed=1, threshold=1e-9)
@@ -274,13 +278,14 @@ def test_pf_matches_a_brute_force_posterior_on_a_curved_likelihood():
     np.testing.assert_allclose(np.diag(pf.P), np.diag(ref.P), rtol=0.2)
 
 
-@pytest.mark.parametrize("cls, R_meas", [(RegularisedParticleFilter, PAPER_R),
-                                         (SIRParticleFilter, np.diag([0.5 ** 2, 1e-3 ** 2, 1e-3 ** 2]))])
+@pytest.mark.parametrize(
+    "cls, R_meas", [(RegularisedParticleFilter, PAPER_R), (SIRParticleFilter, np.diag([0.5**2, 1e-3**2, 1e-3**2]))]
+)
 def test_azimuth_through_zero_gives_no_spike(cls, R_meas):
     """The deputy crosses the along-track axis (azimuth 2π → 0) at t = 20 s, the cloud straddling the wrap:
     no warning, bounded NIS and error at the crossing (an unwrapped 2π residual would vanish every weight)."""
     truth = np.array([20.0, 500.0, 5.0, -1.0, 0.0, 0.0])  # internal: radial 20 m -> 0 at t ≈ 20 s
-    P0 = np.diag([0.3 ** 2] * 3 + [0.01 ** 2] * 3)
+    P0 = np.diag([0.3**2] * 3 + [0.01**2] * 3)
     rng = np.random.default_rng(3)
     f = cls(CW, n_particles=4000, seed=1)
     f.initialise(truth + rng.normal(size=6) * np.sqrt(np.diag(P0)), P0, 0.0)
@@ -333,8 +338,11 @@ def test_wrap_angle_range_and_equivalence():
     wb = wrap_angle(b)
     assert np.all((wb > -np.pi) & (wb <= np.pi))
     np.testing.assert_allclose(np.exp(1j * wb), np.exp(1j * b), atol=1e-13)
-    np.testing.assert_allclose(wrapped_residual(np.zeros((2, 3)), np.full((2, 3), 2 * np.pi - 0.1), [1, 2]),
-                               [[-2 * np.pi + 0.1, 0.1, 0.1]] * 2, atol=1e-14)
+    np.testing.assert_allclose(
+        wrapped_residual(np.zeros((2, 3)), np.full((2, 3), 2 * np.pi - 0.1), [1, 2]),
+        [[-2 * np.pi + 0.1, 0.1, 0.1]] * 2,
+        atol=1e-14,
+    )
 
 
 def test_the_papers_sir_is_not_consistent_on_formation_pf_and_the_bench_pf_is_conservative():
@@ -379,4 +387,4 @@ def test_the_sir_is_consistent_where_its_proposal_does_not_degenerate():
     lo, hi = chdtri(4 * 12, np.array([0.975, 0.025])) / 12
     assert lo < np.mean(sir_nees) < hi, f"SIR NEES {np.mean(sir_nees):.2f} outside [{lo:.2f}, {hi:.2f}]"
     assert np.mean(sir_nees) == pytest.approx(np.mean(kf_nees), rel=0.25)
-    assert 4.0 * np.mean(sir_nees) > hi and np.mean(sir_nees) / 4.0 < lo   # a factor 4 in P is outside
+    assert 4.0 * np.mean(sir_nees) > hi and np.mean(sir_nees) / 4.0 < lo  # a factor 4 in P is outside

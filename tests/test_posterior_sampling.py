@@ -4,6 +4,7 @@ Known answers: on a linear-Gaussian deterministic problem the posterior is Gauss
 estimate is exact, so the sampler must reproduce it within Monte Carlo error; on the leo_radar problem its
 cost is the batch's Gauss-Newton cost at the same x0 (no linearisation enters either).
 """
+
 import numpy as np
 import pytest
 

@@ -1,4 +1,5 @@
 """Ground radar measurement model (paper 000, eqs. 8-16) and the first-scan initialisation."""
+
 import numpy as np
 import pytest
 
@@ -11,12 +12,13 @@ from tracker_filters.initialisation import circular_orbit_velocity_prior, initia
 
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)
-R = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
+R = np.diag([1000.0, 0.017**2, 0.017**2])
 LEO_SPEED = 7.7e3
 
 
-def target_state(model: GroundRadarModel, t: float, rng_m: float, az: float, el: float,
-                 vel_eci: np.ndarray) -> np.ndarray:
+def target_state(
+    model: GroundRadarModel, t: float, rng_m: float, az: float, el: float, vel_eci: np.ndarray
+) -> np.ndarray:
     """ECI state of a target at (range, azimuth, elevation) from the station at time t."""
     enu = rng_m * np.array([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])
     r_ecef = model.station_ecef + enu_rotation(model.lat_rad, model.lon_rad).T @ enu
@@ -27,8 +29,10 @@ def geometries():
     """A spread of (t, range, azimuth, elevation, velocity) including azimuths next to north."""
     rng = np.random.default_rng(3)
     cases = [(4400.0, 1.2e6, 1e-4, 0.3), (10.0, 9e5, 2 * np.pi - 1e-4, 0.6), (0.0, 2e6, 3.0, 0.09)]
-    cases += [(rng.uniform(0, 6000), rng.uniform(5e5, 2e6), rng.uniform(0, 2 * np.pi),
-               rng.uniform(0.05, 1.4)) for _ in range(5)]
+    cases += [
+        (rng.uniform(0, 6000), rng.uniform(5e5, 2e6), rng.uniform(0, 2 * np.pi), rng.uniform(0.05, 1.4))
+        for _ in range(5)
+    ]
     return [(t, r, a, e, rng.normal(size=3) * LEO_SPEED / np.sqrt(3)) for t, r, a, e in cases]
 
 
@@ -54,9 +58,9 @@ def test_jacobian_matches_central_differences(model):
         x = target_state(model, t, rng_m, az, el, v)
         H = model.jacobian(x, t)
         steps = np.array([1.0, 1.0, 1.0, 1e-2, 1e-2, 1e-2])
-        H_fd = np.column_stack([
-            model.residual(model.h(x + s * e, t), model.h(x - s * e, t)) / (2 * s)
-            for s, e in zip(steps, np.eye(6))])
+        H_fd = np.column_stack(
+            [model.residual(model.h(x + s * e, t), model.h(x - s * e, t)) / (2 * s) for s, e in zip(steps, np.eye(6))]
+        )
         scale = np.abs(H_fd).max(axis=1, keepdims=True)
         np.testing.assert_allclose(H / scale, H_fd / scale, atol=1e-7)
 
@@ -68,8 +72,10 @@ def test_hessian_matches_central_differences_of_the_jacobian(model):
         assert Hs.shape == (len(model.labels), 6, 6)
         np.testing.assert_allclose(Hs, Hs.transpose(0, 2, 1), rtol=0, atol=1e-20)
         steps = np.array([10.0, 10.0, 10.0, 0.1, 0.1, 0.1])
-        fd = np.stack([(model.jacobian(x + s * e, t) - model.jacobian(x - s * e, t)) / (2 * s)
-                       for s, e in zip(steps, np.eye(6))], axis=2)  # fd[i, j, k] = d H_ij / d x_k
+        fd = np.stack(
+            [(model.jacobian(x + s * e, t) - model.jacobian(x - s * e, t)) / (2 * s) for s, e in zip(steps, np.eye(6))],
+            axis=2,
+        )  # fd[i, j, k] = d H_ij / d x_k
         scale = np.abs(fd).max(axis=(1, 2), keepdims=True)
         np.testing.assert_allclose(Hs / scale, fd / scale, atol=1e-7)
         # range, azimuth and elevation do not depend on the velocity
@@ -83,14 +89,15 @@ def test_range_hessian_is_the_curvature_of_the_range_shell(model):
     los = x[0:3] - ecef_to_eci(model.station_ecef, t, model.theta0)
     cross = np.cross(los, [0.0, 0.0, 1.0])
     d = 25e3 * np.concatenate((cross / np.linalg.norm(cross), np.zeros(3)))
-    assert 0.5 * d @ model.hessian(x, t)[0] @ d == pytest.approx(25e3 ** 2 / (2 * rng_m), rel=1e-12)
-    assert model.h(x + d, t)[0] - rng_m == pytest.approx(25e3 ** 2 / (2 * rng_m), rel=1e-3)
+    assert 0.5 * d @ model.hessian(x, t)[0] @ d == pytest.approx(25e3**2 / (2 * rng_m), rel=1e-12)
+    assert model.h(x + d, t)[0] - rng_m == pytest.approx(25e3**2 / (2 * rng_m), rel=1e-3)
 
 
 def test_range_rate_is_the_time_derivative_of_range_on_the_rotating_earth():
     model = GroundRadarModel(*STATION, theta0=THETA0, with_range_rate=True)
-    x0 = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                             np.radians(81.5653), np.radians(80.0))
+    x0 = kepler_to_cartesian(
+        6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+    )
     t, d = 4500.0, 0.01
     states = propagate(x0, np.array([0.0, t - d, t, t + d]))
     rdot_fd = (model.h(states[3], t + d)[0] - model.h(states[1], t - d)[0]) / (2 * d)
@@ -135,9 +142,13 @@ def test_position_from_measurement_inverts_h_and_its_jacobian():
         np.testing.assert_allclose(model.position_from_measurement(z, t), x[0:3], atol=1e-6)
         J = model.position_jacobian(z, t)
         steps = np.array([1.0, 1e-7, 1e-7])
-        J_fd = np.column_stack([(model.position_from_measurement(z + s * e, t)
-                                 - model.position_from_measurement(z - s * e, t)) / (2 * s)
-                                for s, e in zip(steps, np.eye(3))])
+        J_fd = np.column_stack(
+            [
+                (model.position_from_measurement(z + s * e, t) - model.position_from_measurement(z - s * e, t))
+                / (2 * s)
+                for s, e in zip(steps, np.eye(3))
+            ]
+        )
         np.testing.assert_allclose(J, J_fd, rtol=1e-6, atol=1e-6 * np.abs(J).max())
 
 
@@ -164,7 +175,7 @@ def test_first_scan_initialisation_covers_the_scan_error(method):
         errors.append(e)
         nees.append(e @ np.linalg.solve(P0[0:3, 0:3], e))
     np.testing.assert_allclose(x0[3:6], 0.0)
-    np.testing.assert_allclose(P0[3:6, 3:6], np.eye(3) * 8000.0 ** 2)
+    np.testing.assert_allclose(P0[3:6, 3:6], np.eye(3) * 8000.0**2)
     assert not P0[0:3, 3:6].any()
     # Cross-range spread ~ range * sigma_angle = 25 km; its curvature puts the scan ~0.4 km behind.
     cov = np.cov(np.array(errors).T)
@@ -178,8 +189,9 @@ def test_first_scan_initialisation_covers_the_scan_error(method):
 def test_velocity_prior_options():
     model = GroundRadarModel(*STATION, theta0=THETA0)
     z = np.array([1.5e6, 0.4, 0.1])
-    x0, P0 = initial_state_from_scan(z, R, model, 0.0, velocity_sigma=np.array([1.0, 2.0, 3.0]),
-                                     velocity_mean=np.array([4.0, 5.0, 6.0]))
+    x0, P0 = initial_state_from_scan(
+        z, R, model, 0.0, velocity_sigma=np.array([1.0, 2.0, 3.0]), velocity_mean=np.array([4.0, 5.0, 6.0])
+    )
     np.testing.assert_allclose(x0[3:6], [4.0, 5.0, 6.0])
     np.testing.assert_allclose(np.diag(P0)[3:6], [1.0, 4.0, 9.0])
     mean, cov = circular_orbit_velocity_prior(x0[0:3], radial_sigma=10.0)

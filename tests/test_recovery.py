@@ -1,5 +1,6 @@
 """Bags that survive a crash (bench_engine.recovery): what a killed recorder flushed is rebuilt into a complete
 rosbag2 bag that the independent reader opens, with its sim-time log times and file order kept."""
+
 from __future__ import annotations
 
 import json
@@ -35,7 +36,7 @@ def last_chunk_offset(mcap: Path) -> int:
     while offset + 9 <= len(data):
         if data[offset] == Opcode.CHUNK:
             last = offset
-        offset += 9 + int.from_bytes(data[offset + 1:offset + 9], "little")
+        offset += 9 + int.from_bytes(data[offset + 1 : offset + 9], "little")
     return last
 
 
@@ -55,7 +56,7 @@ def crashed_copy(tmp_path: Path, flushed: int, unflushed: int, cut_last_chunk: b
     shutil.copytree(tmp_path / "live", crashed)
     if cut_last_chunk:
         mcap = next(crashed.glob("*.mcap"))
-        mcap.write_bytes(mcap.read_bytes()[:last_chunk_offset(mcap) + 30])
+        mcap.write_bytes(mcap.read_bytes()[: last_chunk_offset(mcap) + 30])
     writer.close()
     return crashed
 
@@ -91,8 +92,10 @@ def test_the_reader_recovers_a_crashed_bag_itself(tmp_path: Path, capsys) -> Non
 def _written_in_file_order(bag: Path) -> list[tuple[str, int, int, bytes]]:
     """(topic, log time, publish time, bytes) of every message, in file order."""
     with open(next(bag.glob("*.mcap")), "rb") as f:
-        return [(c.topic, m.log_time, m.publish_time, m.data)
-                for _, c, m in make_reader(f).iter_messages(log_time_order=False)]
+        return [
+            (c.topic, m.log_time, m.publish_time, m.data)
+            for _, c, m in make_reader(f).iter_messages(log_time_order=False)
+        ]
 
 
 def test_sim_log_times_out_of_order_are_kept_with_the_file_order(tmp_path: Path) -> None:
@@ -103,7 +106,7 @@ def test_sim_log_times_out_of_order_are_kept_with_the_file_order(tmp_path: Path)
     writer.add_topic("/ukf/estimate", TRUTH)
     written = []
     for k in range(40):
-        for topic, step in [("/truth/state", k), ("/ukf/estimate", k - 3)][:2 if k >= 3 else 1]:
+        for topic, step in [("/truth/state", k), ("/ukf/estimate", k - 3)][: 2 if k >= 3 else 1]:
             t_ns = 4_320_800_000_000 + step * 100_000_000
             written.append((topic, t_ns, t_ns - 7, truth(step)))
             writer.write(topic, truth(step), t_ns, t_ns - 7)
@@ -119,7 +122,8 @@ def test_sim_log_times_out_of_order_are_kept_with_the_file_order(tmp_path: Path)
     assert info["starting_time"] == {"nanoseconds_since_epoch": 4_320_800_000_000}
     assert info["duration"] == {"nanoseconds": 3_900_000_000}
     assert [t for t, _ in read_bag(tmp_path / "crashed")["/ukf/estimate"]] == [
-        t for topic, t, _, _ in written if topic == "/ukf/estimate"]
+        t for topic, t, _, _ in written if topic == "/ukf/estimate"
+    ]
 
 
 def test_a_forced_rebuild_keeps_the_custom_data(tmp_path: Path) -> None:
@@ -145,8 +149,16 @@ def test_nothing_to_recover_is_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_score_recovers_a_crashed_bag_and_names_what_it_cannot_read(tmp_path: Path) -> None:
-    res = script("launch.py", "formation_cqkf", "--set", "time.duration=120", "--no-score", "--single-process",
-                 "--out", str(tmp_path / "run"))
+    res = script(
+        "launch.py",
+        "formation_cqkf",
+        "--set",
+        "time.duration=120",
+        "--no-score",
+        "--single-process",
+        "--out",
+        str(tmp_path / "run"),
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     crashed = tmp_path / "crashed"
     shutil.copytree(tmp_path / "run" / "bag", crashed)

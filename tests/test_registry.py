@@ -5,6 +5,7 @@ generic edit.
 The package is "installed" the way importlib.metadata finds any package: a ``*.dist-info`` directory with
 its entry points on PYTHONPATH. The launched nodes inherit PYTHONPATH, so every process sees the plugin.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,32 +35,49 @@ def plugin_path(tmp_path_factory) -> str:
 
 
 def test_the_plugins_components_are_registered(plugin_path):
-    code = ("from bench_engine import plugins\n"
-            "print(plugins.names('sensors'), plugins.names('estimators'), plugins.names('node_kinds'))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         env={"PYTHONPATH": plugin_path, "PATH": ""}).stdout
+    code = (
+        "from bench_engine import plugins\n"
+        "print(plugins.names('sensors'), plugins.names('estimators'), plugins.names('node_kinds'))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": plugin_path, "PATH": ""},
+    ).stdout
     assert "'range_only'" in out and "'inflated_ekf'" in out and "'relay'" in out and "'smoother'" in out
-
 
 
 def test_a_plugins_angle_label_is_wrapped_like_the_bench_own(plugin_path):
     """The plugin registers ``bearing`` under tracking_bench.angle_labels: a state error over it is wrapped, and a
     measurement model's angles include it (bench_engine.labels)."""
-    code = ("from bench_models.models import angle_components\n"
-            "from bench_models.states import state_error\n"
-            "print(angle_components(['range', 'bearing']), float(state_error(['bearing'], [3.0], [-3.0])[1][0]))")
+    code = (
+        "from bench_models.models import angle_components\n"
+        "from bench_models.states import state_error\n"
+        "print(angle_components(['range', 'bearing']), float(state_error(['bearing'], [3.0], [-3.0])[1][0]))"
+    )
     env = {"PATH": ""}
     plain = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
-    plugged = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                             env={**env, "PYTHONPATH": plugin_path}).stdout.split()
+    plugged = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env={**env, "PYTHONPATH": plugin_path}
+    ).stdout.split()
     assert plain.split() == ["()", "6.0"]
     assert plugged[0] == "(1,)" and float(plugged[1]) == pytest.approx(6.0 - 2 * np.pi, abs=1e-12)
 
 
 @pytest.mark.parametrize("window", [0, 5])
 def test_registered_sensor_estimator_and_three_stage_pipeline_run_through_the_graph(plugin_path, tmp_path, window):
-    res = script("launch.py", str(EXAMPLE / "plugin_demo.yaml"), "--out", str(tmp_path), "--json",
-                 "--set", f"time.pacing_window={window}", extra_env={"PYTHONPATH": plugin_path})
+    res = script(
+        "launch.py",
+        str(EXAMPLE / "plugin_demo.yaml"),
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--set",
+        f"time.pacing_window={window}",
+        extra_env={"PYTHONPATH": plugin_path},
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     scored = json.loads(res.stdout)
     assert scored["metric"] == "final_error" and scored["estimators"]["mine"]["final_error_m"] < 20.0

@@ -1,4 +1,5 @@
 """LVLH frame, axis conventions, Hill/CW solution and the drift-free truth formation (orbit_sim.relative, .hill)."""
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -8,7 +9,7 @@ from orbit_sim import cowell, gravity, hill, kepler, relative
 from orbit_sim.constants import MU_EARTH
 
 A_REF = 7100e3
-N_REF = np.sqrt(MU_EARTH / A_REF ** 3)
+N_REF = np.sqrt(MU_EARTH / A_REF**3)
 PERIOD = 2.0 * np.pi / N_REF
 
 

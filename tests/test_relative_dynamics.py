@@ -4,6 +4,7 @@ the nonlinear two-body + J2 relative motion of two spacecraft (chief a = 7100 km
 Run as a script to print the model-error table quoted in the report:
     .venv/bin/python tests/test_relative_dynamics.py
 """
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp, trapezoid
@@ -12,11 +13,17 @@ from scipy.optimize import least_squares
 from orbit_sim import cowell, gravity, hill, kepler, relative
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from bench_models.models import DynamicsModel
-from bench_models.relative_dynamics import (CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics,
-                                               ss_coefficients, van_loan, wna_block)
+from bench_models.relative_dynamics import (
+    CWBiasDynamics,
+    CWDynamics,
+    SchweighartSedwickDynamics,
+    ss_coefficients,
+    van_loan,
+    wna_block,
+)
 
 A_REF = 7100e3
-N_REF = np.sqrt(MU_EARTH / A_REF ** 3)
+N_REF = np.sqrt(MU_EARTH / A_REF**3)
 PERIOD = 2.0 * np.pi / N_REF
 
 
@@ -46,9 +53,12 @@ def formation(inc_deg: float, rho: float, samples: int) -> tuple[np.ndarray, np.
 
 
 def models(inc_deg: float, a: float = A_REF) -> dict:
-    n = np.sqrt(MU_EARTH / a ** 3)
-    return {"CW": CWDynamics(n, 0.0), "CW+bias": CWBiasDynamics(n, 0.0, 0.0),
-            "SS": SchweighartSedwickDynamics(a, np.radians(inc_deg), 0.0)}
+    n = np.sqrt(MU_EARTH / a**3)
+    return {
+        "CW": CWDynamics(n, 0.0),
+        "CW+bias": CWBiasDynamics(n, 0.0, 0.0),
+        "SS": SchweighartSedwickDynamics(a, np.radians(inc_deg), 0.0),
+    }
 
 
 def open_loop(model, t: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -58,6 +68,7 @@ def open_loop(model, t: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------ definitions
+
 
 def test_models_satisfy_the_protocol_and_label_their_states():
     for m in models(45.0).values():
@@ -95,10 +106,10 @@ def test_propagate_batches_and_caches_read_only_matrices():
 def test_white_noise_acceleration_block_is_the_corrected_paper004_q():
     sigma, T = 0.02, 10.0
     Q = CWDynamics(N_REF, sigma).process_noise(None, T)
-    s2 = sigma ** 2
+    s2 = sigma**2
     for i in range(3):
-        assert np.isclose(Q[i, i], s2 * T ** 3 / 3.0)
-        assert np.isclose(Q[i, i + 3], s2 * T ** 2 / 2.0)  # paper 004 eq. 38 prints T^3/2
+        assert np.isclose(Q[i, i], s2 * T**3 / 3.0)
+        assert np.isclose(Q[i, i + 3], s2 * T**2 / 2.0)  # paper 004 eq. 38 prints T^3/2
         assert np.isclose(Q[i + 3, i + 3], s2 * T)
     assert np.all(np.linalg.eigvalsh(Q) > 0.0)
     assert np.allclose(wna_block([1.0, 2.0, 3.0], 1.0)[[3, 4, 5], [3, 4, 5]], [1.0, 4.0, 9.0])
@@ -127,8 +138,7 @@ def test_bias_model_adds_a_constant_acceleration_to_cw():
     assert np.allclose(m.propagate(np.concatenate((x0, np.zeros(3))), 300.0)[0:6], hill.cw_stm(N_REF, 300.0) @ x0)
     beta = np.array([1e-5, -2e-5, 3e-6])
     A = hill.cw_matrix(N_REF)
-    sol = solve_ivp(lambda _, x: A @ x + np.concatenate((np.zeros(3), beta)), (0.0, 900.0), x0,
-                    rtol=1e-12, atol=1e-10)
+    sol = solve_ivp(lambda _, x: A @ x + np.concatenate((np.zeros(3), beta)), (0.0, 900.0), x0, rtol=1e-12, atol=1e-10)
     out = m.propagate(np.concatenate((x0, beta)), 900.0)
     assert np.allclose(out[0:6], sol.y[:, -1], atol=1e-6)
     assert np.allclose(out[6:9], beta)
@@ -145,9 +155,9 @@ def test_schweighart_sedwick_coefficients():
     ss = SchweighartSedwickDynamics(A_REF, np.radians(98.0), 0.0)
     s = 3.0 * eps / 8.0 * (1.0 + 3.0 * np.cos(np.radians(196.0)))
     c = np.sqrt(1.0 + s)
-    assert np.isclose(ss.A[3, 0], (5.0 * c * c - 2.0) * N_REF ** 2)
+    assert np.isclose(ss.A[3, 0], (5.0 * c * c - 2.0) * N_REF**2)
     assert np.isclose(ss.A[3, 4], 2.0 * N_REF * c) and np.isclose(ss.A[4, 3], -2.0 * N_REF * c)
-    assert np.isclose(ss.A[5, 2], -(N_REF * c + 1.5 * N_REF * eps * np.cos(np.radians(98.0)) ** 2) ** 2)
+    assert np.isclose(ss.A[5, 2], -((N_REF * c + 1.5 * N_REF * eps * np.cos(np.radians(98.0)) ** 2) ** 2))
 
 
 # --------------------------------------------------------------- against the nonlinear J2 truth
@@ -182,6 +192,7 @@ def test_model_error_grows_faster_than_separation(one_orbit_errors):
 def fitted_frequency(t: np.ndarray, z: np.ndarray, w0: float) -> float:
     def residual(p: np.ndarray) -> np.ndarray:
         return p[1] * np.cos(p[0] * t) + p[2] * np.sin(p[0] * t) + p[3] + p[4] * t - z
+
     p0 = [w0, z[0], 0.0, 0.0, 0.0]
     return float(least_squares(residual, p0, x_scale=[1e-3 * w0, 1.0, 1.0, 1.0, 1e-3]).x[0])
 
@@ -195,7 +206,7 @@ def test_ss_cross_track_frequency_matches_the_j2_truth_better_than_cw():
     deputy = kepler.kepler_to_cartesian(A_REF, 0.0, inc, 0.3 + d_node, 0.0, 0.0)
     t = np.linspace(0.0, 5.0 * PERIOD, 1001)
     truth, r_mean = truth_relative(c0, relative.eci_to_lvlh(c0, deputy, gravity.acceleration(c0[0:3])), t)
-    n = np.sqrt(MU_EARTH / r_mean ** 3)
+    n = np.sqrt(MU_EARTH / r_mean**3)
     q = ss_coefficients(r_mean, inc)["q"]
     w = fitted_frequency(t, truth[:, 2], n)
     assert abs(w - q) < 0.05 * abs(w - n)
@@ -230,10 +241,13 @@ def test_ss_bounded_motion_condition_holds_in_the_j2_truth_better_than_cw():
 
 # ----------------------------------------------------------------------------- report table
 
+
 def report() -> None:
     """Per-model errors against the nonlinear truth (drift-free PCO, chief u0 = 0, models with a = 7100 km)."""
-    print("open-loop position error after 1 orbit [m] | best-fit RMS over 1 orbit [m] | RMS acceleration "
-          "mismatch [m/s^2] | RMS 10-s one-step position error [mm]")
+    print(
+        "open-loop position error after 1 orbit [m] | best-fit RMS over 1 orbit [m] | RMS acceleration "
+        "mismatch [m/s^2] | RMS 10-s one-step position error [mm]"
+    )
     for inc in (45.0, 98.0):
         for rho in (1000.0, 10000.0):
             t, truth, _ = formation(inc, rho, 5950)  # ~1 s sampling; every 50th sample ends on one orbit

@@ -3,6 +3,7 @@ PassBatch's vectorised linearisation against the per-scan loop (tracker_filters/
 
 The filters' own re-solve tests (Kalman-filter equality, least-squares minimum) are in test_kf_ekf_ukf.py.
 """
+
 import numpy as np
 import pytest
 
@@ -13,14 +14,15 @@ from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.relinearisation import PassBatch
 
-CHAMP = kepler_to_cartesian(6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713),
-                            np.radians(81.5653), np.radians(80.0))
+CHAMP = kepler_to_cartesian(
+    6739137.0, 0.00033, np.radians(87.2346), np.radians(303.3713), np.radians(81.5653), np.radians(80.0)
+)
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)
 PASS_START = 4321.0
 """s after the epoch of CHAMP: the start of its pass over STATION (scenario leo_radar)."""
-R_RADAR = np.diag([1000.0, 0.017 ** 2, 0.017 ** 2])
-R_DOPPLER = np.diag([400.0, 0.01 ** 2, 0.01 ** 2, 4.0])
+R_RADAR = np.diag([1000.0, 0.017**2, 0.017**2])
+R_DOPPLER = np.diag([400.0, 0.01**2, 0.01**2, 4.0])
 
 
 def pass_start_state() -> np.ndarray:
@@ -55,6 +57,7 @@ def assert_phi_close(phis: np.ndarray, ref: np.ndarray, rtol: float) -> None:
 
 # ------------------------------------------------------------------------------------- dynamics
 
+
 def test_trajectory_matches_the_per_step_chain_over_a_400_s_arc():
     dyn, x0 = OrbitJ2Dynamics(sigma_accel=0.0), pass_start_state()
     times = scan_times(400.0, seed=1)
@@ -83,6 +86,7 @@ def test_trajectory_handles_times_on_both_sides_of_t0_in_any_order():
 
 # ------------------------------------------------------------------------------------ measurement
 
+
 @pytest.mark.parametrize("with_range_rate", [False, True])
 def test_series_methods_equal_looping_h_and_jacobian(with_range_rate):
     model = GroundRadarModel(*STATION, theta0=THETA0, with_range_rate=with_range_rate)
@@ -102,6 +106,7 @@ def test_series_methods_equal_looping_h_and_jacobian(with_range_rate):
 
 # ------------------------------------------------------------------------------------------ batch
 
+
 def two_sensor_batch(vectorised: bool, seed: int = 4) -> tuple[PassBatch, np.ndarray, np.ndarray]:
     """40 s of the pass seen by two radars at the same site (one with range rate, several shared times;
     R changes half-way), first-scan prior: (batch, true state at t0, a guess 3 sigma off)."""
@@ -114,8 +119,11 @@ def two_sensor_batch(vectorised: bool, seed: int = 4) -> tuple[PassBatch, np.nda
     m0, P0 = initial_state_from_scan(z0, R_RADAR, plain, PASS_START, 8000.0)
     batch = PassBatch(dyn, m0, P0, PASS_START, vectorised=vectorised)
     t_plain, t_doppler = scan_times(40.0, seed), scan_times(40.0, seed + 1)[::5]
-    scans = sorted([(t, plain, R_RADAR * (1.0 if t < PASS_START + 20 else 2.0)) for t in t_plain]
-                   + [(t, doppler, R_DOPPLER) for t in t_doppler], key=lambda s: s[0])
+    scans = sorted(
+        [(t, plain, R_RADAR * (1.0 if t < PASS_START + 20 else 2.0)) for t in t_plain]
+        + [(t, doppler, R_DOPPLER) for t in t_doppler],
+        key=lambda s: s[0],
+    )
     states, _ = dyn.trajectory(x0, PASS_START, np.array([s[0] for s in scans]))
     for (t, model, R), x in zip(scans, states):
         z = model.h(x, t) + rng.multivariate_normal(np.zeros(R.shape[0]), R)
@@ -147,7 +155,7 @@ def test_scans_added_after_a_linearisation_are_included():
     full, x0, _ = two_sensor_batch(vectorised=True)
     grown = PassBatch(full.dynamics, full.m0, np.linalg.inv(full.W0.T @ full.W0), full.t0)
     for n in (len(full) // 2, len(full)):
-        for s in full.scans[len(grown):n]:
+        for s in full.scans[len(grown) : n]:
             grown.add(s.t, s.z, np.linalg.inv(s.W.T @ s.W), s.model)
         lin = grown.linearise(x0)  # stacks the scans so far; the next pass must add the rest
     reference = full.linearise(x0)

@@ -1,5 +1,6 @@
 """Report writer: the claims table, Markdown tables next to the paper's numbers, PNG figures, generic and extra
 sections."""
+
 import re
 
 import numpy as np
@@ -20,7 +21,7 @@ def leo_like_runs(n_runs, seed, floor=650.0):
     t = 5000.0 + np.arange(0.0, 120.0, 0.1)
     sig_p = floor / np.sqrt(3.0) * (1.0 + 54.0 * np.exp(-(t - t[0]) / 6.0))
     sig = np.column_stack([sig_p] * 3 + [np.full(len(t), 2.0)] * 3)
-    P = np.einsum("ki,ij->kij", sig ** 2, np.eye(6))
+    P = np.einsum("ki,ij->kij", sig**2, np.eye(6))
     runs = []
     for _ in range(n_runs):
         keep = rng.random(len(t)) < 0.95  # missed detections
@@ -33,8 +34,12 @@ def leo_inputs():
     tracks = {"ekf": leo_like_runs(8, seed=1), "ukf": leo_like_runs(8, seed=2, floor=640.0)}
     rng = np.random.default_rng(3)
     z = np.column_stack([np.full(500, 1.5e6), rng.uniform(0, 2 * np.pi, 500), rng.uniform(0.1, 1.0, 500)])
-    radar = {name: RadarSamples(z + rng.normal(size=z.shape) * [15.0, 7e-5, 7e-5],
-                                z + rng.normal(size=z.shape) * [31.6, 0.017, 0.017], z) for name in tracks}
+    radar = {
+        name: RadarSamples(
+            z + rng.normal(size=z.shape) * [15.0, 7e-5, 7e-5], z + rng.normal(size=z.shape) * [31.6, 0.017, 0.017], z
+        )
+        for name in tracks
+    }
     return {"leo_radar": score_radar_convergence(tracks, radar)}, {"leo_radar": convergence_series(tracks)}
 
 
@@ -53,8 +58,9 @@ def test_write_report_leo(tmp_path):
     for axis in scored["leo_radar"]["ekf"]["axes"].values():
         assert abs(axis["convergence_time_s"] - 6.0 * np.log(108.0)) < 3.0
     bench_conv = scored["leo_radar"]["ekf"]["rmse_converged_m"]
-    assert f"| position RMSE | converged [m] | ekf | {fmt(bench_conv)} | 645 | {difference(bench_conv, 645.0)} |" \
-        in text
+    assert (
+        f"| position RMSE | converged [m] | ekf | {fmt(bench_conv)} | 645 | {difference(bench_conv, 645.0)} |" in text
+    )
     for name in ("leo_radar_rmse.png", "leo_radar_axes.png", "leo_radar_nees.png"):
         png = tmp_path / "out" / name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
@@ -95,11 +101,13 @@ def test_the_report_opens_with_the_claims_and_their_verdicts(tmp_path):
     # 8 runs decide it for the UKF only, and the verdict says how many runs the EKF's would need
     row = next(line for line in text.splitlines() if "within 33 s" in line)
     assert "| ekf: 28.1 ± 6.1 s; ukf: 28.3 ± 0.91 s |" in row
-    assert re.search(r"\| \*\*holds for ukf; undecided for ekf \(8 runs; ~\d+ needed: 95 % CI vs the bound, 80 % power"
-                     r"\)\*\* \|$", row)
+    assert re.search(
+        r"\| \*\*holds for ukf; undecided for ekf \(8 runs; ~\d+ needed: 95 % CI vs the bound, 80 % power"
+        r"\)\*\* \|$",
+        row,
+    )
     scored["leo_radar"]["ekf"]["rmse_converged_m"] = 1300.0
     scored["leo_radar"]["ekf"]["rmse_converged_m_runs"] = [1300.0, 1310.0, 1290.0]
     text = write_report(tmp_path / "b", scored, series).read_text()
     row = next(line for line in text.splitlines() if "about 645 m" in line)
     assert row.endswith("| **holds only for ukf (95 % CI vs ±15 %, 8 runs)** |")
-

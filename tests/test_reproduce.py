@@ -1,6 +1,7 @@
 """scripts/reproduce.py (bench_eval.reproduce, bench_eval.cli.reproduce): every table the studies and docs/tables
 declare has a command that validates, in full and in the miniature, and the cheapest one runs end to end into the
 record, which --resume then keeps; every page's generated blocks are the record's."""
+
 import json
 import subprocess
 from pathlib import Path
@@ -25,20 +26,43 @@ def test_every_declared_table_validates_in_full_and_in_the_miniature():
 
 
 def test_validate_names_an_unknown_flag_and_a_bad_override():
-    table = rp.Table("x.y", "t", "bounds.py", ("leo_radar", "--no-such-flag", "1"), scenario="leo_radar",
-                     mini_set=("sensors.radar.no_such_key=1",))
+    table = rp.Table(
+        "x.y",
+        "t",
+        "bounds.py",
+        ("leo_radar", "--no-such-flag", "1"),
+        scenario="leo_radar",
+        mini_set=("sensors.radar.no_such_key=1",),
+    )
     problems = cli.validate(table, ROOT, True, {})
     assert any("--no-such-flag" in p for p in problems)
     assert any("rejects its settings" in p for p in problems)
 
 
 def test_miniature_replaces_flag_values_and_appends_overrides():
-    table = rp.Table("s.t", "t", "sweep.py", ("s", "--runs", "10", "--jobs", "2"), out_flag="--out",
-                     scheduler=True, resume=True, mini_args={"--runs": "1", "--samples": "5"},
-                     mini_set=("time.duration=60",))
+    table = rp.Table(
+        "s.t",
+        "t",
+        "sweep.py",
+        ("s", "--runs", "10", "--jobs", "2"),
+        out_flag="--out",
+        scheduler=True,
+        resume=True,
+        mini_args={"--runs": "1", "--samples": "5"},
+        mini_set=("time.duration=60",),
+    )
     assert rp.arguments(table, False) == ["s", "--runs", "10", "--jobs", "2"]
-    assert rp.arguments(table, True) == ["s", "--runs", "1", "--jobs", "2", "--samples", "5",
-                                         "--set", "time.duration=60"]
+    assert rp.arguments(table, True) == [
+        "s",
+        "--runs",
+        "1",
+        "--jobs",
+        "2",
+        "--samples",
+        "5",
+        "--set",
+        "time.duration=60",
+    ]
     cmd = rp.command(table, "py", Path("/r"), Path("/o"), True, "tcp://h:1", True)
     assert cmd[-5:] == ["--out", "/o", "--scheduler", "tcp://h:1", "--resume"]
     assert "--scheduler" not in rp.command(table, "py", Path("/r"), Path("/o"))
@@ -50,8 +74,10 @@ def test_tables_yaml_is_read_strictly(tmp_path):
     path.write_text("tables:\n- {name: a, title: A, script: launch.py, runs: 3}\n")
     with pytest.raises(ScenarioError, match="tables.yaml"):
         rp.read_tables(path, "s")
-    path.write_text("tables:\n- {name: a, title: A, script: launch.py, args: [s, --runs, 3], "
-                    "mini: {args: {--runs: 1}}, captions: [Table A]}\n")
+    path.write_text(
+        "tables:\n- {name: a, title: A, script: launch.py, args: [s, --runs, 3], "
+        "mini: {args: {--runs: 1}}, captions: [Table A]}\n"
+    )
     (table,) = rp.read_tables(path, "s")
     assert table.name == "s.a" and table.args == ("s", "--runs", "3") and table.mini_args == {"--runs": "1"}
     assert table.captions == ("Table A",)
@@ -139,20 +165,30 @@ x  y
 def test_excerpt_takes_each_captions_table_or_code_block_and_nothing_else():
     assert rp.excerpt(MARKDOWN, ()) == MARKDOWN.strip()
     part = rp.excerpt(MARKDOWN, ("Table B", "Table A"))
-    assert part == "**Table B: the text form**\n\n```\nx  y\n1  2\n```\n\n**Table A: errors**\n\n| a | b |\n|---|---|\n| 1 | 2 |"
+    assert (
+        part
+        == "**Table B: the text form**\n\n```\nx  y\n1  2\n```\n\n**Table A: errors**\n\n| a | b |\n|---|---|\n| 1 | 2 |"
+    )
     with pytest.raises(rp.ExcerptError, match="'Table Z'"):
         rp.excerpt(MARKDOWN, ("Table Z",))
 
 
 def test_fill_page_rewrites_only_the_generated_blocks_and_names_what_it_cannot_fill():
     table = rp.Table("s.t", "T", "x.py", ("s",), captions=("Table A",), figures=("report/a.png",))
-    entry = {"status": "ok", "commit": "0123456789abcdef", "identity": ["x.py", "s"], "wall_s": 12.0,
-             "load_average": [1.5, 1, 1], "machine": {"cpus": 2, "cpu_model": "CPU X"},
-             "markdown": MARKDOWN.replace("errors**", "errors of [s](#s)**")}
+    entry = {
+        "status": "ok",
+        "commit": "0123456789abcdef",
+        "identity": ["x.py", "s"],
+        "wall_s": 12.0,
+        "load_average": [1.5, 1, 1],
+        "machine": {"cpus": 2, "cpu_model": "CPU X"},
+        "markdown": MARKDOWN.replace("errors**", "errors of [s](#s)**"),
+    }
     page = "intro\n<!-- results: s.t -->\nstale | 9 |\n<!-- /results -->\noutro\n"
     filled = rp.fill_page(page, {"tables": {"s.t": entry}}, {"s.t": table}, "../../")
     assert filled.startswith("intro\n<!-- results: s.t -->\n**Table A: errors of s**") and filled.endswith(
-        "<!-- /results -->\noutro\n")  # the link into the command's own report is reduced to its text
+        "<!-- /results -->\noutro\n"
+    )  # the link into the command's own report is reduced to its text
     assert "stale" not in filled and "| 1 | 2 |" in filled and "`x.py s`, commit `0123456789ab`, 12 s" in filled
     assert "2 CPUs (CPU X)" in filled
     assert "![s.t: a.png](../../results/figures/s.t/a.png)" in filled
@@ -174,11 +210,13 @@ def test_the_pages_result_tables_are_the_records():
     for page in rp.pages(ROOT):
         text = page.read_text(encoding="utf-8")
         shown += rp.block_names(text)
-        assert rp.fill_page(text, record, tables, rp.to_root(ROOT, page)) == text, \
+        assert rp.fill_page(text, record, tables, rp.to_root(ROOT, page)) == text, (
             f"{page.relative_to(ROOT)} is stale: run scripts/reproduce.py --docs"
+        )
     assert sorted(shown) == sorted(tables)
-    missing = [rp.figure_path(t, f) for t in tables.values() for f in t.figures
-               if not (ROOT / rp.figure_path(t, f)).is_file()]
+    missing = [
+        rp.figure_path(t, f) for t in tables.values() for f in t.figures if not (ROOT / rp.figure_path(t, f)).is_file()
+    ]
     assert not missing, missing
 
 
@@ -200,8 +238,10 @@ def test_figures_are_copied_only_from_the_recorded_run(tmp_path):
     entry = {"commit": "c1", "identity": ["x.py", "s"]}
     cli.copy_figures(table, root, work, entry)
     copied = root / rp.figure_path(table, "report/plot.png")
-    assert copied.read_bytes() == b"png of commit c1" and rp.figure_path(table, "x/plot.png") == \
-        "results/figures/s.t/plot.png"
+    assert (
+        copied.read_bytes() == b"png of commit c1"
+        and rp.figure_path(table, "x/plot.png") == "results/figures/s.t/plot.png"
+    )
     (work / "s.t" / "out" / "report" / "plot.png").write_bytes(b"png of another run")
     cli.copy_figures(table, root, work, {**entry, "commit": "c2"})  # not the recorded run: the copy stays
     assert copied.read_bytes() == b"png of commit c1"
@@ -222,8 +262,12 @@ def test_pages_are_never_written_from_a_miniature_record(tmp_path, capsys):
 def test_the_commit_is_dirty_for_an_edited_source_not_for_the_record(tmp_path):
 
     def git(*a: str) -> None:
-        subprocess.run(["git", "-C", str(tmp_path), "-c", "user.email=t@t", "-c", "user.name=t", *a], check=True,
-                       capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(tmp_path), "-c", "user.email=t@t", "-c", "user.name=t", *a],
+            check=True,
+            capture_output=True,
+        )
+
     (tmp_path / rp.RESULTS_DIR).mkdir()
     (tmp_path / rp.RESULTS_DIR / "results.json").write_text("{}")
     (tmp_path / "code.py").write_text("x = 1\n")

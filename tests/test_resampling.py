@@ -1,4 +1,5 @@
 """Resampling schemes: unbiased offspring counts, variance ordering, edge cases."""
+
 import numpy as np
 import pytest
 
@@ -73,8 +74,9 @@ def test_single_dominant_particle_is_copied_n_times():
 
 
 @pytest.mark.parametrize("name", sorted(RESAMPLERS))
-@pytest.mark.parametrize("bad", [np.zeros(5), np.array([0.2, np.nan, 0.3]), np.array([np.inf, 1.0]),
-                                 np.array([0.5, -0.1, 0.6])])
+@pytest.mark.parametrize(
+    "bad", [np.zeros(5), np.array([0.2, np.nan, 0.3]), np.array([np.inf, 1.0]), np.array([0.5, -0.1, 0.6])]
+)
 def test_invalid_weights_raise(name, bad):
     with pytest.raises(ValueError):
         RESAMPLERS[name](bad, np.random.default_rng(0))

@@ -2,6 +2,7 @@
 Carlo runs forked from the preloaded fork server record the same messages as fresh processes; the recorder
 closes the bag on the source's totals (not after a silence); forked nodes still stop when their launcher is
 killed; the phase benchmark (scripts/bench_phases.py) prints every phase. Nothing here asserts a time."""
+
 from __future__ import annotations
 
 import os
@@ -18,22 +19,38 @@ from bench_engine.preload import WARM_ENV
 from bench_eval.montecarlo import MonteCarlo
 from graph_helpers import ROOT, SHORT_PASS, digests, read_bag, script
 
-PHASE_ROWS = ("interpreter + imports", "validation", "process spawn", "node set-up", "discovery + readiness",
-              "stepping", "drain", "bag close", "shutdown", "scoring", "exit")
+PHASE_ROWS = (
+    "interpreter + imports",
+    "validation",
+    "process spawn",
+    "node set-up",
+    "discovery + readiness",
+    "stepping",
+    "drain",
+    "bag close",
+    "shutdown",
+    "scoring",
+    "exit",
+)
 
 
 def test_forked_and_fresh_node_processes_record_the_same_bag(tmp_path):
     found = {}
-    for mode, args, env in (("fresh", ["--fresh-nodes"], {}), ("forked", [], {}),
-                            ("single", ["--single-process"], {})):
+    for mode, args, env in (("fresh", ["--fresh-nodes"], {}), ("forked", [], {}), ("single", ["--single-process"], {})):
         out = tmp_path / mode
-        res = script("launch.py", "leo_radar", "--seed", "5", *SHORT_PASS, "--out", str(out), "--no-score", *args,
-                     extra_env=env)
+        res = script(
+            "launch.py", "leo_radar", "--seed", "5", *SHORT_PASS, "--out", str(out), "--no-score", *args, extra_env=env
+        )
         assert res.returncode == 0, res.stderr[-2000:]
         found[mode] = digests(out / "bag")
         if mode != "single":  # one log per node process, the recorder closed on the source's totals
             assert sorted(p.name for p in (out / "logs").iterdir()) == [
-                "ekf.log", "radar.log", "recorder.log", "truth.log", "ukf.log"]
+                "ekf.log",
+                "radar.log",
+                "recorder.log",
+                "truth.log",
+                "ukf.log",
+            ]
             recorder = (out / "logs" / "recorder.log").read_text()
             assert "every message of the run is in" in recorder and "without messages" not in recorder
     assert found["fresh"] == found["forked"] == found["single"]
@@ -61,9 +78,21 @@ def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path, monkeyp
 def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path):
     out, log = tmp_path / "orphan", tmp_path / "phases.jsonl"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{phases.ENV: str(log)})
-    proc = subprocess.Popen([sys.executable, str(ROOT / "scripts" / "launch.py"), "leo_radar", "--out", str(out),
-                             "--no-score", "--set", "time.pacing_window=0"],
-                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            str(ROOT / "scripts" / "launch.py"),
+            "leo_radar",
+            "--out",
+            str(out),
+            "--no-score",
+            "--set",
+            "time.pacing_window=0",
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not (log.exists() and "stepping_start" in log.read_text()):
         assert proc.poll() is None, "the launcher ended before the run started stepping"
@@ -91,8 +120,17 @@ def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_pat
 
 
 def test_phase_benchmark_prints_every_phase_and_the_ratios(tmp_path):
-    res = script("bench_phases.py", "--modes", "single-process,montecarlo", "--runs", "1", "--jobs", "1", *SHORT_PASS,
-                 timeout=300)
+    res = script(
+        "bench_phases.py",
+        "--modes",
+        "single-process,montecarlo",
+        "--runs",
+        "1",
+        "--jobs",
+        "1",
+        *SHORT_PASS,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     lines = res.stdout.splitlines()
     for row in PHASE_ROWS:

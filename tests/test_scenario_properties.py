@@ -1,5 +1,6 @@
 """Property test (hypothesis): any override of any scenario key gives either a valid run plan or a clean
 ScenarioError naming what is wrong, never another exception (a traceback for the user)."""
+
 from __future__ import annotations
 
 import math
@@ -21,12 +22,19 @@ def leaf_paths(node, prefix=()) -> list[str]:
 
 SCENARIOS = tuple(available_scenarios())
 """Every registered study's scenario."""
-PATHS = {name: [p for p in leaf_paths(load_scenario(name)) if not p.startswith(("sweeps", "variants", "description"))]
-         for name in SCENARIOS}
+PATHS = {
+    name: [p for p in leaf_paths(load_scenario(name)) if not p.startswith(("sweeps", "variants", "description"))]
+    for name in SCENARIOS
+}
 VALUES = st.one_of(
-    st.none(), st.booleans(), st.integers(-10**12, 10**12),
-    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=8),
-    st.lists(st.floats(-1e3, 1e3), max_size=7), st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**12), 10**12),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.floats(-1e3, 1e3), max_size=7),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+)
 
 
 def plan_or_clean_error(scenario: str, overrides: dict) -> None:
@@ -43,9 +51,14 @@ def plan_or_clean_error(scenario: str, overrides: dict) -> None:
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(data=st.data())
 def test_any_override_gives_a_run_plan_or_a_clean_error(scenario: str, data) -> None:
-    keys = data.draw(st.lists(st.one_of(st.sampled_from(PATHS[scenario]),
-                                        st.sampled_from(PATHS[scenario]).map(lambda p: p + ".extra")),
-                              min_size=1, max_size=3, unique=True))
+    keys = data.draw(
+        st.lists(
+            st.one_of(st.sampled_from(PATHS[scenario]), st.sampled_from(PATHS[scenario]).map(lambda p: p + ".extra")),
+            min_size=1,
+            max_size=3,
+            unique=True,
+        )
+    )
     overrides = {k: data.draw(VALUES) for k in keys}
     if any(isinstance(v, float) and math.isnan(v) for v in overrides.values()):
         overrides = {k: (".nan" if isinstance(v, float) and math.isnan(v) else v) for k, v in overrides.items()}

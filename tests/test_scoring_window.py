@@ -1,6 +1,7 @@
 """The scoring window (bench_eval.window): stated once in ``scoring.window``, read strictly, and applied by the
 scorer to every estimator alike: all are scored over the same steps of the window, whatever their own spans,
 rates and gaps, after the offline estimators ran over the whole run; the edges (head and tail) are scored apart."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -21,13 +22,16 @@ def _cfg(window: dict | None) -> dict:
     return cfg
 
 
-@pytest.mark.parametrize("window, message", [
-    ({"head": 10.0}, "unknown key.*'scoring.window.head'"),
-    ({"head_s": -1.0}, "'scoring.window.head_s' must be >= 0"),
-    ({"tail_s": "late"}, "'scoring.window.tail_s' must be a number"),
-    ({"edges": "yes"}, "'scoring.window.edges' must be true/false"),
-    ({"head_s": 3000.0, "tail_s": 2952.8}, "leaves nothing of the run's 5952.8 s"),
-])
+@pytest.mark.parametrize(
+    "window, message",
+    [
+        ({"head": 10.0}, "unknown key.*'scoring.window.head'"),
+        ({"head_s": -1.0}, "'scoring.window.head_s' must be >= 0"),
+        ({"tail_s": "late"}, "'scoring.window.tail_s' must be a number"),
+        ({"edges": "yes"}, "'scoring.window.edges' must be true/false"),
+        ({"head_s": 3000.0, "tail_s": 2952.8}, "leaves nothing of the run's 5952.8 s"),
+    ],
+)
 def test_a_bad_window_is_refused_naming_its_key(window: dict, message: str) -> None:
     with pytest.raises(ScenarioError, match=message):
         scoring_options(_cfg(window))
@@ -47,8 +51,11 @@ def _run(cfg: dict) -> BagData:
     t = np.arange(STEPS, dtype=float)
     truth = np.column_stack([t, 2.0 * t, np.zeros(STEPS), np.ones(STEPS), 2.0 * np.ones(STEPS), np.zeros(STEPS)])
     P = np.repeat(np.eye(6)[None], STEPS, 0)
-    data = BagData({"scenario": cfg, "estimators": ["ss", "late", "sparse"]},
-                   truth={k: (float(k), truth[k]) for k in range(STEPS)}, truth_labels=list(LABELS))
+    data = BagData(
+        {"scenario": cfg, "estimators": ["ss", "late", "sparse"]},
+        truth={k: (float(k), truth[k]) for k in range(STEPS)},
+        truth_labels=list(LABELS),
+    )
     data.measurements["isl"] = {k: np.zeros(3) for k in range(STEPS)}
     steps = np.arange(STEPS)
     data.estimates["ss"] = Estimates(steps, t, truth + rng.normal(0, 0.1, truth.shape), P, LABELS, {})
@@ -68,7 +75,7 @@ def test_every_estimator_of_a_run_is_scored_over_the_same_steps_of_the_window() 
     result, series = score_bags([_run(cfg)], with_series=True)
     expected = [k for k in range(40, 170, 2) if k not in (150, 151)]
     assert set(series) == {"ss", "late", "sparse", "ss_rts"}
-    for name, s in series.items():   # the errors family's time axis starts at the first scored stamp
+    for name, s in series.items():  # the errors family's time axis starts at the first scored stamp
         np.testing.assert_array_equal(s["t"], np.array(expected) - expected[0], err_msg=name)
     assert result["window"] == {"head_s": 20.0, "tail_s": 30.0, "steps": [len(expected)]}
     # the scores are those of exactly these steps: 'late' is 1 m off on every axis, 'sparse' 0.5 m
@@ -77,7 +84,7 @@ def test_every_estimator_of_a_run_is_scored_over_the_same_steps_of_the_window() 
     assert "edges" not in result["estimators"]["ss"]
 
 
-@pytest.mark.filterwarnings("ignore:Mean of empty slice")   # 'late''s NaN state, scored as it is without a window
+@pytest.mark.filterwarnings("ignore:Mean of empty slice")  # 'late''s NaN state, scored as it is without a window
 def test_without_a_window_each_estimator_keeps_its_own_steps() -> None:
     _, series = score_bags([_run(_cfg(None))], with_series=True)
     assert len(series["ss"]["t"]) == STEPS and len(series["sparse"]["t"]) == STEPS // 2
@@ -98,7 +105,7 @@ def test_the_edges_are_scored_apart_each_estimator_over_its_own_steps_there() ->
     cfg = _cfg({"head_s": 20.0, "tail_s": 30.0, "edges": True})
     result = score_bags([_run(cfg)])["estimators"]
     assert set(result["ss"]["edges"]) == {"head", "tail"}
-    assert "head" not in result["late"].get("edges", {})         # 'late' has nothing in the first 20 s
+    assert "head" not in result["late"].get("edges", {})  # 'late' has nothing in the first 20 s
     assert result["late"]["edges"]["tail"]["mae"]["x"] == pytest.approx(1.0)
     assert result["sparse"]["edges"]["head"]["mae"]["x"] == pytest.approx(0.5)
 

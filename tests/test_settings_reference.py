@@ -1,6 +1,7 @@
 """The settings reference (bench_engine.settings_reference) is generated from the declarations the readers read
 (bench_engine.settings): every key a scenario file uses appears in it, including the keys its variants and sweep
 grids set, and the defaults it states are the values the readers give a key a scenario leaves out."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,14 +21,19 @@ from bench_engine.settings import REQUIRED, Settings, SectionReader, coerce, def
 from bench_engine.settings_reference import _yaml_value, entries, markdown
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = [*plugins.names("scenarios"), str(ROOT / "tests/data/tracker_formation.yaml"),
-             str(ROOT / "tests/data/clutter_demo.yaml")]
+SCENARIOS = [
+    *plugins.names("scenarios"),
+    str(ROOT / "tests/data/tracker_formation.yaml"),
+    str(ROOT / "tests/data/clutter_demo.yaml"),
+]
 REFERENCE = entries()
-FREE = [e.path for e in REFERENCE if e.type == "mapping" and not any(
-    f.path.startswith(e.path + ".") for f in REFERENCE)]
+FREE = [
+    e.path for e in REFERENCE if e.type == "mapping" and not any(f.path.startswith(e.path + ".") for f in REFERENCE)
+]
 """Keys whose value is a free mapping (variants, sweeps, a grace pairs option): what lies under them is data."""
-DEFAULTS_OF = {r.key: r.defaults_of for r in section_readers().values()
-               if isinstance(r, SectionReader) and r.defaults_of}
+DEFAULTS_OF = {
+    r.key: r.defaults_of for r in section_readers().values() if isinstance(r, SectionReader) and r.defaults_of
+}
 
 
 def _pattern(path: str) -> re.Pattern:
@@ -41,7 +47,7 @@ def documented(path: str) -> bool:
     """Whether a key path of a scenario is a key of the reference (or data under a free mapping)."""
     first, _, rest = path.partition(".")
     if first in DEFAULTS_OF and rest:
-        path = f"{DEFAULTS_OF[first]}.defaults.{rest}"   # any key of an entry of that section
+        path = f"{DEFAULTS_OF[first]}.defaults.{rest}"  # any key of an entry of that section
     return any(p.match(path) for p in PATTERNS) or any(path.startswith(f + ".") for f in FREE)
 
 
@@ -159,12 +165,20 @@ def test_the_reference_lists_every_declared_key_once_with_type_default_unit_and_
 
 def test_the_command_writes_the_reference(tmp_path: Path) -> None:
     out = tmp_path / "settings.md"
-    res = subprocess.run([sys.executable, str(ROOT / "scripts" / "settings_reference.py"), "--out", str(out)],
-                         capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "settings_reference.py"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
     assert out.read_text() == markdown()
-    res = subprocess.run([sys.executable, str(ROOT / "scripts" / "settings_reference.py"), "--help"],
-                         capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "settings_reference.py"), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0 and "--out" in res.stdout
 
 
@@ -188,15 +202,18 @@ class _Example(Settings):
 
 def test_a_reader_is_strict_and_its_errors_name_the_key_path() -> None:
     assert read(_Example, {"dt": 1, "n": 2}, "x") == _Example(dt=1.0, n=2)
-    assert isinstance(read(_Example, {"dt": "1e-3"}, "x").dt, float)   # YAML 1.1 reads 1e-3 as text
-    for data, message in (({}, "missing key 'x.dt'"), ({"dt": 1, "m": 2}, "unknown key(s) 'x.m' in 'x'; allowed:"),
-                          ({"dt": "a"}, "'x.dt' must be a number, got 'a'"),
-                          ({"dt": 1, "n": 1.5}, "'x.n' must be an integer"),
-                          ({"dt": 1, "names": [1]}, "'x.names' must be a list of strings")):
+    assert isinstance(read(_Example, {"dt": "1e-3"}, "x").dt, float)  # YAML 1.1 reads 1e-3 as text
+    for data, message in (
+        ({}, "missing key 'x.dt'"),
+        ({"dt": 1, "m": 2}, "unknown key(s) 'x.m' in 'x'; allowed:"),
+        ({"dt": "a"}, "'x.dt' must be a number, got 'a'"),
+        ({"dt": 1, "n": 1.5}, "'x.n' must be an integer"),
+        ({"dt": 1, "names": [1]}, "'x.names' must be a list of strings"),
+    ):
         with pytest.raises(ScenarioError, match=re.escape(message)):
             read(_Example, data, "x")
     example = read(_Example, {"dt": 1}, "x.y")
-    assert (example.where(), example.where("dt")) == ("x.y", "x.y.dt")   # a path for the mapping and for its keys
+    assert (example.where(), example.where("dt")) == ("x.y", "x.y.dt")  # a path for the mapping and for its keys
     assert coerce(_Example, {"dt": 2, "labels": ["a"], "other": 1}) == {"dt": 2.0, "names": ["a"], "other": 1}
     assert default_of(dataclasses.fields(_Example)[0]) is REQUIRED
     with pytest.raises(ScenarioError, match="unknown key\\(s\\) 'earth.muu' in 'earth'; allowed: j2, mu, re,"):
@@ -204,5 +221,13 @@ def test_a_reader_is_strict_and_its_errors_name_the_key_path() -> None:
 
 
 def test_the_engine_declares_its_own_keys() -> None:
-    assert [f.name for f in dataclasses.fields(EngineKeys)] == ["scenario", "description", "seed", "time",
-                                                                "estimators", "standard_views", "variants", "sweeps"]
+    assert [f.name for f in dataclasses.fields(EngineKeys)] == [
+        "scenario",
+        "description",
+        "seed",
+        "time",
+        "estimators",
+        "standard_views",
+        "variants",
+        "sweeps",
+    ]

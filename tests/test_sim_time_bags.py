@@ -2,6 +2,7 @@
 (bench_engine.sim_clock, the recorder's rule), so Foxglove, PlotJuggler, rosbags and ``ros2 bag play`` show a
 420 s pass as 420 s. Checked on the rule itself for any message type and hostile bytes, then on real graph runs
 read by rosbags and by mcap's reader: recorded, recovered after the recorder was killed, and replayed."""
+
 from __future__ import annotations
 
 import os
@@ -36,19 +37,23 @@ SIM_30_S = ["--set", "time.duration=30"]
 
 # --- the rule, for any message type ---------------------------------------------------------------------------
 
-@pytest.mark.parametrize("type_name, rule", [
-    ("bench_msgs/msg/TruthState", StampRule.HEADER),
-    ("bench_msgs/msg/StateEstimate", StampRule.HEADER),
-    ("nav_msgs/msg/Odometry", StampRule.HEADER),
-    ("diagnostic_msgs/msg/DiagnosticArray", StampRule.HEADER),
-    ("geometry_msgs/msg/PoseWithCovarianceStamped", StampRule.HEADER),
-    ("rosgraph_msgs/msg/Clock", StampRule.CLOCK),
-    ("rosgraph_msgs/Clock", StampRule.CLOCK),
-    ("visualization_msgs/msg/MarkerArray", StampRule.LATEST_CLOCK),
-    ("std_msgs/msg/String", StampRule.LATEST_CLOCK),
-    ("geometry_msgs/msg/Point", StampRule.LATEST_CLOCK),
-    ("bench_msgs/msg/StepAck", StampRule.LATEST_CLOCK),
-])
+
+@pytest.mark.parametrize(
+    "type_name, rule",
+    [
+        ("bench_msgs/msg/TruthState", StampRule.HEADER),
+        ("bench_msgs/msg/StateEstimate", StampRule.HEADER),
+        ("nav_msgs/msg/Odometry", StampRule.HEADER),
+        ("diagnostic_msgs/msg/DiagnosticArray", StampRule.HEADER),
+        ("geometry_msgs/msg/PoseWithCovarianceStamped", StampRule.HEADER),
+        ("rosgraph_msgs/msg/Clock", StampRule.CLOCK),
+        ("rosgraph_msgs/Clock", StampRule.CLOCK),
+        ("visualization_msgs/msg/MarkerArray", StampRule.LATEST_CLOCK),
+        ("std_msgs/msg/String", StampRule.LATEST_CLOCK),
+        ("geometry_msgs/msg/Point", StampRule.LATEST_CLOCK),
+        ("bench_msgs/msg/StepAck", StampRule.LATEST_CLOCK),
+    ],
+)
 def test_the_rule_follows_the_message_definition(type_name: str, rule: StampRule) -> None:
     assert stamp_rule(type_name) is rule
 
@@ -67,8 +72,15 @@ def _stamped(type_name: str, sec: int, nanosec: int) -> bytes:
     return serialize_message(msg)
 
 
-@pytest.mark.parametrize("type_name", ["nav_msgs/msg/Odometry", "diagnostic_msgs/msg/DiagnosticArray",
-                                       "bench_msgs/msg/RangeAzEl", "rosgraph_msgs/msg/Clock"])
+@pytest.mark.parametrize(
+    "type_name",
+    [
+        "nav_msgs/msg/Odometry",
+        "diagnostic_msgs/msg/DiagnosticArray",
+        "bench_msgs/msg/RangeAzEl",
+        "rosgraph_msgs/msg/Clock",
+    ],
+)
 def test_the_stamp_is_read_from_the_cdr_bytes(type_name: str) -> None:
     rng = np.random.default_rng(17)
     cases = [(0, 0), (2**31 - 1, 999_999_999), (4320, 800_000_000)]
@@ -90,8 +102,11 @@ def test_big_endian_cdr_is_read_and_other_encodings_fall_back() -> None:
 
 def test_sim_clock_contract_and_hostile_bytes() -> None:
     clock = SimClock(START_NS)
-    for topic, type_name in [("/clock", "rosgraph_msgs/msg/Clock"), ("/odom", "nav_msgs/msg/Odometry"),
-                             ("/markers", "visualization_msgs/msg/MarkerArray")]:
+    for topic, type_name in [
+        ("/clock", "rosgraph_msgs/msg/Clock"),
+        ("/odom", "nav_msgs/msg/Odometry"),
+        ("/markers", "visualization_msgs/msg/MarkerArray"),
+    ]:
         clock.add_topic(topic, type_name)
     markers = serialize_message(message_class("visualization_msgs/msg/MarkerArray")())
     assert clock.log_time_ns("/markers", markers) == START_NS  # before the first clock: the run's start
@@ -110,6 +125,7 @@ def test_sim_clock_contract_and_hostile_bytes() -> None:
 
 
 # --- a real run ------------------------------------------------------------------------------------------------
+
 
 def _stamp_ns(msg) -> int:
     """The sim time a decoded message carries: a Clock's clock, else its header stamp."""
@@ -152,7 +168,12 @@ def run(tmp_path_factory) -> Path:
 def test_rosbags_sees_log_times_equal_to_sim_time(run: Path) -> None:
     rows = _rosbags_times(run / "bag")
     assert {topic for topic, _, _ in rows if topic.rsplit("/", 1)[1] not in SUFFIXES} == {  # beside the views
-        "/truth/state", "/clock", "/radar/measurement", "/ekf/estimate", "/ukf/estimate"}
+        "/truth/state",
+        "/clock",
+        "/radar/measurement",
+        "/ekf/estimate",
+        "/ukf/estimate",
+    }
     assert [(topic, t) for topic, t, s in rows if t != s] == []
     log_times = [t for _, t, _ in rows]
     assert log_times == sorted(log_times)
@@ -226,7 +247,8 @@ def test_a_replayed_bag_is_in_sim_time_and_replays_by_step(run: Path, tmp_path: 
     rows = _rosbags_times(out / "bag")
     assert [(topic, t) for topic, t, s in rows if t != s] == []
     assert rows[0][1] == START_NS
-    recorded, replayed = (BagReader(bag).tables(["/ukf/estimate"])["/ukf/estimate"] for bag in (run / "bag",
-                                                                                                out / "bag"))
+    recorded, replayed = (
+        BagReader(bag).tables(["/ukf/estimate"])["/ukf/estimate"] for bag in (run / "bag", out / "bag")
+    )
     np.testing.assert_array_equal(replayed["step"], recorded["step"])
     np.testing.assert_array_equal(replayed["state"], recorded["state"])

@@ -1,4 +1,5 @@
 """Fixed-interval RTS smoothing (tracker_filters.smoothing) and the offline-estimator stage of the scorer."""
+
 from __future__ import annotations
 
 import json
@@ -56,17 +57,17 @@ def batch_least_squares(m0, P0, F, Q, H, R, zs):
     rows.append(first), rhs.append(m0), weights.append(P0)
     for k in range(K - 1):
         block = np.zeros((n, K * n))
-        block[:, k * n:(k + 1) * n], block[:, (k + 1) * n:(k + 2) * n] = -F, np.eye(n)
+        block[:, k * n : (k + 1) * n], block[:, (k + 1) * n : (k + 2) * n] = -F, np.eye(n)
         rows.append(block), rhs.append(np.zeros(n)), weights.append(Q)
     for k, z in enumerate(zs):
         block = np.zeros((1, K * n))
-        block[:, k * n:(k + 1) * n] = H
+        block[:, k * n : (k + 1) * n] = H
         rows.append(block), rhs.append(z), weights.append(R)
     A, b, W = np.vstack(rows), np.concatenate(rhs), np.linalg.inv(block_diag(*weights))
     info = A.T @ W @ A
     cov = np.linalg.inv(info)
     mean = cov @ A.T @ W @ b
-    return mean.reshape(K, n), np.array([cov[k * n:(k + 1) * n, k * n:(k + 1) * n] for k in range(K)])
+    return mean.reshape(K, n), np.array([cov[k * n : (k + 1) * n, k * n : (k + 1) * n] for k in range(K)])
 
 
 def test_rts_equals_the_batch_least_squares_solution():
@@ -114,15 +115,27 @@ def test_smooth_estimates_is_rts_with_the_dynamics_transitions_between_estimates
     x_r, P_r = rts_smoother(xs, Ps, Fs, Qs)
     np.testing.assert_array_equal(x_s, x_r)
     np.testing.assert_array_equal(P_s, P_r)
-    assert not np.allclose(x_s[:-1], xs[:-1])   # it did smooth
-    x_1, P_1 = smooth_estimates(dynamics, dts[:0], xs[:1], Ps[:1])   # one estimate: nothing to smooth
+    assert not np.allclose(x_s[:-1], xs[:-1])  # it did smooth
+    x_1, P_1 = smooth_estimates(dynamics, dts[:0], xs[:1], Ps[:1])  # one estimate: nothing to smooth
     np.testing.assert_array_equal(x_1, xs[:1])
     np.testing.assert_array_equal(P_1, Ps[:1])
 
 
 def test_the_scorer_runs_a_registered_offline_smoother_over_a_recorded_run(tmp_path: Path):
-    res = script("launch.py", "formation_cqkf", "--variant", "smoothed", "--estimators", "ss,cw", "--json",
-                 "--set", "time.duration=900", "--single-process", "--out", str(tmp_path))
+    res = script(
+        "launch.py",
+        "formation_cqkf",
+        "--variant",
+        "smoothed",
+        "--estimators",
+        "ss,cw",
+        "--json",
+        "--set",
+        "time.duration=900",
+        "--single-process",
+        "--out",
+        str(tmp_path),
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     filters = json.loads(res.stdout)["estimators"]
     assert set(filters) == {"ss", "cw", "ss_rts", "cw_rts"}  # cwb's smoother has no source in this run
@@ -142,8 +155,9 @@ def white_jerk_transition(q: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return F, F @ M[:9, 9:]
 
 
-def batch_map(mean0: np.ndarray, cov0: np.ndarray, times: np.ndarray, zs: np.ndarray, H: np.ndarray,
-              R: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+def batch_map(
+    mean0: np.ndarray, cov0: np.ndarray, times: np.ndarray, zs: np.ndarray, H: np.ndarray, R: np.ndarray, q: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The linear-Gaussian MAP of the states at ``times`` (K,) given the prior N(mean0, cov0) on the first and
     the measurements zs (K - 1, d) of the others: one weighted least-squares problem over the stacked prior,
     dynamics and measurement residuals (not a recursion). Returns the means (K, n) and marginal covariances."""
@@ -152,15 +166,15 @@ def batch_map(mean0: np.ndarray, cov0: np.ndarray, times: np.ndarray, zs: np.nda
     for k in range(K - 1):
         F, Q = white_jerk_transition(q, times[k + 1] - times[k])
         block = np.zeros((n, K * n))
-        block[:, k * n:(k + 1) * n], block[:, (k + 1) * n:(k + 2) * n] = -F, np.eye(n)
+        block[:, k * n : (k + 1) * n], block[:, (k + 1) * n : (k + 2) * n] = -F, np.eye(n)
         rows.append(block), rhs.append(np.zeros(n)), covs.append(Q)
         block = np.zeros((len(zs[k]), K * n))
-        block[:, (k + 1) * n:(k + 2) * n] = H
+        block[:, (k + 1) * n : (k + 2) * n] = H
         rows.append(block), rhs.append(zs[k]), covs.append(R)
     A, b, W = np.vstack(rows), np.concatenate(rhs), np.linalg.inv(block_diag(*covs))
     cov = np.linalg.inv(A.T @ W @ A)
     mean = cov @ (A.T @ W @ b)
-    return mean.reshape(K, n), np.array([cov[k * n:(k + 1) * n, k * n:(k + 1) * n] for k in range(K)])
+    return mean.reshape(K, n), np.array([cov[k * n : (k + 1) * n, k * n : (k + 1) * n] for k in range(K)])
 
 
 def test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_the_whole_past():
@@ -170,7 +184,9 @@ def test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_th
     window's start) and the batch MAP over every state since the filter's initial prior."""
 
     labels = ["bx", "by", "bz", "bvx", "bvy", "bvz", "bax", "bay", "baz"]
-    cfg = apply_overrides(load_scenario("grace_velocity"), ["time.duration=600", "fixed_lag_smoothers.kf_a_lag.lag_s=50"])
+    cfg = apply_overrides(
+        load_scenario("grace_velocity"), ["time.duration=600", "fixed_lag_smoothers.kf_a_lag.lag_s=50"]
+    )
     smoother = FixedLagSmoother(cfg, "kf_a_lag")
     q = smoother.dynamics.q
     R, H = 8e-4 * np.eye(3), np.eye(3, 9)
@@ -186,7 +202,7 @@ def test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_th
         assert flt.process(t, z, R, model).accepted
         zs.append(z)
         estimates.append(Estimate(k, int(round(t * 1e9)), "eci", "kf_a", labels, flt.x.copy(), flt.P.copy()))
-    published = []                                    # (smoothed estimate, index of the newest estimate held)
+    published = []  # (smoothed estimate, index of the newest estimate held)
     for k, e in enumerate(estimates):
         published += [(out, k) for _, out in smoother.on_input("/kf_a/estimate", e)]
     newest_time = times[[k for _, k in published]]
@@ -195,8 +211,8 @@ def test_the_fixed_lag_smoother_equals_the_batch_map_over_its_window_and_over_th
     zs = np.array(zs)
     for e, newest in published:
         s = e.step
-        window_x, window_P = batch_map(estimates[s].x, estimates[s].P, times[s:newest + 1], zs[s:newest], H, R, q)
-        past_x, past_P = batch_map(x0, P0, times[:newest + 1], zs[:newest], H, R, q)
+        window_x, window_P = batch_map(estimates[s].x, estimates[s].P, times[s : newest + 1], zs[s:newest], H, R, q)
+        past_x, past_P = batch_map(x0, P0, times[: newest + 1], zs[:newest], H, R, q)
         for x, P in ((window_x[0], window_P[0]), (past_x[s], past_P[s])):
             sd = np.sqrt(np.diag(P))
             np.testing.assert_allclose((e.x - x) / sd, 0.0, atol=1e-6)

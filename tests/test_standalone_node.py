@@ -2,6 +2,7 @@
 a parameters file alone, fed by a plain rclpy publisher written here (best-effort QoS, ``step`` left at 0, a
 remapped topic, one malformed message and one duplicate), gives the estimates of the in-process run on the same
 measurements; its parameters are read through rclpy's parameter client (the services ``ros2 param`` uses)."""
+
 from __future__ import annotations
 
 import os
@@ -50,10 +51,26 @@ def ros(tmp_path: Path, reference):
     reservation = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(reservation.domain))
     log = open(tmp_path / "ukf.log", "w")
-    proc = subprocess.Popen([str(FILTER_NODE), "--ros-args", "-r", "__node:=ukf", "--params-file", str(params),
-                             "-p", "qos.reliability:=best_effort", "-p", "qos.history:=keep_last",
-                             "-r", f"radar/measurement:={MEASUREMENTS}"],
-                            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    proc = subprocess.Popen(
+        [
+            str(FILTER_NODE),
+            "--ros-args",
+            "-r",
+            "__node:=ukf",
+            "--params-file",
+            str(params),
+            "-p",
+            "qos.reliability:=best_effort",
+            "-p",
+            "qos.history:=keep_last",
+            "-r",
+            f"radar/measurement:={MEASUREMENTS}",
+        ],
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=reservation.domain)
     node = rclpy.create_node("foreign_radar_driver", context=context)
@@ -92,8 +109,9 @@ def test_a_standalone_ukf_on_a_foreign_best_effort_topic_equals_the_in_process_r
     received: list[StateEstimate] = []
     pub = node.create_publisher(RangeAzEl, MEASUREMENTS, BEST_EFFORT)
     node.create_subscription(StateEstimate, "/ukf/estimate", received.append, BEST_EFFORT)
-    assert _spin_until(executor, lambda: pub.get_subscription_count() > 0
-                       and node.count_publishers("/ukf/estimate") > 0), "the standalone node never came up"
+    assert _spin_until(
+        executor, lambda: pub.get_subscription_count() > 0 and node.count_publishers("/ukf/estimate") > 0
+    ), "the standalone node never came up"
     # The writer matched the node's reader; the reader may not know the writer yet and then drops its best-effort
     # data: a driver's first scan is repeated until the filter has started (a repeat after that is a duplicate).
     for _ in range(40):
@@ -105,8 +123,9 @@ def test_a_standalone_ukf_on_a_foreign_best_effort_topic_equals_the_in_process_r
     for i, item in enumerate(measurements[1:], start=1):
         pub.publish(_message(item))
         if item.t_ns in expected_by_t:
-            assert _spin_until(executor, lambda: len(received) == len(
-                [e for e in expected if e.t_ns <= item.t_ns])), f"no estimate for measurement {i}"
+            assert _spin_until(executor, lambda: len(received) == len([e for e in expected if e.t_ns <= item.t_ns])), (
+                f"no estimate for measurement {i}"
+            )
         if i == MALFORMED_AFTER:
             pub.publish(b"\x00\x01\x00\x00" + b"\xff" * 9)  # CDR bytes that are no RangeAzEl
         if i == DUPLICATE_AFTER:
@@ -130,14 +149,27 @@ def test_a_running_filter_node_shows_its_type_and_tuning_as_read_only_parameters
     node, executor, _proc, _log = ros
     client = AsyncParameterClient(node, "ukf")
     assert client.wait_for_services(timeout_sec=20.0)
-    names = ["kind", "filters.ukf.type", "filters.ukf.params.alpha", "filters.ukf.dynamics.model",
-             "sensors.radar.sigma_range", "qos.reliability", "earth.mu"]
+    names = [
+        "kind",
+        "filters.ukf.type",
+        "filters.ukf.params.alpha",
+        "filters.ukf.dynamics.model",
+        "sensors.radar.sigma_range",
+        "qos.reliability",
+        "earth.mu",
+    ]
     future = client.get_parameters(names)
     executor.spin_until_future_complete(future, timeout_sec=10.0)
     values = dict(zip(names, (v.string_value or v.double_value for v in future.result().values)))
-    assert values == {"kind": "filter", "filters.ukf.type": "ukf", "filters.ukf.params.alpha": 1.0,
-                      "filters.ukf.dynamics.model": "orbit_j2", "sensors.radar.sigma_range": 31.6227766,
-                      "qos.reliability": "best_effort", "earth.mu": 3.986004418e14}
+    assert values == {
+        "kind": "filter",
+        "filters.ukf.type": "ukf",
+        "filters.ukf.params.alpha": 1.0,
+        "filters.ukf.dynamics.model": "orbit_j2",
+        "sensors.radar.sigma_range": 31.6227766,
+        "qos.reliability": "best_effort",
+        "earth.mu": 3.986004418e14,
+    }
     types = {name: v.type for name, v in zip(names, future.result().values)}
     assert types["earth.mu"] == types["filters.ukf.params.alpha"] == ParameterType.PARAMETER_DOUBLE
     listed = client.list_parameters(prefixes=["filters.ukf"])
@@ -158,8 +190,13 @@ def test_a_standalone_node_with_a_missing_parameter_says_which_in_one_line(tmp_p
     reservation = reserve(None)
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(reservation.domain))
     try:
-        res = subprocess.run([str(FILTER_NODE), "--ros-args", "-r", "__node:=ukf", "--params-file", str(params)],
-                             capture_output=True, text=True, timeout=60, env=env)
+        res = subprocess.run(
+            [str(FILTER_NODE), "--ros-args", "-r", "__node:=ukf", "--params-file", str(params)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            env=env,
+        )
     finally:
         reservation.release()
     assert res.returncode == 2

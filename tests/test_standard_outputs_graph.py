@@ -3,6 +3,7 @@ user would, their bags read back with rosbags (an independent reader), every vie
 StateEstimate or TruthState it views (same stamp, frame, values, covariance blocks; one Odometry and pose per
 estimate, diagnostics and markers once per second of sim time); the
 recorder closes the bag with them, the scorer ignores them, and a Monte Carlo batch makes its runs without."""
+
 from __future__ import annotations
 
 import math
@@ -88,7 +89,7 @@ def test_leo_radar_publishes_odometry_diagnostics_and_markers_beside_its_estimat
         stamped = periodic_steps([ns(m) for m in estimates], views.DIAGNOSTICS_PERIOD_S)
         assert len(diagnostics) == len(stamped) and 25 <= len(diagnostics) <= 32
         for previous, i, diag in zip([-1, *stamped], stamped, diagnostics):
-            est, window = estimates[i], estimates[previous + 1:i + 1]
+            est, window = estimates[i], estimates[previous + 1 : i + 1]
             assert ns(diag) == ns(est)
             (status,) = diag.status
             values = {kv.key: kv.value for kv in status.values}
@@ -97,10 +98,13 @@ def test_leo_radar_publishes_odometry_diagnostics_and_markers_beside_its_estimat
             assert nis == est.nis or (math.isnan(nis) and math.isnan(est.nis))
             coasted = sum(math.isnan(e.nis) for e in window)
             assert (int(values.pop("window_estimates")), int(values.pop("window_without_update"))) == (
-                len(window), coasted)
+                len(window),
+                coasted,
+            )
             assert status.level == (1 if coasted else 0)  # WARN, OK (rosbags reads a byte as an int)
             assert dict(zip(est.diagnostic_names, est.diagnostic_values)) == {
-                k: float(v) for k, v in values.items() if k not in ("step", "nis")}
+                k: float(v) for k, v in values.items() if k not in ("step", "nis")
+            }
         check_markers(bag, node, estimates)
     truth = [m for _, m in bag["/truth/state"]]
     assert n["/truth/odometry"] == n["/truth/state"] == 301 and "/truth/pose" not in n
@@ -114,8 +118,18 @@ def test_leo_radar_publishes_odometry_diagnostics_and_markers_beside_its_estimat
 
 def test_star_tracker_attitudes_are_poses_and_attitude_estimates(tmp_path):
     out = tmp_path / "run"
-    res = script("launch.py", "star_tracker", "--variant", "short", "--estimators", "sna_triad,jpdaf_wahba",
-                 "--out", str(out), "--no-score", timeout=240)
+    res = script(
+        "launch.py",
+        "star_tracker",
+        "--variant",
+        "short",
+        "--estimators",
+        "sna_triad,jpdaf_wahba",
+        "--out",
+        str(out),
+        "--no-score",
+        timeout=240,
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     n = counts(out / "bag")
     bag = read_bag(out / "bag")
@@ -123,8 +137,9 @@ def test_star_tracker_attitudes_are_poses_and_attitude_estimates(tmp_path):
         estimates = [m for _, m in bag[f"/{node}/estimate"]]
         assert len(estimates) >= 90
         assert n[f"/{node}/pose"] == n[f"/{node}/attitude"] == len(estimates)
-        assert n[f"/{node}/diagnostics"] == len(periodic_steps([ns(m) for _, m in bag[f"/{node}/estimate"]],
-                                                                 views.DIAGNOSTICS_PERIOD_S))
+        assert n[f"/{node}/diagnostics"] == len(
+            periodic_steps([ns(m) for _, m in bag[f"/{node}/estimate"]], views.DIAGNOSTICS_PERIOD_S)
+        )
         assert f"/{node}/odometry" not in n and f"/{node}/markers" not in n  # no position
         poses = [m for _, m in bag[f"/{node}/pose"]]
         attitudes = [m for _, m in bag[f"/{node}/attitude"]]
@@ -155,8 +170,15 @@ def test_a_batch_makes_its_runs_without_views(tmp_path):
     # a batch's run is resumed although its bag records the switch its caller did not set
     bag = tmp_path / "run_000" / "bag"
     bag.mkdir(parents=True)
-    (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": {
-        "topics_with_message_count": [{"topic_metadata": {"name": "/truth/state"}, "message_count": 51}]}}))
+    (bag / "metadata.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "rosbag2_bagfile_information": {
+                    "topics_with_message_count": [{"topic_metadata": {"name": "/truth/state"}, "message_count": 51}]
+                }
+            }
+        )
+    )
     scenario = {"scenario": "leo_radar", "time": {"start": 4320.8, "duration": 5.0, "dt": 0.1}, "seed": 1}
     (bag / "run_config.yaml").write_text(yaml.safe_dump({"scenario": {**scenario, views.SWITCH: False}}))
     assert reusable_run(tmp_path / "run_000", scenario, resume=True)
@@ -166,8 +188,22 @@ def test_a_batch_makes_its_runs_without_views(tmp_path):
 
 def test_the_switch_turns_the_views_off(tmp_path):
     out = tmp_path / "run"
-    res = script("launch.py", "leo_radar", "--set", "time.duration=5", "--set", "standard_views=false",
-                 "--estimators", "ukf", "--out", str(out), "--no-score", "--single-process", timeout=240)
+    res = script(
+        "launch.py",
+        "leo_radar",
+        "--set",
+        "time.duration=5",
+        "--set",
+        "standard_views=false",
+        "--estimators",
+        "ukf",
+        "--out",
+        str(out),
+        "--no-score",
+        "--single-process",
+        timeout=240,
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     assert Counter(t.rsplit("/", 1)[1] for t in counts(out / "bag")) == Counter(
-        {"state": 1, "clock": 1, "measurement": 1, "estimate": 1})
+        {"state": 1, "clock": 1, "measurement": 1, "estimate": 1}
+    )

@@ -1,14 +1,26 @@
 """TRIAD and the least-squares (SVD) Wahba solution against known rotations; the quaternion convention; the
 covariances against Monte Carlo."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from star_tracker.attitude import (davenport_quaternion, error_angle, error_components, error_vector,
-                                   matrix_from_quaternion, quaternion_from_matrix, residuals, rotation_matrix, triad,
-                                   triad_matrix, wahba, wahba_matrix)
+from star_tracker.attitude import (
+    davenport_quaternion,
+    error_angle,
+    error_components,
+    error_vector,
+    matrix_from_quaternion,
+    quaternion_from_matrix,
+    residuals,
+    rotation_matrix,
+    triad,
+    triad_matrix,
+    wahba,
+    wahba_matrix,
+)
 
 
 def star_field(rng, n, half_width=0.15):
@@ -43,8 +55,9 @@ def test_the_rotation_routines_agree_with_scipy_from_tiny_angles_to_half_turns()
     axes = rng.normal(size=(6, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
     angles = [0.0, 1e-9, 1e-4, 9.9e-4, 1.0001e-3, 0.5, 2.0, np.pi - 1e-6, np.pi]
-    rotations = list(Rotation.random(100, random_state=rng)) + [Rotation.from_rotvec(a * n) for a in angles
-                                                                 for n in axes]
+    rotations = list(Rotation.random(100, random_state=rng)) + [
+        Rotation.from_rotvec(a * n) for a in angles for n in axes
+    ]
     for rot in rotations:
         A, rotvec = rot.as_matrix(), rot.as_rotvec()
         q = quaternion_from_matrix(A)
@@ -61,7 +74,7 @@ def test_triad_and_wahba_recover_a_known_rotation_exactly(seed):
     rng = np.random.default_rng(seed)
     A = Rotation.random(random_state=rng).as_matrix()
     b = star_field(rng, 8)
-    r = b @ A                                       # r = Aᵀ b
+    r = b @ A  # r = Aᵀ b
     np.testing.assert_allclose(triad_matrix(b[0], b[3], r[0], r[3]), A, atol=1e-12)
     np.testing.assert_allclose(triad(b, r, 1e-5).matrix, A, atol=1e-12)
     np.testing.assert_allclose(wahba_matrix(b, r), A, atol=1e-12)
@@ -85,7 +98,7 @@ def test_the_svd_solution_equals_davenports_q_method_under_noise(seed):
 
 def test_error_components_split_the_boresight_pointing_from_the_roll():
     A = Rotation.random(random_state=5).as_matrix()
-    A_est = Rotation.from_rotvec([-3e-5, -4e-5, -7e-5]).as_matrix() @ A          # δθ = (3, 4, 7)·1e-5
+    A_est = Rotation.from_rotvec([-3e-5, -4e-5, -7e-5]).as_matrix() @ A  # δθ = (3, 4, 7)·1e-5
     cross, roll = error_components(A_est, A)
     assert cross == pytest.approx(5e-5, rel=1e-6) and roll == pytest.approx(7e-5, rel=1e-6)
 
@@ -104,7 +117,7 @@ def test_wahba_with_two_stars_equals_the_rotation_and_refuses_one():
 def test_the_error_vector_has_the_documented_sign():
     A = Rotation.random(random_state=1).as_matrix()
     dtheta = np.array([1e-4, -2e-4, 3e-4])
-    A_est = Rotation.from_rotvec(-dtheta).as_matrix() @ A          # Â = exp(−[δθ×]) A
+    A_est = Rotation.from_rotvec(-dtheta).as_matrix() @ A  # Â = exp(−[δθ×]) A
     np.testing.assert_allclose(error_vector(A_est, A), dtheta, atol=1e-12)
     assert error_angle(A_est, A) == pytest.approx(np.linalg.norm(dtheta))
 
@@ -120,8 +133,10 @@ def test_the_covariances_match_monte_carlo():
         bn = noisy(rng, b, sigma)
         e_triad.append(error_vector(triad(bn, r, sigma, pair=(0, 1)).matrix, A))
         e_wahba.append(error_vector(wahba(bn, r, sigma).matrix, A))
-    for samples, predicted in ((e_triad, triad(b, r, sigma, pair=(0, 1)).covariance),
-                               (e_wahba, wahba(b, r, sigma).covariance)):
+    for samples, predicted in (
+        (e_triad, triad(b, r, sigma, pair=(0, 1)).covariance),
+        (e_wahba, wahba(b, r, sigma).covariance),
+    ):
         samples = np.array(samples)
         # each direction's variance within 12 % (4000 samples: ±4.5 % at 2σ)
         for u in np.linalg.eigh(predicted)[1].T:

@@ -1,4 +1,5 @@
 """The pinhole star camera: projection round trips, geometry, and the catalogue stars in view."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -38,7 +39,7 @@ def test_the_geometry_follows_the_field_of_view():
     cam = Camera(20.0, 1024, 1024)
     assert cam.focal_px == pytest.approx(512 / np.tan(np.radians(10)))
     edge = cam.unproject(np.array([[1024.0, 512.0]]))[0]
-    assert np.degrees(np.arccos(edge[2])) == pytest.approx(10.0)          # half the FOV at the edge
+    assert np.degrees(np.arccos(edge[2])) == pytest.approx(10.0)  # half the FOV at the edge
     corner = cam.unproject(np.array([[0.0, 0.0]]))[0]
     assert np.arccos(corner[2]) == pytest.approx(cam.half_diagonal)
     opposite = cam.unproject(np.array([[1024.0, 1024.0]]))[0]
@@ -74,11 +75,13 @@ def test_stars_in_view_equal_a_brute_force_projection_of_the_whole_catalogue(cat
             want = np.flatnonzero((b[:, 2] > 0) & camera.in_image(uv_all))
             np.testing.assert_array_equal(idx, want)
             np.testing.assert_allclose(uv, uv_all[want])
-            assert np.all(np.diff(catalogue.magnitudes[idx]) >= 0)           # brightest first
+            assert np.all(np.diff(catalogue.magnitudes[idx]) >= 0)  # brightest first
 
 
 def test_the_default_camera_sees_enough_stars_everywhere(catalogue):
     rng = np.random.default_rng(2)
-    counts = [len(DEFAULT_CAMERA.stars_in_view(catalogue, Rotation.random(random_state=rng).as_matrix())[0])
-              for _ in range(300)]
+    counts = [
+        len(DEFAULT_CAMERA.stars_in_view(catalogue, Rotation.random(random_state=rng).as_matrix())[0])
+        for _ in range(300)
+    ]
     assert np.min(counts) >= 8 and 30 <= np.median(counts) <= 60

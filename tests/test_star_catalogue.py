@@ -1,5 +1,6 @@
 """The star catalogue: Hipparcos read, proper motion, close pairs merged, the disk cache (keyed, rebuilt when
 corrupt or when its inputs change)."""
+
 from __future__ import annotations
 
 import logging
@@ -9,8 +10,19 @@ import numpy as np
 import pytest
 
 from star_tracker import catalogue as cat_mod
-from star_tracker.catalogue import (ARCSEC, MAS, StarCatalogue, angle_between, build_catalogue, load_catalogue,
-                                    merge_close, propagate, radec_to_unit, read_hipparcos, unit_to_radec)
+from star_tracker.catalogue import (
+    ARCSEC,
+    MAS,
+    StarCatalogue,
+    angle_between,
+    build_catalogue,
+    load_catalogue,
+    merge_close,
+    propagate,
+    radec_to_unit,
+    read_hipparcos,
+    unit_to_radec,
+)
 
 
 @pytest.fixture(scope="module")
@@ -51,9 +63,9 @@ def test_close_stars_merge_into_one_photocentre_with_the_summed_flux():
     ids, vec, mags, members = merge_close(np.array([7, 8, 9]), v, np.array([5.0, 6.0, 5.5]), 100 * ARCSEC)
     assert len(ids) == 2
     pair = int(np.flatnonzero(members == 2)[0])
-    assert ids[pair] == 7                                          # named after its brightest member
-    assert mags[pair] == pytest.approx(5.0 - 2.5 * np.log10(1.0 + 10 ** -0.4))
-    w = 10 ** -0.4                                                 # flux of the 6.0 star relative to the 5.0
+    assert ids[pair] == 7  # named after its brightest member
+    assert mags[pair] == pytest.approx(5.0 - 2.5 * np.log10(1.0 + 10**-0.4))
+    w = 10**-0.4  # flux of the 6.0 star relative to the 5.0
     assert angle_between(vec[pair], v[0]) / ARCSEC == pytest.approx(60 * w / (1 + w), rel=1e-3)
     single = 1 - pair
     assert ids[single] == 9 and mags[single] == 5.5 and np.allclose(vec[single], v[2])
@@ -61,8 +73,14 @@ def test_close_stars_merge_into_one_photocentre_with_the_summed_flux():
 
 def test_two_stars_below_the_limit_can_merge_into_one_above_it():
     v = radec_to_unit(np.array([1.0, 1.0 + 50 * ARCSEC, 2.0]), np.array([0.0, 0.0, 0.0]))
-    src = {"hip": np.array([1, 2, 3]), "ra": np.array([1.0, 1.0 + 50 * ARCSEC, 2.0]), "dec": np.zeros(3),
-           "pm_ra": np.zeros(3), "pm_dec": np.zeros(3), "mag": np.array([6.4, 6.4, 6.4])}
+    src = {
+        "hip": np.array([1, 2, 3]),
+        "ra": np.array([1.0, 1.0 + 50 * ARCSEC, 2.0]),
+        "dec": np.zeros(3),
+        "pm_ra": np.zeros(3),
+        "pm_dec": np.zeros(3),
+        "mag": np.array([6.4, 6.4, 6.4]),
+    }
     c = build_catalogue(6.0, cat_mod.HIPPARCOS_EPOCH, 100.0, merge_margin=1.0, source=src)
     assert len(c) == 1 and c.ids[0] == 1 and c.members[0] == 2
     assert c.magnitudes[0] == pytest.approx(6.4 - 2.5 * np.log10(2))
@@ -74,12 +92,12 @@ def test_the_real_catalogue_is_magnitude_limited_sorted_and_at_its_epoch(tmp_pat
     assert 4000 < len(c) < 5000
     assert np.all(np.diff(c.magnitudes) >= 0) and c.magnitudes[-1] <= 6.0
     np.testing.assert_allclose(np.linalg.norm(c.vectors, axis=1), 1.0)
-    assert c.ids[0] == 32349 and c.epoch == 2025.0                 # Sirius first
+    assert c.ids[0] == 32349 and c.epoch == 2025.0  # Sirius first
     sirius = np.flatnonzero(hip["hip"] == 32349)[0]
     at_1991 = radec_to_unit(hip["ra"][sirius], hip["dec"][sirius])
     moved = angle_between(c.vectors[0], at_1991) / ARCSEC
-    assert moved == pytest.approx(33.75 * np.hypot(546.0, 1223.1) / 1000.0, rel=0.01)   # ≈ 45"
-    assert np.any(c.members > 1)                                   # some unresolved pairs were merged
+    assert moved == pytest.approx(33.75 * np.hypot(546.0, 1223.1) / 1000.0, rel=0.01)  # ≈ 45"
+    assert np.any(c.members > 1)  # some unresolved pairs were merged
     # no two entries closer than the merge separation
     d, _ = c.tree.query(c.vectors, k=2)
     assert np.min(2 * np.arcsin(d[:, 1] / 2)) >= 140.0 * ARCSEC
@@ -93,12 +111,13 @@ def test_the_cache_is_used_and_keyed_by_its_inputs(tmp_path, monkeypatch):
 
     def fail(*_a, **_k):
         raise AssertionError("the source was read although a valid cache exists")
+
     monkeypatch.setattr(cat_mod, "read_hipparcos", fail)
     again = load_catalogue(5.0, cache_dir=tmp_path)
     np.testing.assert_array_equal(again.ids, first.ids)
     np.testing.assert_array_equal(again.vectors, first.vectors)
     monkeypatch.undo()
-    other = load_catalogue(5.0, epoch=2000.0, cache_dir=tmp_path)   # another input: another cache file
+    other = load_catalogue(5.0, epoch=2000.0, cache_dir=tmp_path)  # another input: another cache file
     assert len(sorted(tmp_path.glob("*.npz"))) == 2
     assert angle_between(other.vectors[0], first.vectors[0]) > 1 * ARCSEC
 
@@ -123,15 +142,16 @@ def test_a_corrupt_cache_is_rebuilt_with_a_logged_message(tmp_path, caplog, dama
     elif damage == "truncated":
         path.write_bytes(path.read_bytes()[:200])
     else:
-        np.savez(path, ids=np.arange(3), vectors=np.ones((2, 3)), magnitudes=np.zeros(3), members=np.ones(3),
-                 epoch=2025.0)
+        np.savez(
+            path, ids=np.arange(3), vectors=np.ones((2, 3)), magnitudes=np.zeros(3), members=np.ones(3), epoch=2025.0
+        )
     with caplog.at_level(logging.WARNING, logger="star_tracker.catalogue"):
         rebuilt = load_catalogue(4.0, cache_dir=tmp_path)
     assert "rebuilding" in caplog.text
     np.testing.assert_array_equal(rebuilt.ids, good.ids)
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="star_tracker.catalogue"):
-        load_catalogue(4.0, cache_dir=tmp_path)                     # the rewritten cache is valid again
+        load_catalogue(4.0, cache_dir=tmp_path)  # the rewritten cache is valid again
     assert "rebuilding" not in caplog.text
 
 

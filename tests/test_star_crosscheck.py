@@ -1,4 +1,5 @@
 """Lost-in-space identification agrees with an independent solver, tetra3rs (PyPI), on identical frames."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,8 +17,11 @@ from star_tracker.pyramid import PyramidIdentifier
 def setup(tmp_path_factory):
     cache = tmp_path_factory.mktemp("cache")
     catalogue = load_catalogue(6.0, cache_dir=cache)
-    return catalogue, PyramidIdentifier(catalogue, DEFAULT_CAMERA, sigma_px=0.2), \
-        Tetra3Solver(catalogue, DEFAULT_CAMERA, cache_dir=cache)
+    return (
+        catalogue,
+        PyramidIdentifier(catalogue, DEFAULT_CAMERA, sigma_px=0.2),
+        Tetra3Solver(catalogue, DEFAULT_CAMERA, cache_dir=cache),
+    )
 
 
 def test_the_catalogue_is_written_in_tetra3rs_binary_layout(setup, tmp_path):
@@ -42,10 +46,10 @@ def test_pyramid_and_tetra3rs_agree_on_identical_frames(setup):
         assert ours.ok and theirs.ok, (ours.reason, theirs.status)
         both = (ours.index >= 0) & (theirs.index >= 0)
         assert both.sum() >= 10
-        np.testing.assert_array_equal(ours.index[both], theirs.index[both])       # the same identities
-        assert np.all(theirs.index[frame.truth < 0] == -1)                        # neither takes a false star
+        np.testing.assert_array_equal(ours.index[both], theirs.index[both])  # the same identities
+        assert np.all(theirs.index[frame.truth < 0] == -1)  # neither takes a false star
         assert error_angle(ours.attitude.matrix, theirs.attitude) < 60 * ARCSEC
-        assert error_angle(theirs.attitude, A) < 100 * ARCSEC                     # same camera convention
+        assert error_angle(theirs.attitude, A) < 100 * ARCSEC  # same camera convention
 
 
 def test_the_tetra3rs_database_is_cached(setup, tmp_path):
@@ -53,5 +57,5 @@ def test_the_tetra3rs_database_is_cached(setup, tmp_path):
     Tetra3Solver(catalogue, DEFAULT_CAMERA, cache_dir=tmp_path)
     files = sorted(p.name for p in tmp_path.iterdir())
     assert len(files) == 1 and files[0].startswith("tetra3_")
-    solver = Tetra3Solver(catalogue, DEFAULT_CAMERA, cache_dir=tmp_path)      # loads it
+    solver = Tetra3Solver(catalogue, DEFAULT_CAMERA, cache_dir=tmp_path)  # loads it
     assert solver.db.num_stars == len(catalogue)

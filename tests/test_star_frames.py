@@ -1,4 +1,5 @@
 """Simulated star-camera frames: what is in them and their truth."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,7 +26,7 @@ def test_a_frame_holds_the_stars_in_view_with_noise_and_its_false_stars(catalogu
     truth_uv = dict(zip(idx.tolist(), uv))
     err = np.array([frame.uv[k] - truth_uv[i] for k, i in enumerate(frame.truth) if i >= 0])
     assert np.std(err) == pytest.approx(0.3, rel=0.25)
-    assert np.all(np.diff(frame.magnitudes) >= 0)                      # brightest first
+    assert np.all(np.diff(frame.magnitudes) >= 0)  # brightest first
     assert DEFAULT_CAMERA.in_image(frame.uv).all()
     np.testing.assert_array_equal(frame.attitude, A)
 

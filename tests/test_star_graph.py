@@ -1,5 +1,6 @@
 """The star_tracker study through the graph (real rclpy/DDS, one process per node), read back with rosbags; its
 scenario under arbitrary overrides; and the node cores (camera, tracker) on bad frames."""
+
 from __future__ import annotations
 
 import json
@@ -29,8 +30,7 @@ TRACKERS = ["sna_triad", "sna_wahba", "jpdaf_triad", "jpdaf_wahba"]
 
 def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
     out = tmp_path / "run"
-    res = script("launch.py", "star_tracker", "--variant", "short,faults", "--out", str(out),
-                 "--json", timeout=240)
+    res = script("launch.py", "star_tracker", "--variant", "short,faults", "--out", str(out), "--json", timeout=240)
     assert res.returncode == 0, res.stdout + res.stderr
     bag = read_bag(out / "bag")
     steps = 100
@@ -41,8 +41,8 @@ def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
     assert len(meas) == len(star_truth) == steps
     for (_, m), (_, s) in zip(meas, star_truth):
         assert m.step == s.step and len(m.x) == len(s.x) == len(m.magnitude) == len(s.star_id)
-        assert len(m.star_id) == 0      # the measurement carries no truth
-    assert any(np.any(np.asarray(s.star_id) < 0) for _, s in star_truth)   # false stars are labelled
+        assert len(m.star_id) == 0  # the measurement carries no truth
+    assert any(np.any(np.asarray(s.star_id) < 0) for _, s in star_truth)  # false stars are labelled
     assert bag["/camera/measurement"][0][1].header.frame_id == "camera"
     for name in TRACKERS:
         est = [m for _, m in bag[f"/{name}/estimate"]]
@@ -51,7 +51,7 @@ def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
         assert est[0].header.frame_id == "icrs" and len(est[0].covariance) == 9
         assert all(abs(np.linalg.norm(m.state) - 1.0) < 1e-9 and m.state[0] >= 0 for m in est)
         assert [stamp(m) for m in est] == sorted(stamp(m) for m in est)
-    scores = json.loads(res.stdout[res.stdout.index("{"):])["estimators"]
+    scores = json.loads(res.stdout[res.stdout.index("{") :])["estimators"]
     for name in TRACKERS:
         block = scores[name]
         assert math.isfinite(block["rms_arcsec"]) and 0.1 < block["rms_arcsec"] < 120.0
@@ -63,8 +63,10 @@ def test_short_run_through_the_graph_is_recorded_and_scored(tmp_path):
     cfg = select_variant(load_scenario("star_tracker"), "short,faults")
     items = run_in_process(cfg, seed=1).items
     for name in TRACKERS:
-        graph = {m.step: (np.asarray(m.state), np.asarray(m.covariance), list(m.diagnostic_values))
-                 for _, m in bag[f"/{name}/estimate"]}
+        graph = {
+            m.step: (np.asarray(m.state), np.asarray(m.covariance), list(m.diagnostic_values))
+            for _, m in bag[f"/{name}/estimate"]
+        }
         local = {e.step: (e.x, e.P.ravel(), list(e.diagnostics.values())) for e in items[f"/{name}/estimate"]}
         assert graph.keys() == local.keys()
         for step, (x, P, d) in local.items():
@@ -79,20 +81,33 @@ def _paths() -> list[str]:
         if isinstance(node, dict) and node:
             return [p for k, v in node.items() for p in leaves(v, prefix + (str(k),))]
         return [".".join(prefix)] if prefix else []
+
     return [p for p in leaves(load_scenario("star_tracker")) if not p.startswith(("sweeps", "variants", "description"))]
 
 
-VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12), st.floats(allow_nan=True, allow_infinity=True),
-                   st.text(max_size=8), st.lists(st.floats(-1e3, 1e3), max_size=4),
-                   st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**12), 10**12),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.floats(-1e3, 1e3), max_size=4),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(data=st.data())
 def test_any_override_gives_a_run_plan_or_a_clean_error(data):
     paths = _paths()
-    keys = data.draw(st.lists(st.one_of(st.sampled_from(paths), st.sampled_from(paths).map(lambda p: p + ".extra")),
-                              min_size=1, max_size=3, unique=True))
+    keys = data.draw(
+        st.lists(
+            st.one_of(st.sampled_from(paths), st.sampled_from(paths).map(lambda p: p + ".extra")),
+            min_size=1,
+            max_size=3,
+            unique=True,
+        )
+    )
     overrides = {k: data.draw(VALUES) for k in keys}
     try:
         cfg = apply_overrides(load_scenario("star_tracker"), override_strings(overrides))
@@ -145,15 +160,15 @@ def test_bad_frames_give_no_attitude_with_a_reason_then_reacquire():
     rng = np.random.default_rng(5)
     for k, sample in enumerate(truth):
         frame = dict(camera.on_input("/truth/state", sample))["/camera/measurement"]
-        if 10 <= k < 13:    # every star occluded
+        if 10 <= k < 13:  # every star occluded
             frame.xy, frame.magnitudes = np.zeros((0, 2)), np.zeros(0)
-        elif k == 20:       # two stars only
+        elif k == 20:  # two stars only
             frame.xy, frame.magnitudes = frame.xy[:2], frame.magnitudes[:2]
-        elif k == 30:       # a burst of false stars
+        elif k == 30:  # a burst of false stars
             extra = rng.uniform(-0.17, 0.17, (200, 2))
             frame.xy = np.vstack([frame.xy, extra])
             frame.magnitudes = np.concatenate([frame.magnitudes, rng.uniform(2, 6, 200)])
-        elif k == 40:       # a huge jitter step: the reported rate is 20 degrees off for one frame
+        elif k == 40:  # a huge jitter step: the reported rate is 20 degrees off for one frame
             frame.body_rate = frame.body_rate + np.array([0.0, 0.0, np.radians(200.0)])
         A = matrix_from_quaternion(sample.state[:4])
         for name, out in _feed(trackers, frame).items():
@@ -161,7 +176,7 @@ def test_bad_frames_give_no_attitude_with_a_reason_then_reacquire():
             est = out.get(f"/{name}/estimate")
             if 10 <= k < 13 or k == 20:
                 assert est is None
-            if est is not None:   # never a wrong attitude presented as valid
+            if est is not None:  # never a wrong attitude presented as valid
                 err = error_angle(matrix_from_quaternion(est.x), A) / ARCSEC
                 assert err < 8 * math.sqrt(np.trace(est.P)) / ARCSEC + 5.0, (name, k, err)
     assert any("no attitude" in t for t in logs)
@@ -171,8 +186,10 @@ def test_bad_frames_give_no_attitude_with_a_reason_then_reacquire():
 
 
 def test_corrupt_catalogue_cache_is_rebuilt(tmp_path):
-    cfg = apply_overrides(load_scenario("star_tracker"), [f"star_cameras.camera.cache_dir={tmp_path}",
-                                                          "star_cameras.camera.magnitude_limit=4.0"])
+    cfg = apply_overrides(
+        load_scenario("star_tracker"),
+        [f"star_cameras.camera.cache_dir={tmp_path}", "star_cameras.camera.magnitude_limit=4.0"],
+    )
     first = catalogue_of(camera_config(cfg, "camera"))
     cached = list(tmp_path.glob("hip_*.npz"))
     assert len(cached) == 1
@@ -185,15 +202,18 @@ def test_corrupt_catalogue_cache_is_rebuilt(tmp_path):
 
 def test_truth_is_the_attitude_of_the_frames():
     cfg = select_variant(load_scenario("star_tracker"), "short")
-    truth = _truth(cfg, 5)          # run seed 3, which also draws the jitter (truth.jitter_seed: null)
-    ref = orbit_truth(CircularOrbit(raan_deg=30.0, arg_latitude0_deg=50.0), 5, 0.1, "zenith", 0.5,
-                      np.random.default_rng([3, 7]))
+    truth = _truth(cfg, 5)  # run seed 3, which also draws the jitter (truth.jitter_seed: null)
+    ref = orbit_truth(
+        CircularOrbit(raan_deg=30.0, arg_latitude0_deg=50.0), 5, 0.1, "zenith", 0.5, np.random.default_rng([3, 7])
+    )
     assert np.allclose([s.state[:4] for s in truth], ref.quaternions)
     assert np.allclose([s.state[4:] for s in truth], ref.rate)
 
 
-@pytest.mark.parametrize("bad", [{"star_trackers.x.tracker": "kalman"}, {"truth.model": "cowell_j2"},
-                                 {"star_tracker_defaults.camera": "nope"}])
+@pytest.mark.parametrize(
+    "bad",
+    [{"star_trackers.x.tracker": "kalman"}, {"truth.model": "cowell_j2"}, {"star_tracker_defaults.camera": "nope"}],
+)
 def test_bad_configuration_is_a_clean_error(bad):
     cfg = apply_overrides(load_scenario("star_tracker"), override_strings(bad))
     with pytest.raises(ScenarioError):

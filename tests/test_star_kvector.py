@@ -1,4 +1,5 @@
 """The k-vector range search equals brute force, and so does the catalogue's pair table."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,15 +17,26 @@ def brute(values, ya, yb):
 @pytest.mark.parametrize("kind", ["uniform", "clustered", "duplicates", "two"])
 def test_kvector_queries_equal_brute_force(kind):
     rng = np.random.default_rng(5)
-    values = {"uniform": rng.uniform(-3, 7, 2000),
-              "clustered": np.concatenate([rng.normal(0, 0.01, 1500), rng.exponential(5.0, 500)]),
-              "duplicates": rng.integers(0, 30, 1000).astype(float),
-              "two": np.array([1.0, 2.0])}[kind]
+    values = {
+        "uniform": rng.uniform(-3, 7, 2000),
+        "clustered": np.concatenate([rng.normal(0, 0.01, 1500), rng.exponential(5.0, 500)]),
+        "duplicates": rng.integers(0, 30, 1000).astype(float),
+        "two": np.array([1.0, 2.0]),
+    }[kind]
     kv = KVector(values)
     lo, hi = values.min(), values.max()
     queries = [(a, a + w) for a, w in zip(rng.uniform(lo - 1, hi + 1, 400), rng.exponential(0.2 * (hi - lo), 400))]
-    queries += [(lo, hi), (lo - 5, lo - 1), (hi + 1, hi + 5), (lo, lo), (hi, hi), (hi, hi + 1), (lo - 1, lo),
-                (3.0, 2.0), (np.nan, 1.0)]
+    queries += [
+        (lo, hi),
+        (lo - 5, lo - 1),
+        (hi + 1, hi + 5),
+        (lo, lo),
+        (hi, hi),
+        (hi, hi + 1),
+        (lo - 1, lo),
+        (3.0, 2.0),
+        (np.nan, 1.0),
+    ]
     queries += [(v, v) for v in values[:50]] + [(v, values[(i + 7) % len(values)]) for i, v in enumerate(values[:50])]
     for ya, yb in queries:
         got = np.sort(kv.query(ya, yb))

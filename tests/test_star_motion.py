@@ -1,4 +1,5 @@
 """Image-plane motion models (paper eqs. 14–16): closed forms, Van Loan's Q, the limits between them."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,8 +14,8 @@ def test_constant_velocity_discrete_is_the_papers_eq_15():
     dt, s = 0.1, 2.0
     F, Q = ConstantVelocity(s).transition(dt)
     np.testing.assert_allclose(F, [[1, dt, 0, 0], [0, 1, 0, 0], [0, 0, 1, dt], [0, 0, 0, 1]])
-    E = np.array([[dt ** 2 / 2, 0], [dt, 0], [0, dt ** 2 / 2], [0, dt]])
-    np.testing.assert_allclose(Q, E @ (s ** 2 * np.eye(2)) @ E.T)
+    E = np.array([[dt**2 / 2, 0], [dt, 0], [0, dt**2 / 2], [0, dt]])
+    np.testing.assert_allclose(Q, E @ (s**2 * np.eye(2)) @ E.T)
     np.testing.assert_allclose(H @ np.array([1.0, 2.0, 3.0, 4.0]), [1.0, 3.0])
 
 
@@ -23,7 +24,7 @@ def test_constant_velocity_continuous_equals_van_loan_of_the_white_noise_acceler
     F, Q = ConstantVelocity(s, kind="continuous").transition(dt)
     A = np.zeros((4, 4))
     A[0, 1] = A[2, 3] = 1.0
-    F2, Q2 = van_loan(A, s ** 2 * B @ B.T, dt)
+    F2, Q2 = van_loan(A, s**2 * B @ B.T, dt)
     np.testing.assert_allclose(F, F2, atol=1e-14)
     np.testing.assert_allclose(Q, Q2, rtol=1e-10, atol=1e-16)
 
@@ -47,7 +48,7 @@ def test_the_closed_form_turn_noise_equals_van_loan(omega):
 def test_the_turn_models_q_is_the_integral_of_the_papers_q3():
     m, dt, s = CoordinatedTurn(0.8, 2.0), 0.5, 2.0
     _, Q = m.transition(dt)
-    q2 = np.diag([0.0, s ** 2, 0.0, s ** 2])
+    q2 = np.diag([0.0, s**2, 0.0, s**2])
     integral, _ = quad_vec(lambda tau: expm(m.A * (dt - tau)) @ q2 @ expm(m.A * (dt - tau)).T, 0.0, dt)
     np.testing.assert_allclose(Q, integral, rtol=1e-8, atol=1e-14)
     assert np.all(np.linalg.eigvalsh(Q) > 0)
@@ -64,11 +65,13 @@ def test_the_turn_model_tends_to_constant_velocity():
 def test_a_star_circling_the_boresight_is_propagated_exactly_by_the_turn_model():
     # image rotating at w about the centre: p(t) = R(w t) p0, v = w × p
     w, dt, p0 = 0.2, 0.1, np.array([300.0, -120.0])
+
     def state(t):
         c, s = np.cos(w * t), np.sin(w * t)
         p = np.array([[c, -s], [s, c]]) @ p0
         v = w * np.array([-p[1], p[0]])
         return np.array([p[0], v[0], p[1], v[1]])
+
     F, _ = CoordinatedTurn(w, 0.0).transition(dt)
     x = state(0.0)
     for n in range(1, 50):

@@ -1,5 +1,6 @@
 """The per-frame star tracker core: lost-in-space, then SNA or JPDAF tracking with new stars handed over from
 the attitude, TRIAD or all-star attitude; lost lock, empty frames, attitude jumps and bursts of false stars."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,8 +26,9 @@ def sky(tmp_path_factory):
 
 def run(sky, truth, frames, **options):
     catalogue, identifier = sky
-    pipe = StarTrackerPipeline(catalogue, DEFAULT_CAMERA, SIGMA, identifier=identifier,
-                               clutter_density=2.0 / 1024 ** 2, **options)
+    pipe = StarTrackerPipeline(
+        catalogue, DEFAULT_CAMERA, SIGMA, identifier=identifier, clutter_density=2.0 / 1024**2, **options
+    )
     out = []
     for k, frame in enumerate(frames):
         j = max(k - 1, 0)
@@ -38,8 +40,9 @@ def sequence(sky, boresight, jitter, n=120, period_s=None, seed=0):
     rng = np.random.default_rng(seed)
     orbit = CircularOrbit(raan_deg=70.0, arg_latitude0_deg=20.0, period_s=period_s)
     truth = orbit_truth(orbit, n, 0.1, boresight, jitter, rng)
-    frames = [simulate_frame(sky[0], DEFAULT_CAMERA, A, rng, sigma_px=SIGMA, p_detect=0.95, n_false=2)
-              for A in truth.attitude]
+    frames = [
+        simulate_frame(sky[0], DEFAULT_CAMERA, A, rng, sigma_px=SIGMA, p_detect=0.95, n_false=2) for A in truth.attitude
+    ]
     return truth, frames
 
 
@@ -68,10 +71,15 @@ def test_every_tracker_and_solver_tracks_a_jittering_drift(sky, drift, tracker, 
     truth, frames = drift
     results = run(sky, truth, frames, tracker=tracker, solver=solver, sigma_a=0.05)
     errors = check(results, frames)
-    assert np.sqrt(np.mean(errors ** 2)) < (5.0 if solver == "wahba" else 30.0) * ARCSEC
+    assert np.sqrt(np.mean(errors**2)) < (5.0 if solver == "wahba" else 30.0) * ARCSEC
     # the errors are consistent with the reported covariances (χ² with 3 degrees of freedom: mean 3)
-    nees = np.array([error_vector(r.attitude.matrix, f.attitude) @ np.linalg.solve(
-        r.attitude.covariance, error_vector(r.attitude.matrix, f.attitude)) for r, f in zip(results, frames)])
+    nees = np.array(
+        [
+            error_vector(r.attitude.matrix, f.attitude)
+            @ np.linalg.solve(r.attitude.covariance, error_vector(r.attitude.matrix, f.attitude))
+            for r, f in zip(results, frames)
+        ]
+    )
     assert nees.max() < 30.0 and 1.5 < nees[20:].mean() < 4.5
 
 
@@ -85,7 +93,7 @@ def test_the_jpdaf_filters_the_centroid_noise_that_sna_passes_on(sky, drift):
 
 
 def test_stars_entering_the_field_are_identified_from_the_attitude_without_a_new_solve(sky):
-    truth, frames = sequence(sky, "zenith", 0.0, n=120, period_s=600.0)     # 30 px/s: the field turns over
+    truth, frames = sequence(sky, "zenith", 0.0, n=120, period_s=600.0)  # 30 px/s: the field turns over
     for tracker in ("sna", "jpdaf"):
         results = run(sky, truth, frames, tracker=tracker)
         check(results, frames)
@@ -95,7 +103,7 @@ def test_stars_entering_the_field_are_identified_from_the_attitude_without_a_new
 
 
 def test_the_turn_model_without_rate_aid_follows_a_sky_rotating_about_the_boresight(sky):
-    truth, frames = sequence(sky, "normal", 0.0, n=120, period_s=600.0)     # 0.6 °/s about the boresight
+    truth, frames = sequence(sky, "normal", 0.0, n=120, period_s=600.0)  # 0.6 °/s about the boresight
     results = run(sky, truth, frames, tracker="jpdaf", motion="coordinated_turn", aid="none", sigma_a=0.5)
     check(results, frames)
 
@@ -110,8 +118,9 @@ def test_the_papers_jpdaf_with_the_jitter_compensated_tracks_both_motions(sky, b
     # without the compensation the jitter steps (10 frames each) throw the model off
     bare = run(sky, truth, frames, tracker="jpdaf", motion=motion, aid="none", sigma_a=0.05)
     bare_errors = [error_angle(r.attitude.matrix, f.attitude) for r, f in zip(bare, frames) if r.ok]
-    assert sum(r.mode == "lost_in_space" for r in bare) > 2 or \
-        np.sqrt(np.mean(np.square(bare_errors))) > 2 * np.sqrt(np.mean(errors ** 2))
+    assert sum(r.mode == "lost_in_space" for r in bare) > 2 or np.sqrt(np.mean(np.square(bare_errors))) > 2 * np.sqrt(
+        np.mean(errors**2)
+    )
 
 
 @pytest.mark.parametrize("aid", ["rate", "jitter"])
@@ -120,8 +129,16 @@ def test_a_strong_jitter_compensated_from_the_first_frame_leaves_no_lag(sky, aid
     velocities and compensated again would lag, and the bias check would have to restart it)."""
     truth, frames = sequence(sky, "normal", 5.0, n=60)
     catalogue, identifier = sky
-    pipe = StarTrackerPipeline(catalogue, DEFAULT_CAMERA, SIGMA, tracker="jpdaf", motion="coordinated_turn",
-                               aid=aid, identifier=identifier, clutter_density=2.0 / 1024 ** 2)
+    pipe = StarTrackerPipeline(
+        catalogue,
+        DEFAULT_CAMERA,
+        SIGMA,
+        tracker="jpdaf",
+        motion="coordinated_turn",
+        aid=aid,
+        identifier=identifier,
+        clutter_density=2.0 / 1024**2,
+    )
     nees, errors = [], []
     for k, frame in enumerate(frames):
         j = max(k - 1, 0)
@@ -131,7 +148,7 @@ def test_a_strong_jitter_compensated_from_the_first_frame_leaves_no_lag(sky, aid
         nees.append(e @ np.linalg.solve(r.attitude.covariance, e))
         errors.append(np.linalg.norm(e))
     assert pipe.filter_resets == 0 and max(nees) < 30.0
-    assert max(errors) < 15 * ARCSEC          # σ = 0.05 px over ~60 stars: a few arcsec, from the first frame on
+    assert max(errors) < 15 * ARCSEC  # σ = 0.05 px over ~60 stars: a few arcsec, from the first frame on
 
 
 def test_an_empty_frame_gives_no_attitude_and_the_next_one_reacquires(sky, drift):
@@ -149,7 +166,7 @@ def test_an_attitude_jump_the_rate_does_not_explain_falls_back_to_lost_in_space(
     truth, frames = drift
     catalogue = sky[0]
     rng = np.random.default_rng(5)
-    jumped = Rotation.from_rotvec([0.0, 0.03, 0.02]).as_matrix() @ truth.attitude[15]   # 2° in one frame
+    jumped = Rotation.from_rotvec([0.0, 0.03, 0.02]).as_matrix() @ truth.attitude[15]  # 2° in one frame
     frames = list(frames[:25])
     frames[15] = simulate_frame(catalogue, DEFAULT_CAMERA, jumped, rng, sigma_px=SIGMA, n_false=2)
     for tracker in ("sna", "jpdaf"):
@@ -167,8 +184,12 @@ def test_a_burst_of_false_stars_never_gives_a_wrong_attitude(sky, drift):
     for k in (8, 9):
         f = frames[k]
         junk = rng.uniform(0, 1024, (300, 2))
-        frames[k] = type(f)(np.vstack([f.uv, junk]), np.concatenate([f.magnitudes, rng.uniform(2, 6, 300)]),
-                            np.concatenate([f.truth, -np.ones(300, dtype=np.int64)]), f.attitude)
+        frames[k] = type(f)(
+            np.vstack([f.uv, junk]),
+            np.concatenate([f.magnitudes, rng.uniform(2, 6, 300)]),
+            np.concatenate([f.truth, -np.ones(300, dtype=np.int64)]),
+            f.attitude,
+        )
     for tracker in ("sna", "jpdaf"):
         results = run(sky, truth, frames, tracker=tracker)
         for r, f in zip(results, frames):
@@ -194,12 +215,13 @@ def test_bad_options_are_refused(sky):
 def test_a_track_holding_the_wrong_star_is_caught_by_the_verification_and_dropped(sky, drift, tracker):
     truth, frames = drift
     catalogue, identifier = sky
-    pipe = StarTrackerPipeline(catalogue, DEFAULT_CAMERA, SIGMA, tracker=tracker, identifier=identifier,
-                               clutter_density=2.0 / 1024 ** 2)
+    pipe = StarTrackerPipeline(
+        catalogue, DEFAULT_CAMERA, SIGMA, tracker=tracker, identifier=identifier, clutter_density=2.0 / 1024**2
+    )
     for k in range(5):
         assert pipe.process(frames[k].uv, frames[k].magnitudes, truth.t[k], truth.rate[max(k - 1, 0)]).ok
-    wrong = int(np.setdiff1d(np.arange(len(catalogue)), pipe.tracker.ids)[0])   # a star not in view
-    pipe.tracker.ids[0] = wrong                                                  # a misidentified track
+    wrong = int(np.setdiff1d(np.arange(len(catalogue)), pipe.tracker.ids)[0])  # a star not in view
+    pipe.tracker.ids[0] = wrong  # a misidentified track
     r = pipe.process(frames[5].uv, frames[5].magnitudes, truth.t[5], truth.rate[4])
     assert r.ok and r.mode == "tracking"
     assert wrong not in r.index and wrong not in r.star_ids and wrong not in pipe.tracker.ids

@@ -1,5 +1,6 @@
 """Lost-in-space identification with the Pyramid algorithm: known patterns, frames with noise and false
 stars, and frames it must refuse (too few stars, only false stars, a mirrored sky) with a reason."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,10 +46,10 @@ def test_a_known_pattern_in_any_centroid_order_is_identified(catalogue, pyramid)
     A = random_attitude(rng)
     idx, uv = DEFAULT_CAMERA.stars_in_view(catalogue, A)
     perm = rng.permutation(len(idx))
-    result = pyramid.identify(uv[perm])                       # no magnitudes: the given order is used
+    result = pyramid.identify(uv[perm])  # no magnitudes: the given order is used
     assert result.ok
     np.testing.assert_array_equal(result.index, idx[perm])
-    other = pyramid.identify(uv[perm], np.zeros(3))            # magnitudes that do not fit are ignored
+    other = pyramid.identify(uv[perm], np.zeros(3))  # magnitudes that do not fit are ignored
     np.testing.assert_array_equal(other.index, idx[perm])
 
 
@@ -67,7 +68,7 @@ def test_noisy_frames_with_false_stars_are_identified_and_the_false_stars_reject
         np.testing.assert_array_equal(result.index[ident], frame.truth[ident])
         assert ident.sum() >= real.sum() - 1
         e = error_vector(result.attitude.matrix, A)
-        assert e @ np.linalg.solve(result.attitude.covariance, e) < 30.0       # consistent with its covariance
+        assert e @ np.linalg.solve(result.attitude.covariance, e) < 30.0  # consistent with its covariance
 
 
 def test_another_camera_and_catalogue_work_the_same_way(tmp_path):
@@ -124,7 +125,7 @@ def test_a_mirrored_sky_is_refused(catalogue, pyramid):
     A = random_attitude(np.random.default_rng(21))
     idx, uv = DEFAULT_CAMERA.stars_in_view(catalogue, A)
     mirrored = uv.copy()
-    mirrored[:, 0] = DEFAULT_CAMERA.width - mirrored[:, 0]     # the same angles, the other handedness
+    mirrored[:, 0] = DEFAULT_CAMERA.width - mirrored[:, 0]  # the same angles, the other handedness
     assert not pyramid.identify(mirrored, catalogue.magnitudes[idx]).ok
 
 
@@ -152,6 +153,7 @@ def test_matching_from_a_known_attitude_identifies_new_stars(catalogue, pyramid)
 # ------------------------------------------------------------------------------------------------------------
 # The Pyramid steps themselves, on star geometry built directly (no later stage may do their work for them).
 
+
 def _noise_free_frame(catalogue, seed: int = 0):
     """Catalogue indices (brightest first) and camera-frame unit vectors b = A v of the stars in view."""
     A = Rotation.from_euler("zyx", [40.0 + 25.0 * seed, -20.0, 10.0], degrees=True).as_matrix()
@@ -174,18 +176,19 @@ def test_the_triangle_step_refuses_a_mirrored_triangle_by_its_handedness(catalog
         theta = _theta(b)
         for i, j, k in [(0, 1, 2), (1, 2, 3), (0, 2, 4)]:
             s_obs = triple_product(b[i], b[j], b[k])
-            if abs(s_obs) < 1e-3:                              # a flat triangle carries no handedness
+            if abs(s_obs) < 1e-3:  # a flat triangle carries no handedness
                 continue
             true = (idx[i], idx[j], idx[k])
             found = pyramid._triangle_candidates(b, theta, i, j, k, {})
             assert true in set(map(tuple, found)), f"true triangle {true} not among {found}"
             mirrored = b * np.array([-1.0, 1.0, 1.0])
-            np.testing.assert_allclose(angle_between(mirrored[:, None], mirrored[None]),
-                                       angle_between(b[:, None], b[None]), atol=1e-15)   # the same angles ...
+            np.testing.assert_allclose(
+                angle_between(mirrored[:, None], mirrored[None]), angle_between(b[:, None], b[None]), atol=1e-15
+            )  # the same angles ...
             refused = pyramid._triangle_candidates(mirrored, theta, i, j, k, {})
             assert true not in set(map(tuple, refused)), "a mirrored triangle was taken for the real one"
             v = catalogue.vectors
-            for a, bb, c in refused:                           # ... and every candidate has its handedness
+            for a, bb, c in refused:  # ... and every candidate has its handedness
                 assert np.sign(triple_product(v[a], v[bb], v[c])) == np.sign(triple_product(*mirrored[[i, j, k]]))
             checked += 1
     assert checked >= 6
@@ -211,8 +214,11 @@ def _fake_star(catalogue, pyramid, tri, X: int, sides: str):
         change = np.abs(angle_between(v[list(tri)], p) - angle_between(v[list(tri)], x))
         kept = "".join(s for s, d in zip("abc", change) if d <= pyramid.epsilon)
         sep = angle_between(p, x)
-        if (kept == sides and catalogue.tree.query(p)[1] == X
-                and 2.0 * pyramid.match_radius < sep < 40.0 * pyramid.match_radius):
+        if (
+            kept == sides
+            and catalogue.tree.query(p)[1] == X
+            and 2.0 * pyramid.match_radius < sep < 40.0 * pyramid.match_radius
+        ):
             return p
     return None
 
@@ -231,18 +237,20 @@ def test_a_fourth_star_confirms_only_when_all_three_of_its_angles_match(catalogu
                 break
         else:
             continue
-        keep = idx != X                                    # X itself is not in the frame, only the fake near it
+        keep = idx != X  # X itself is not in the frame, only the fake near it
         frame = np.vstack([b[keep], A @ p])
         result = pyramid._confirm(frame, _theta(frame), (0, 1, 2), tri)
         assert result is not None and result.ok
         real_others = int(keep.sum()) - 3
-        assert result.stats["pyramid_confirmations"] == real_others, \
+        assert result.stats["pyramid_confirmations"] == real_others, (
             f"a false star matching side(s) {sides} only was counted as a confirmation"
+        )
         assert result.index[-1] == UNIDENTIFIED
         # the control: the real star X in the same place is a confirmation
         control = np.vstack([b[keep], b[idx == X]])
-        assert pyramid._confirm(control, _theta(control), (0, 1, 2), tri).stats["pyramid_confirmations"] \
-            == real_others + 1
+        assert (
+            pyramid._confirm(control, _theta(control), (0, 1, 2), tri).stats["pyramid_confirmations"] == real_others + 1
+        )
         return
     pytest.fail(f"no star of six frames gives a fake matching side(s) {sides} only")
 
@@ -255,21 +263,21 @@ def test_the_neighbourhood_search_answers_as_the_k_d_tree_or_not_at_all(catalogu
     for a in rng.choice(len(catalogue), 40, replace=False):
         near = _Near(pyramid, int(a))
         assert near.stars[-1] == a
-        spread = rng.uniform(0.0, 0.5, 60)      # up to 29°: some beyond the neighbourhood's reach
+        spread = rng.uniform(0.0, 0.5, 60)  # up to 29°: some beyond the neighbourhood's reach
         p = catalogue.vectors[a] + spread[:, None] * rng.normal(size=(60, 3))
         p /= np.linalg.norm(p, axis=1, keepdims=True)
         for bound in (pyramid._match_chord, pyramid._pyramid_chord):
             d, idx = catalogue.tree.query(p, k=1, distance_upper_bound=bound)
-            for row in range(0, 60, 6):     # small batches: one far row makes the whole batch decline
-                got = near(p[row:row + 6], bound)
+            for row in range(0, 60, 6):  # small batches: one far row makes the whole batch decline
+                got = near(p[row : row + 6], bound)
                 if got is None:
                     declined += 1
-                    reach = np.linalg.norm(p[row:row + 6] - catalogue.vectors[a], axis=1).max() + bound
+                    reach = np.linalg.norm(p[row : row + 6] - catalogue.vectors[a], axis=1).max() + bound
                     assert reach > near.reach_chord
                     continue
                 answered += 1
-                rows = np.isfinite(d[row:row + 6]).nonzero()[0]
+                rows = np.isfinite(d[row : row + 6]).nonzero()[0]
                 hits += len(rows)
                 np.testing.assert_array_equal(got[0], rows)
-                np.testing.assert_array_equal(got[1], idx[row:row + 6][rows])
+                np.testing.assert_array_equal(got[1], idx[row : row + 6][rows])
     assert answered > 100 and declined > 100 and hits > 100

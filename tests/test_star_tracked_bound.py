@@ -8,6 +8,7 @@
   motion (dynamics: truth) beyond Monte Carlo tolerance, and sits at the bound under its own model up to the
   model mismatch (its σ_a > 0 against a truth with no residual motion: ~1.1, module docstring).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,9 @@ from star_tracker.tracked_bound import star_chains, tracked_attitude_covariance
 SIGMA_PX, IFOV, DT = 0.14, 3.4e-4, 0.1
 
 
-def _fixed_sky(rng: np.random.Generator, K: int, p_detect: float
-               ) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+def _fixed_sky(
+    rng: np.random.Generator, K: int, p_detect: float
+) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
     """K frames of 6 stars at fixed tangent positions (fixed attitude), each detected with probability
     p_detect (a star's first frame always): (frames, chains, detected (6, K))."""
     xy = rng.uniform(-0.15, 0.15, (6, 2))
@@ -43,10 +45,11 @@ def test_on_a_linear_case_each_star_is_the_kalman_covariance_and_the_attitude_is
     K = 60
     frames, chains, detected = _fixed_sky(rng, K, 0.7)
     F, Q = ConstantVelocity(0.05).transition(DT)
-    P0 = np.diag([SIGMA_PX ** 2] * 4)
-    P = tracked_attitude_covariance(frames, chains, np.broadcast_to(F, (K - 1, 4, 4)),
-                                    np.broadcast_to(Q, (K - 1, 4, 4)), P0, SIGMA_PX, IFOV)
-    R = SIGMA_PX ** 2 * np.eye(2)
+    P0 = np.diag([SIGMA_PX**2] * 4)
+    P = tracked_attitude_covariance(
+        frames, chains, np.broadcast_to(F, (K - 1, 4, 4)), np.broadcast_to(Q, (K - 1, 4, 4)), P0, SIGMA_PX, IFOV
+    )
+    R = SIGMA_PX**2 * np.eye(2)
     for k in (0, 7, 30, K - 1):
         J = np.zeros((3, 3))
         for i in np.flatnonzero(detected[:, k]):
@@ -57,26 +60,27 @@ def test_on_a_linear_case_each_star_is_the_kalman_covariance_and_the_attitude_is
                     S = H @ Pi @ H.T + R
                     Pi = Pi - Pi @ H.T @ np.linalg.solve(S, H @ Pi)
             Hi = centroid_jacobians(frames[k][chains[k] == i])[0]
-            J += Hi.T @ np.linalg.solve(IFOV ** 2 * (H @ Pi @ H.T), Hi)
+            J += Hi.T @ np.linalg.solve(IFOV**2 * (H @ Pi @ H.T), Hi)
         np.testing.assert_allclose(P[k], np.linalg.inv(J), rtol=1e-8)
     # no carry-over between frames: the per-frame bound of each frame's centroids
     huge = np.broadcast_to(1e12 * np.eye(4), (K - 1, 4, 4))
     P_frame = tracked_attitude_covariance(frames, chains, np.broadcast_to(F, (K - 1, 4, 4)), huge, P0, SIGMA_PX, IFOV)
     for k in np.flatnonzero(detected.sum(axis=0) >= 4)[:5]:
-        np.testing.assert_allclose(P_frame[k], np.linalg.inv(attitude_information(frames[k], SIGMA_PX * IFOV)),
-                                   rtol=1e-6)
-    assert np.all(np.linalg.eigvalsh(P_frame[K - 1] - P[K - 1]) > 0)   # frames carried: a lower bound
+        np.testing.assert_allclose(
+            P_frame[k], np.linalg.inv(attitude_information(frames[k], SIGMA_PX * IFOV)), rtol=1e-6
+        )
+    assert np.all(np.linalg.eigvalsh(P_frame[K - 1] - P[K - 1]) > 0)  # frames carried: a lower bound
 
 
 def test_stars_are_chained_across_frames_by_the_truths_turn_through_a_missed_frame():
     rng = np.random.default_rng(2)
     b = np.column_stack([rng.uniform(-0.1, 0.1, (8, 2)), np.ones(8)])
-    r = (b / np.linalg.norm(b, axis=1, keepdims=True))            # ICRS directions (A_0 = I)
+    r = b / np.linalg.norm(b, axis=1, keepdims=True)  # ICRS directions (A_0 = I)
     attitudes = np.array([rotation_matrix(np.array([0.0, 1e-3, 2e-3]) * k) for k in range(5)])
     frames, truth = [], []
     for k, A in enumerate(attitudes):
         v = r @ A.T
-        seen = np.arange(8) if k != 2 else np.arange(1, 8)          # star 0 missed in frame 2
+        seen = np.arange(8) if k != 2 else np.arange(1, 8)  # star 0 missed in frame 2
         order = rng.permutation(seen)
         frames.append(v[order, :2] / v[order, 2:] + rng.normal(0.0, SIGMA_PX * IFOV, (len(order), 2)))
         truth.append(order)
@@ -115,9 +119,15 @@ def test_the_reports_error_plot_draws_each_bound_of_the_whole_attitude():
     """The star report's error plot draws, per bound, √(sum of the three axes' bounds) in arcsec: the bound on the
     error rotation's angle, which is what the estimators' RMS per frame is."""
     axes = {"rx": np.array([3e-6, 1e-6]), "ry": np.array([4e-6, 1e-6]), "rz": np.array([12e-6, 1e-6])}
-    series = {"sna": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes}}},
-              "jpdaf": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes},
-                                   "partial": {"t": np.array([0.0, 0.1]), "axes": {"rx": axes["rx"]}}}}}
+    series = {
+        "sna": {"bounds": {"wahba": {"t": np.array([0.0, 0.1]), "axes": axes}}},
+        "jpdaf": {
+            "bounds": {
+                "wahba": {"t": np.array([0.0, 0.1]), "axes": axes},
+                "partial": {"t": np.array([0.0, 0.1]), "axes": {"rx": axes["rx"]}},
+            }
+        },
+    }
     ((name, t, values),) = attitude_bounds(series)
     assert name == "wahba" and list(t) == [0.0, 0.1]
     assert np.allclose(values, ARCSEC * np.array([13e-6, np.sqrt(3) * 1e-6]))

@@ -1,5 +1,6 @@
 """SNA and JPDAF star tracking: JPDA weights against a hand-computed two-target case, the JPDAF as a Kalman
 filter in the single-target clutter-free P_D = 1 case, clustering, and tracking a drifting star field."""
+
 from __future__ import annotations
 
 from math import exp, factorial, pi
@@ -21,20 +22,26 @@ def two_target_hypotheses():
     """Targets at (0, 0) and (2, 0), S = I; z0 = (1, 0) in both gates, z1 = (−0.5, 0.5) only in target 0's,
     z2 = (2.2, −0.3) only in target 1's (δ = 4)."""
     Z = np.array([[1.0, 0.0], [-0.5, 0.5], [2.2, -0.3]])
-    return gaussian_hypotheses(np.array([[0.0, 0.0], [2.0, 0.0]]), np.full((2, 2, 2), 0.5 * np.eye(2)), Z,
-                               0.5 * np.eye(2), chi2.cdf(GATE, 2))
+    return gaussian_hypotheses(
+        np.array([[0.0, 0.0], [2.0, 0.0]]), np.full((2, 2, 2), 0.5 * np.eye(2)), Z, 0.5 * np.eye(2), chi2.cdf(GATE, 2)
+    )
 
 
 def by_hand(p_d, lam=None):
     """β written out event by event (d²: t0–z0 1, t0–z1 0.5, t1–z0 1, t1–z2 0.13; S = I so N = e^{−d²/2}/2π)."""
-    p_g = 1.0 - exp(-GATE / 2.0)                 # chi-square cdf with 2 dof
-    N = {(0, 0): exp(-0.5) / (2 * pi), (0, 1): exp(-0.25) / (2 * pi),
-         (1, 0): exp(-0.5) / (2 * pi), (1, 2): exp(-0.065) / (2 * pi)}
+    p_g = 1.0 - exp(-GATE / 2.0)  # chi-square cdf with 2 dof
+    N = {
+        (0, 0): exp(-0.5) / (2 * pi),
+        (0, 1): exp(-0.25) / (2 * pi),
+        (1, 0): exp(-0.5) / (2 * pi),
+        (1, 2): exp(-0.065) / (2 * pi),
+    }
     miss = 1.0 - p_d * p_g
-    V = 2 * pi * GATE                            # two gates of c_2 δ |S|^½ = π · 4 · 1
+    V = 2 * pi * GATE  # two gates of c_2 δ |S|^½ = π · 4 · 1
 
     def clutter(phi):
-        return lam ** phi if lam is not None else factorial(phi) / V ** phi
+        return lam**phi if lam is not None else factorial(phi) / V**phi
+
     events = {  # (detection of target 0, detection of target 1): weight; −1 = missed
         (-1, -1): miss * miss * clutter(3),
         (-1, 0): miss * p_d * N[1, 0] * clutter(2),
@@ -73,7 +80,7 @@ def test_single_target_weights_are_the_pda_ones_whichever_path_computes_them(lam
     S = 2.0 * np.eye(2)
     nu = Z[:3] - 10.0
     N = np.exp(-0.5 * np.einsum("ni,ij,nj->n", nu, np.linalg.inv(S), nu)) / (2 * pi * np.sqrt(np.linalg.det(S)))
-    density = lam if lam is not None else 3 / gate_volume(S, chi2.ppf(0.99, 2))   # non-parametric: λ = m/V
+    density = lam if lam is not None else 3 / gate_volume(S, chi2.ppf(0.99, 2))  # non-parametric: λ = m/V
     w = np.concatenate([[density * (1 - p_d * p_g)], p_d * N])
     want = np.concatenate([w / w.sum(), [0.0]])
     jpda = JointProbabilisticAssociator(p_d, lam)
@@ -83,10 +90,15 @@ def test_single_target_weights_are_the_pda_ones_whichever_path_computes_them(lam
 
 def test_singletons_and_a_shared_cluster_in_one_frame_get_their_own_weights():
     Z = np.array([[1.0, 0.0], [40.3, 39.8], [-0.5, 0.5], [2.2, -0.3]])
-    hyp = gaussian_hypotheses(np.array([[0.0, 0.0], [40.0, 40.0], [2.0, 0.0]]), np.full((3, 2, 2), 0.5 * np.eye(2)),
-                              Z, 0.5 * np.eye(2), chi2.cdf(GATE, 2))
+    hyp = gaussian_hypotheses(
+        np.array([[0.0, 0.0], [40.0, 40.0], [2.0, 0.0]]),
+        np.full((3, 2, 2), 0.5 * np.eye(2)),
+        Z,
+        0.5 * np.eye(2),
+        chi2.cdf(GATE, 2),
+    )
     got = np.array([a.weights for a in JointProbabilisticAssociator(0.9, 0.02).associate(hyp)])
-    pair = by_hand(0.9, 0.02)                                # columns: miss, z0, z1, z2 of the two-target case
+    pair = by_hand(0.9, 0.02)  # columns: miss, z0, z1, z2 of the two-target case
     np.testing.assert_allclose(got[0, [0, 1, 3, 4]], pair[0], rtol=1e-10)
     np.testing.assert_allclose(got[2, [0, 1, 3, 4]], pair[1], rtol=1e-10)
     assert got[0, 2] == got[2, 2] == 0.0 and got[1, [1, 3, 4]].tolist() == [0.0, 0.0, 0.0]
@@ -119,7 +131,7 @@ def test_the_update_over_the_gated_pairs_equals_the_sums_over_every_detection():
     rng = np.random.default_rng(8)
     tracker = JPDAFTracker(ConstantVelocity(2.0), 0.5, p_detect=0.9, clutter_density=1e-3)
     uv = rng.uniform(100, 900, (15, 2))
-    uv[1] = uv[0] + [1.0, 0.5]                                   # two stars sharing detections
+    uv[1] = uv[0] + [1.0, 0.5]  # two stars sharing detections
     tracker.start(np.arange(15), uv, velocity=rng.normal(0, 1, (15, 2)), velocity_sigma=2.0)
     tracker.predict(0.1)
     x, P = tracker.x.copy(), tracker.P.copy()
@@ -152,9 +164,11 @@ def test_far_apart_targets_are_separate_clusters_with_single_target_weights():
     assert [(t.tolist(), d.tolist()) for t, d in clusters(hyp.gated)] == [([0], [0, 1]), ([1], [2])]
     joint = JointProbabilisticAssociator(0.9, 1e-3).associate(hyp)
     for r in range(2):
-        alone = gaussian_hypotheses(zhat[r:r + 1], Pzz[r:r + 1], Z, np.eye(2), 0.999)
-        np.testing.assert_allclose(joint[r].weights, JointProbabilisticAssociator(0.9, 1e-3).associate(alone)[0].weights)
-    assert joint[0].weights[4] == 0.0 and joint[1].weights[1] == 0.0     # nothing from outside its gate
+        alone = gaussian_hypotheses(zhat[r : r + 1], Pzz[r : r + 1], Z, np.eye(2), 0.999)
+        np.testing.assert_allclose(
+            joint[r].weights, JointProbabilisticAssociator(0.9, 1e-3).associate(alone)[0].weights
+        )
+    assert joint[0].weights[4] == 0.0 and joint[1].weights[1] == 0.0  # nothing from outside its gate
 
 
 def test_a_cluster_too_large_to_enumerate_falls_back_to_single_target_weights():
@@ -167,7 +181,7 @@ def test_a_cluster_too_large_to_enumerate_falls_back_to_single_target_weights():
     np.testing.assert_allclose([a.weights.sum() for a in assoc], 1.0)
     single = JointProbabilisticAssociator(0.9, 1e-3)
     for r in (0, 5):
-        alone = gaussian_hypotheses(zhat[r:r + 1], Pzz[r:r + 1], Z, 0.1 * np.eye(2), 0.999)
+        alone = gaussian_hypotheses(zhat[r : r + 1], Pzz[r : r + 1], Z, 0.1 * np.eye(2), 0.999)
         np.testing.assert_allclose(assoc[r].weights, single.associate(alone)[0].weights)
 
 
@@ -177,18 +191,18 @@ def test_the_jpdaf_with_one_target_no_clutter_and_certain_detection_is_a_kalman_
     model = ConstantVelocity(2.0)
     F, Q = model.transition(dt)
     H = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
-    R = sigma ** 2 * np.eye(2)
+    R = sigma**2 * np.eye(2)
     truth = np.array([500.0, 12.0, 400.0, -7.0])
     tracker = JPDAFTracker(model, sigma, p_detect=1.0, clutter_density=0.0)
     z0 = H @ truth + rng.normal(0, sigma, 2)
     tracker.start([42], z0[None], velocity=np.array([[10.0, -5.0]]), velocity_sigma=3.0)
     x = np.array([z0[0], 10.0, z0[1], -5.0])
-    P = np.diag([sigma ** 2, 9.0, sigma ** 2, 9.0])
+    P = np.diag([sigma**2, 9.0, sigma**2, 9.0])
     for _ in range(60):
         truth = F @ truth
         z = H @ truth + rng.normal(0, sigma, 2)
         step = tracker.step(z[None], dt)
-        x, P = F @ x, F @ P @ F.T + Q                                      # the Kalman filter, Table 1
+        x, P = F @ x, F @ P @ F.T + Q  # the Kalman filter, Table 1
         S = H @ P @ H.T + R
         K = P @ H.T @ np.linalg.inv(S)
         x, P = x + K @ (z - H @ x), P - K @ S @ K.T
@@ -235,7 +249,7 @@ def test_predicted_centroids_follow_a_rotation_about_the_boresight():
     uv = np.array([[700.0, 300.0], [100.0, 900.0], [512.0, 512.0]])
     w, dt = 0.05, 0.1
     got = predict_centroids(DEFAULT_CAMERA, uv, np.array([0.0, 0.0, w]), dt)
-    a = -w * dt                                   # the sky turns opposite to the camera
+    a = -w * dt  # the sky turns opposite to the camera
     Rm = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
     np.testing.assert_allclose(got, (uv - 512.0) @ Rm.T + 512.0, atol=1e-9)
     v = image_velocity(DEFAULT_CAMERA, uv, np.array([0.0, 0.0, w]))
@@ -248,7 +262,7 @@ def test_predicted_centroids_follow_a_rotation_about_the_boresight():
 def test_sna_takes_the_nearest_measurement_inside_its_euclidean_gate():
     predicted = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]])
     Z = np.array([[0.5, 0.0], [0.2, 0.1], [10.0, 0.9], [14.0, 0.0], [21.5, 0.0]])
-    radius = 3 * np.sqrt(2) * 0.3                 # 1.27 px for σ = 0.3
+    radius = 3 * np.sqrt(2) * 0.3  # 1.27 px for σ = 0.3
     assert sna_associate(predicted, Z, radius).tolist() == [1, 2, MISSED]
     # one measurement between two stars goes to the nearer
     assert sna_associate(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[0.6, 0.0]]), 1.0).tolist() == [MISSED, 0]
@@ -294,7 +308,7 @@ def test_the_jpdaf_tracks_a_drifting_field_through_clutter_and_filters_the_noise
     rms_jpdaf = np.sqrt(np.mean(np.concatenate(err_jpdaf) ** 2))
     rms_sna = np.sqrt(np.mean(np.concatenate(err_sna) ** 2))
     assert len(tracker) == 12 and wrong == 0
-    assert rms_jpdaf < 0.6 * sigma < rms_sna             # SNA passes the noise through (and lags: no velocity)
+    assert rms_jpdaf < 0.6 * sigma < rms_sna  # SNA passes the noise through (and lags: no velocity)
 
 
 def test_the_turn_model_tracks_a_rotating_field():
@@ -302,9 +316,11 @@ def test_the_turn_model_tracks_a_rotating_field():
     sigma, dt, w = 0.2, 0.1, 0.05
     c = np.array([512.0, 512.0])
     p0 = rng.uniform(-400, 400, (10, 2))
+
     def at(t):
         a = w * t
         return p0 @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).T + c
+
     tracker = JPDAFTracker(CoordinatedTurn(w, 0.05), sigma, p_detect=1.0, clutter_density=1e-6)
     v0 = w * np.column_stack([-p0[:, 1], p0[:, 0]])
     tracker.start(np.arange(10), at(0.0) + rng.normal(0, sigma, (10, 2)), velocity=v0, velocity_sigma=0.5)

@@ -1,4 +1,5 @@
 """State errors by the state's own rule: quaternions as rotations, angles wrapped, the rest differenced."""
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -40,8 +41,9 @@ def test_the_difference_of_quaternions_is_not_the_error():
 
 
 def test_angles_are_wrapped_and_other_components_differenced():
-    labels, e = state_error(["range", "azimuth", "x"], np.array([[10.0, 0.05, 1.0]]),
-                            np.array([[7.0, 2 * np.pi - 0.05, 3.0]]))
+    labels, e = state_error(
+        ["range", "azimuth", "x"], np.array([[10.0, 0.05, 1.0]]), np.array([[7.0, 2 * np.pi - 0.05, 3.0]])
+    )
     assert labels == ["range", "azimuth", "x"]
     np.testing.assert_allclose(e, [[3.0, 0.1, -2.0]], atol=1e-12)
     assert error_labels(["x", "qw", "qx", "qy", "qz"]) == ["x", "rx", "ry", "rz"]

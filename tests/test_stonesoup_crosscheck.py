@@ -20,6 +20,7 @@ library, on identical data (tracker_filters/crosscheck.py poses the problems to 
   Stone Soup's own constant-velocity and linear-Gaussian models: the same association weights (1e-9) and the
   same posterior means and covariances.
 """
+
 from __future__ import annotations
 
 import math
@@ -28,8 +29,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from stonesoup.models.measurement.linear import LinearGaussian
-from stonesoup.models.transition.linear import (CombinedLinearGaussianTransitionModel,
-                                                ConstantVelocity as SSConstantVelocity)
+from stonesoup.models.transition.linear import (
+    CombinedLinearGaussianTransitionModel,
+    ConstantVelocity as SSConstantVelocity,
+)
 from stonesoup.predictor.kalman import KalmanPredictor
 from stonesoup.types.array import StateVector
 from stonesoup.types.detection import Detection
@@ -47,17 +50,29 @@ from tracker_filters.filter_base import gate_threshold
 from tracker_filters.tracker_stage import build_tracker
 
 CLUTTER_DEMO = Path(__file__).parent / "data" / "clutter_demo.yaml"
-LEO = ["time.duration=30",
-       "filters.xekf.type=ekf", "filters.xekf.dynamics.sigma_accel=2.0",
-       "filters.xukf.type=ukf", "filters.xukf.dynamics.sigma_accel=0.5",
-       "filters.xukf.params.alpha=1.0", "filters.xukf.params.beta=2.0", "filters.xukf.params.kappa=0.0",
-       "filters.xukf5.type=ukf", "filters.xukf5.dynamics.sigma_accel=0.5",
-       "filters.xukf5.params.alpha=0.5", "filters.xukf5.params.beta=2.0", "filters.xukf5.params.kappa=1.0"]
+LEO = [
+    "time.duration=30",
+    "filters.xekf.type=ekf",
+    "filters.xekf.dynamics.sigma_accel=2.0",
+    "filters.xukf.type=ukf",
+    "filters.xukf.dynamics.sigma_accel=0.5",
+    "filters.xukf.params.alpha=1.0",
+    "filters.xukf.params.beta=2.0",
+    "filters.xukf.params.kappa=0.0",
+    "filters.xukf5.type=ukf",
+    "filters.xukf5.dynamics.sigma_accel=0.5",
+    "filters.xukf5.params.alpha=0.5",
+    "filters.xukf5.params.beta=2.0",
+    "filters.xukf5.params.kappa=1.0",
+]
 """leo_radar's first 30 s with recursive filters only (no batch re-solves, which Stone Soup lacks): the
 paper's first-order EKF and UKFs with (alpha, beta, kappa) = (1, 2, 0) (the bench's leo_radar default) and
 (0.5, 2, 1)."""
-FILTERS = {"xekf": ("ekf", {}), "xukf": ("ukf", dict(alpha=1.0, beta=2.0, kappa=0.0)),
-           "xukf5": ("ukf", dict(alpha=0.5, beta=2.0, kappa=1.0))}
+FILTERS = {
+    "xekf": ("ekf", {}),
+    "xukf": ("ukf", dict(alpha=1.0, beta=2.0, kappa=0.0)),
+    "xukf5": ("ukf", dict(alpha=0.5, beta=2.0, kappa=1.0)),
+}
 
 
 @pytest.fixture(scope="module")
@@ -69,8 +84,9 @@ def leo_run():
 def agreement(X, P, Xb, Pb):
     """(max |x - x_bench| / sigma_bench over components and steps, max |P - P_bench| / max |P_bench| per step)."""
     sigma = np.sqrt(np.einsum("kii->ki", Pb))
-    return float((np.abs(X - Xb) / sigma).max()), \
-        float((np.abs(P - Pb).max(axis=(1, 2)) / np.abs(Pb).max(axis=(1, 2))).max())
+    return float((np.abs(X - Xb) / sigma).max()), float(
+        (np.abs(P - Pb).max(axis=(1, 2)) / np.abs(Pb).max(axis=(1, 2))).max()
+    )
 
 
 @pytest.mark.parametrize("name", sorted(FILTERS))
@@ -80,14 +96,22 @@ def test_the_ekf_and_ukf_equal_stone_soups_on_a_leo_radar_pass(leo_run, name):
     stack = build_filter_stack(cfg, name)
     scans, estimates = run.items["/radar/measurement"], run.items[f"/{name}/estimate"]
     assert len(scans) == len(estimates) > 250 and [e.step for e in estimates] == [m.step for m in scans]
-    assert scans[-1].step - scans[0].step + 1 > len(scans)            # missed scans: longer predictions too
+    assert scans[-1].step - scans[0].step + 1 > len(scans)  # missed scans: longer predictions too
     Xb, Pb = np.array([e.x for e in estimates[1:]]), np.array([e.P for e in estimates[1:]])
     # angles as plain floats: the bench's linear mean (the pass does not cross azimuth 0)
     az = np.array([m.z[1] for m in scans])
     assert 0.3 < az.min() and az.max() < 2 * np.pi - 0.3
-    X, P = stonesoup_filter(kind, stack.filter.dynamics, stack.sensors["radar"].model, estimates[0].x,
-                            estimates[0].P, scans[0].t, scans[1:],
-                            angles_as_bearings=False, **params)
+    X, P = stonesoup_filter(
+        kind,
+        stack.filter.dynamics,
+        stack.sensors["radar"].model,
+        estimates[0].x,
+        estimates[0].P,
+        scans[0].t,
+        scans[1:],
+        angles_as_bearings=False,
+        **params,
+    )
     dx, dP = agreement(X, P, Xb, Pb)
     assert dx < 1e-6 and dP < 1e-6, (dx, dP)
     # the estimates moved far from the start: agreeing is not trivially agreeing with the prior
@@ -103,26 +127,44 @@ def test_stone_soups_bearings_wrap_innovations_and_average_angles_circularly(leo
     for name in ("xekf", "xukf"):
         kind, params = FILTERS[name]
         stack, estimates = build_filter_stack(cfg, name), run.items[f"/{name}/estimate"]
-        X, P = stonesoup_filter(kind, stack.filter.dynamics, stack.sensors["radar"].model, estimates[0].x,
-                                estimates[0].P, scans[0].t, scans[1:], **params)
-        found[name] = agreement(X, P, np.array([e.x for e in estimates[1:100]]),
-                                np.array([e.P for e in estimates[1:100]]))
+        X, P = stonesoup_filter(
+            kind,
+            stack.filter.dynamics,
+            stack.sensors["radar"].model,
+            estimates[0].x,
+            estimates[0].P,
+            scans[0].t,
+            scans[1:],
+            **params,
+        )
+        found[name] = agreement(
+            X, P, np.array([e.x for e in estimates[1:100]]), np.array([e.P for e in estimates[1:100]])
+        )
     assert found["xekf"][0] < 1e-6
     assert 1e-9 < found["xukf"][0] < 1e-4, found
 
 
 # ---- GNN ----------------------------------------------------------------------------------------------------
 
+
 def linear_detections(t: float, Z: np.ndarray, R: np.ndarray, n_state: int) -> list[Detection]:
     """Stone Soup detections of position measurements (its own LinearGaussian model, H = [I 0])."""
     d = Z.shape[1]
-    return [Detection(StateVector(z), timestamp=timestamp(t),
-                      measurement_model=LinearGaussian(n_state, tuple(range(d)), r)) for z, r in zip(Z, R)]
+    return [
+        Detection(StateVector(z), timestamp=timestamp(t), measurement_model=LinearGaussian(n_state, tuple(range(d)), r))
+        for z, r in zip(Z, R)
+    ]
 
 
 def test_the_gnn_tracker_in_clutter_equals_stone_soups_gnn():
-    cfg = load_scenario(str(CLUTTER_DEMO), ["time.duration=60", "cluttered_sensors.cam.clutter_rate=10.0",
-                                            "cluttered_sensors.cam.clutter_halfwidth=[3.0,3.0,3.0]"])
+    cfg = load_scenario(
+        str(CLUTTER_DEMO),
+        [
+            "time.duration=60",
+            "cluttered_sensors.cam.clutter_rate=10.0",
+            "cluttered_sensors.cam.clutter_halfwidth=[3.0,3.0,3.0]",
+        ],
+    )
     sets = run_in_process(cfg, ["kf"], seed=5, roles=("sensor",)).items["/cam/detections"]
     tracker = build_tracker(cfg, "gnn")
     stonesoup, track = None, None
@@ -168,7 +210,7 @@ def test_gnn_joint_assignments_of_contested_detections_equal_stone_soups():
         bench, ours, hyp = bench_and_stonesoup_assignments(rng)
         assert ours == bench, case
         contested += int((hyp.gated.sum(axis=0) > 1).any())
-    assert contested >= 50           # measured: 60 (every case has a detection in two or more gates)
+    assert contested >= 50  # measured: 60 (every case has a detection in two or more gates)
 
 
 def test_with_a_miss_costing_the_gate_stone_soup_may_leave_a_track_missed():
@@ -185,22 +227,25 @@ def test_with_a_miss_costing_the_gate_stone_soup_may_leave_a_track_missed():
     gate = gate_threshold(0.999, 1)
     det = linear_detections(0.0, Z, R, 2)
     assert StoneSoupGNN(dyn, 0.999).step([gaussian_track(xi, Pi, 0.0) for xi, Pi in zip(x, P)], det, 0.0) == [1, 0]
-    assert StoneSoupGNN(dyn, 0.999, miss_cost=gate).step([gaussian_track(xi, Pi, 0.0) for xi, Pi in zip(x, P)],
-                                                         det, 0.0) == [0, -1]
+    assert StoneSoupGNN(dyn, 0.999, miss_cost=gate).step(
+        [gaussian_track(xi, Pi, 0.0) for xi, Pi in zip(x, P)], det, 0.0
+    ) == [0, -1]
 
 
 # ---- JPDA ---------------------------------------------------------------------------------------------------
+
 
 def test_the_jpdaf_equals_stone_soups_jpda_on_crossing_targets_in_clutter():
     rng = np.random.default_rng(7)
     dt, sigma, p_detect, q = 0.1, 0.5, 0.9, 4.0
     box, clutter_rate = 40.0, 25.0
-    density = clutter_rate / box ** 2
+    density = clutter_rate / box**2
     truth = np.array([[12.0, 10.0, 12.0, 10.0], [12.0, 10.0, 28.0, -10.0], [10.0, 12.0, 20.0, 0.0]])  # [x vx y vy]
-    bench = JPDAFTracker(ImageConstantVelocity(math.sqrt(q), kind="continuous"), sigma, p_detect, density,
-                         max_misses=10 ** 6)
+    bench = JPDAFTracker(
+        ImageConstantVelocity(math.sqrt(q), kind="continuous"), sigma, p_detect, density, max_misses=10**6
+    )
     bench.start(np.arange(3), truth[:, [0, 2]], truth[:, [1, 3]], velocity_sigma=1.0)
-    measurement = LinearGaussian(4, (0, 2), np.diag([sigma ** 2, sigma ** 2]))
+    measurement = LinearGaussian(4, (0, 2), np.diag([sigma**2, sigma**2]))
     predictor = KalmanPredictor(CombinedLinearGaussianTransitionModel([SSConstantVelocity(q), SSConstantVelocity(q)]))
     stonesoup = StoneSoupJPDA(predictor, KalmanUpdater(measurement), p_detect, density, bench.gate_probability)
     tracks = [gaussian_track(x, P, 0.0) for x, P in zip(bench.x, bench.P)]
@@ -212,12 +257,16 @@ def test_the_jpdaf_equals_stone_soups_jpda_on_crossing_targets_in_clutter():
         Z = np.vstack([seen, rng.uniform(0, box, (rng.poisson(clutter_rate), 2))])
         Z = Z[rng.permutation(len(Z))]
         step = bench.step(Z, dt)
-        weights = stonesoup.step(tracks, [Detection(StateVector(z), timestamp=timestamp(k * dt),
-                                                    measurement_model=measurement) for z in Z], k * dt)
+        weights = stonesoup.step(
+            tracks,
+            [Detection(StateVector(z), timestamp=timestamp(k * dt), measurement_model=measurement) for z in Z],
+            k * dt,
+        )
         np.testing.assert_allclose(weights, step.weights, rtol=0, atol=1e-9, err_msg=f"frame {k}")
         for r, track in enumerate(tracks):
-            np.testing.assert_allclose(np.asarray(track.state_vector, dtype=float)[:, 0], bench.x[r], rtol=0,
-                                       atol=1e-9, err_msg=f"frame {k}")
+            np.testing.assert_allclose(
+                np.asarray(track.state_vector, dtype=float)[:, 0], bench.x[r], rtol=0, atol=1e-9, err_msg=f"frame {k}"
+            )
             np.testing.assert_allclose(np.asarray(track.covar, dtype=float), bench.P[r], rtol=1e-9, atol=1e-12)
         shared += int(((step.weights[:, 1:] > 0).sum(axis=0) > 1).any())
     assert shared >= 3, shared

@@ -1,5 +1,6 @@
 """Swappable means swappable: the leo_radar EKF and UKF run unchanged on both formation scenarios, and the
 formation CQKF runs on leo_radar, all paired on the same measurements in one graph."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,19 +22,47 @@ def _final_position_errors(bag: dict, filters: list[str]) -> dict[str, float]:
     return errors
 
 
-@pytest.mark.parametrize("scenario, filters, extra, bound_m", [
-    ("formation_pf", ["ekf", "ukf", "pf"], ["--set", "time.duration=120",
-                                            "--set", "filters.pf.params.n_particles=2000"], 1.0),
-    # formation_cqkf gives each filter its own dynamics model: the extra filters say which one they use
-    ("formation_cqkf", ["ekf", "ukf", "cw"], ["--set", "time.duration=600", "--set", "filters.ekf.dynamics.model=ss",
-                                              "--set", "filters.ukf.dynamics.model=ss"], 5.0),
-    ("leo_radar", ["ukf", "cqkf"], ["--set", "time.duration=120"], 20_000.0),
-])
-def test_filters_run_unchanged_on_other_scenarios(tmp_path: Path, scenario: str, filters: list[str],
-                                                  extra: list[str], bound_m: float) -> None:
+@pytest.mark.parametrize(
+    "scenario, filters, extra, bound_m",
+    [
+        (
+            "formation_pf",
+            ["ekf", "ukf", "pf"],
+            ["--set", "time.duration=120", "--set", "filters.pf.params.n_particles=2000"],
+            1.0,
+        ),
+        # formation_cqkf gives each filter its own dynamics model: the extra filters say which one they use
+        (
+            "formation_cqkf",
+            ["ekf", "ukf", "cw"],
+            [
+                "--set",
+                "time.duration=600",
+                "--set",
+                "filters.ekf.dynamics.model=ss",
+                "--set",
+                "filters.ukf.dynamics.model=ss",
+            ],
+            5.0,
+        ),
+        ("leo_radar", ["ukf", "cqkf"], ["--set", "time.duration=120"], 20_000.0),
+    ],
+)
+def test_filters_run_unchanged_on_other_scenarios(
+    tmp_path: Path, scenario: str, filters: list[str], extra: list[str], bound_m: float
+) -> None:
     out = tmp_path / scenario
-    res = script("launch.py", scenario, "--estimators", ",".join(filters), "--out", str(out), "--single-process",
-                 "--no-score", *extra)
+    res = script(
+        "launch.py",
+        scenario,
+        "--estimators",
+        ",".join(filters),
+        "--out",
+        str(out),
+        "--single-process",
+        "--no-score",
+        *extra,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     bag = read_bag(out / "bag")
     errors = _final_position_errors(bag, filters)

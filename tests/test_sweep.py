@@ -1,5 +1,6 @@
 """Sweeps (bench_eval.sweep: grids of the scenario's ``sweeps`` section through the graph, scripts/sweep.py) and
 formation_cqkf's model errors (bench_studies.formation_cqkf.model_error)."""
+
 import json
 import subprocess
 import sys
@@ -30,11 +31,13 @@ def scenario_with(tmp_path: Path, grids: dict) -> Path:
 
 # ---------------------------------------------------------------------------------- grid resolution
 
+
 def test_tables_grid_resolves_placeholders_and_variant_order():
     grid = sweep.load_grid("formation_cqkf", "tables")
     assert len(grid.cells) == 16 and grid.columns == "rho"
-    cell = next(c for c in grid.cells if c.labels == {"e": "0.005", "rho": "10km", "measurement": "linear",
-                                                      "interval": "10s"})
+    cell = next(
+        c for c in grid.cells if c.labels == {"e": "0.005", "rho": "10km", "measurement": "linear", "interval": "10s"}
+    )
     assert cell.variants == ["e0005", "size10km", "linear_10km", "interval10"]
     isl = cell.cfg["sensors"]["isl"]
     assert isl["type"] == "relative_position" and isl["sigma_position"] == 0.1 and isl["interval"] == 10.0
@@ -43,8 +46,12 @@ def test_tables_grid_resolves_placeholders_and_variant_order():
 
 
 def test_a_grids_own_set_reaches_every_cell_before_its_levels_and_the_command_line(tmp_path):
-    grids = {"g": {"set": {"scoring.bounds": {}, "time.dt": 2.0},
-                   "axes": {"rho": {"1km": [], "10km": {"variants": ["size10km"], "set": {"time.dt": 5.0}}}}}}
+    grids = {
+        "g": {
+            "set": {"scoring.bounds": {}, "time.dt": 2.0},
+            "axes": {"rho": {"1km": [], "10km": {"variants": ["size10km"], "set": {"time.dt": 5.0}}}},
+        }
+    }
     grid = sweep.load_grid(str(scenario_with(tmp_path, grids)), "g", ["time.duration=100"])
     one, ten = grid.cells
     assert one.cfg["scoring"]["bounds"] == {} == ten.cfg["scoring"]["bounds"]
@@ -72,22 +79,24 @@ def test_numeric_axes_set_and_scale_the_keys_each_cell_has():
     assert all(c.cfg["sensors"]["isl"]["interval"] == c.cfg["time"]["dt"] for c in interval.cells)
 
 
-@pytest.mark.parametrize("grids, grid, message", [
-    ({"g": {"axes": {"rho": {"1km": [], "5km": ["size5km"]}}}}, "g", "unknown variant 'size5km'"),
-    ({"g": {"axes": {"rho": {"1km": ["linear_{size}"]}}}}, "g", "unknown axis {size}"),
-    ({"g": {"axes": {"s": {"values": [1.0, "big"], "set": ["time.dt"]}}}}, "g", "list of numbers"),
-    ({"g": {"axes": {"s": {"values": [2.0], "scale": ["sensors.isl.sigma_rnage"]}}}}, "g", "sigma_rnage"),
-    ({"g": {"axes": {"rho": {"1km": []}}, "columns": "size"}}, "g", "columns"),
-    ({"g": {"axes": {"rho": {"1km": []}}}}, "nope", "unknown grid 'nope' .*available: g"),
-])
+@pytest.mark.parametrize(
+    "grids, grid, message",
+    [
+        ({"g": {"axes": {"rho": {"1km": [], "5km": ["size5km"]}}}}, "g", "unknown variant 'size5km'"),
+        ({"g": {"axes": {"rho": {"1km": ["linear_{size}"]}}}}, "g", "unknown axis {size}"),
+        ({"g": {"axes": {"s": {"values": [1.0, "big"], "set": ["time.dt"]}}}}, "g", "list of numbers"),
+        ({"g": {"axes": {"s": {"values": [2.0], "scale": ["sensors.isl.sigma_rnage"]}}}}, "g", "sigma_rnage"),
+        ({"g": {"axes": {"rho": {"1km": []}}, "columns": "size"}}, "g", "columns"),
+        ({"g": {"axes": {"rho": {"1km": []}}}}, "nope", "unknown grid 'nope' .*available: g"),
+    ],
+)
 def test_invalid_grids_fail_naming_the_value(tmp_path, grids, grid, message):
     with pytest.raises(ScenarioError, match=message.replace("{", "[{]").replace("}", "[}]")):
         sweep.load_grid(str(scenario_with(tmp_path, grids)), grid)
 
 
 def test_invalid_cell_value_or_grid_fails_before_any_run(tmp_path):
-    bad = {"bad": {"axes": {"sigma": {"values": [1.0e-5, -1.0],
-                                      "set": ["filters.cw.dynamics.sigma_accel"]}}}}
+    bad = {"bad": {"axes": {"sigma": {"values": [1.0e-5, -1.0], "set": ["filters.cw.dynamics.sigma_accel"]}}}}
     path = str(scenario_with(tmp_path, bad))
     out = tmp_path / "out"
     res = script("sweep.py", path, "--grid", "bad", "--out", str(out))
@@ -103,10 +112,12 @@ def test_each_paper_table_case_is_found_from_the_resolved_configuration():
     grid = sweep.load_grid("formation_cqkf", "tables")
     cases = {c.id: paper004_case(c.cfg) for c in grid.cells}
     found = {k: (v["table"], v["rho_m"]) for k, v in cases.items() if v}
-    assert found == {"e-0__rho-1km__measurement-range_angles__interval-1s": (1, 1000.0),
-                     "e-0__rho-10km__measurement-range_angles__interval-1s": (1, 10000.0),
-                     "e-0.005__rho-1km__measurement-range_angles__interval-1s": (2, 1000.0),
-                     "e-0.005__rho-10km__measurement-range_angles__interval-1s": (2, 10000.0)}
+    assert found == {
+        "e-0__rho-1km__measurement-range_angles__interval-1s": (1, 1000.0),
+        "e-0__rho-10km__measurement-range_angles__interval-1s": (1, 10000.0),
+        "e-0.005__rho-1km__measurement-range_angles__interval-1s": (2, 1000.0),
+        "e-0.005__rho-10km__measurement-range_angles__interval-1s": (2, 10000.0),
+    }
 
 
 def test_paired_ordering_marks_only_significant_differences():
@@ -119,12 +130,25 @@ def test_paired_ordering_marks_only_significant_differences():
 
 # ---------------------------------------------------------------------------------- through the graph
 
+
 def test_two_cell_sweep_runs_through_the_graph(tmp_path):
-    grids = {"tiny": {"description": "two cells", "columns": "rho",
-                      "axes": {"rho": {"1km": [], "10km": ["size10km"]}}}}
+    grids = {"tiny": {"description": "two cells", "columns": "rho", "axes": {"rho": {"1km": [], "10km": ["size10km"]}}}}
     out = tmp_path / "sweep"
-    cmd = [sys.executable, str(SCRIPTS / "sweep.py"), str(scenario_with(tmp_path, grids)), "--grid", "tiny",
-           "--runs", "1", "--jobs", "2", "--out", str(out), "--set", "time.duration=60"]
+    cmd = [
+        sys.executable,
+        str(SCRIPTS / "sweep.py"),
+        str(scenario_with(tmp_path, grids)),
+        "--grid",
+        "tiny",
+        "--runs",
+        "1",
+        "--jobs",
+        "2",
+        "--out",
+        str(out),
+        "--set",
+        "time.duration=60",
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     result = json.loads((out / "sweep.json").read_text())
@@ -159,16 +183,21 @@ def test_crosstalk_is_a_truth_message_count_other_than_the_steps(tmp_path):
     def bag(truth_count: int) -> Path:
         path = tmp_path / f"bag{truth_count}"
         path.mkdir()
-        topics = [{"topic_metadata": {"name": name}, "message_count": n}
-                  for name, n in (("/clock", 61), ("/truth/state", truth_count), ("/ss/estimate", 61))]
-        (path / "metadata.yaml").write_text(yaml.safe_dump(
-            {"rosbag2_bagfile_information": {"topics_with_message_count": topics}}))
+        topics = [
+            {"topic_metadata": {"name": name}, "message_count": n}
+            for name, n in (("/clock", 61), ("/truth/state", truth_count), ("/ss/estimate", 61))
+        ]
+        (path / "metadata.yaml").write_text(
+            yaml.safe_dump({"rosbag2_bagfile_information": {"topics_with_message_count": topics}})
+        )
         return path
+
     assert not crosstalk(bag(61), 61)
     assert crosstalk(bag(262), 61)  # a second graph's truth on the same domain
 
 
 # ---------------------------------------------------------------------------------------- model error
+
 
 def test_model_error_is_zero_for_the_model_that_generated_the_truth():
     """With the exact CW truth the CW model leaves only the finite-difference error; SS's J2 terms show."""

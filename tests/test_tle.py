@@ -6,6 +6,7 @@ External references: the verification cases shipped with the sgp4 package (``SGP
 reference output ``tcppver.out``, Vallado et al. 2006, AIAA 2006-6753), sgp4's own GMST (``gstime``), and
 Vallado's GMST example (Fundamentals of Astrodynamics and Applications, 4th ed., example 3-5).
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -25,15 +26,20 @@ from orbit_sim.passes import first_pass, look_angles
 from orbit_sim.tle import ElementSet, TleError, checksum, read_tle, read_tle_file
 from orbit_sim.truth import build_earth, build_truth
 
-ISS = ("1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
-       "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482")
+ISS = (
+    "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
+    "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482",
+)
 UTC = dt_.timezone.utc
 
 
 def verification_cases() -> list[tuple[str, str, tuple[float, float, float], list[list[str]]]]:
     """(line 1, line 2, (start, stop, step) [min], reference rows of tcppver.out) of every case."""
-    tles = [line for line in resources.files("sgp4").joinpath("SGP4-VER.TLE").read_text().splitlines()
-            if line.strip() and not line.startswith("#")]
+    tles = [
+        line
+        for line in resources.files("sgp4").joinpath("SGP4-VER.TLE").read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
     rows: dict[str, list[list[str]]] = {}
     for line in resources.files("sgp4").joinpath("tcppver.out").read_text().splitlines():
         fields = line.split()
@@ -96,8 +102,10 @@ def test_the_truth_model_puts_the_run_on_the_calendar():
     (tcppver.out prints that row's date as 0:50:19.733571: Vallado's date conversion in one double, 3 µs off.)"""
     line1, line2, _span, rows = CASES[0]
     assert line1.startswith("1 00005") and rows[1][-4:] == ["2000", "6", "28", "0:50:19.733571"]
-    cfg = {"time": {"epoch": "2000-06-28T00:50:19.733568Z", "start": 0.0, "dt": 21600.0, "duration": 21600.0 * 11},
-           "truth": {"model": "sgp4", "tle": [line1, line2]}}
+    cfg = {
+        "time": {"epoch": "2000-06-28T00:50:19.733568Z", "start": 0.0, "dt": 21600.0, "duration": 21600.0 * 11},
+        "truth": {"model": "sgp4", "tle": [line1, line2]},
+    }
     truth = build_truth(cfg)
     ref = np.array([[float(v) for v in r[1:7]] for r in rows[1:]]) * 1e3
     assert truth.frame == "eci" and truth.labels == ("x", "y", "z", "vx", "vy", "vz")
@@ -145,8 +153,9 @@ def test_an_epoch_and_theta0_cannot_both_be_given():
     for bad in ("2019-13-01T00:00:00Z", "yesterday", "1960-01-01T00:00:00Z"):
         with pytest.raises(ScenarioError, match="time.epoch"):
             build_time({"time": {**time, "epoch": bad}})
-    assert build_time({"time": {**time, "epoch": "2019-12-09T17:38:29+01:00"}}).epoch == \
-        dt_.datetime(2019, 12, 9, 16, 38, 29, tzinfo=UTC)
+    assert build_time({"time": {**time, "epoch": "2019-12-09T17:38:29+01:00"}}).epoch == dt_.datetime(
+        2019, 12, 9, 16, 38, 29, tzinfo=UTC
+    )
 
 
 def test_sgp4_against_the_j2_cowell_truth_from_the_same_state():
@@ -174,13 +183,19 @@ def test_the_iss_variant_runs_over_the_pass_the_bench_finds():
     tle = read_tle(cfg["truth"]["tle"], "iss")
     assert grid.epoch == tle.epoch
     radar = cfg["sensors"]["radar"]
-    lat, lon, h = np.radians(radar["station"]["lat_deg"]), np.radians(radar["station"]["lon_deg"]), \
-        radar["station"]["alt_m"]
-    p = first_pass(lambda t: tle.states(grid.epoch, t), lat, lon, h, earth.theta0,
-                   np.radians(radar["min_elevation_deg"]), 86400.0)
+    lat, lon, h = (
+        np.radians(radar["station"]["lat_deg"]),
+        np.radians(radar["station"]["lon_deg"]),
+        radar["station"]["alt_m"],
+    )
+    p = first_pass(
+        lambda t: tle.states(grid.epoch, t), lat, lon, h, earth.theta0, np.radians(radar["min_elevation_deg"]), 86400.0
+    )
     times = grid.times()
     assert p.t_rise < times[0] < p.t_rise + grid.dt and p.t_set - grid.dt < times[-1] < p.t_set
-    assert p.duration == pytest.approx(309.63, abs=0.01) and np.degrees(p.max_elevation) == pytest.approx(9.84, abs=0.01)
+    assert p.duration == pytest.approx(309.63, abs=0.01) and np.degrees(p.max_elevation) == pytest.approx(
+        9.84, abs=0.01
+    )
     rng, _az, el = look_angles(times, build_truth(cfg).states, lat, lon, h, earth.theta0)
     assert np.all(el >= np.radians(5.0)) and 1.50e6 < rng.min() < rng.max() < 1.87e6
 
@@ -191,7 +206,10 @@ def test_element_set_errors_are_one_line_naming_the_source(tmp_path):
         "checksum": [line1[:68] + "0", line2],
         "columns": [line1[:60], line2],
         "must start with '2 '": [line1, "3" + line2[1:]],
-        "different satellites": [line1, line2[:2] + "25545" + line2[7:68] + str(checksum(line2[:2] + "25545" + line2[7:]))],
+        "different satellites": [
+            line1,
+            line2[:2] + "25545" + line2[7:68] + str(checksum(line2[:2] + "25545" + line2[7:])),
+        ],
         "printable ASCII": [line1[:30] + "\u00e9" + line1[31:], line2],
         "two lines": [line1],
     }
@@ -208,9 +226,11 @@ def test_element_set_errors_are_one_line_naming_the_source(tmp_path):
             read_tle_file(tmp_path / name)
         assert str(err.value).startswith(str(tmp_path / name))
     base = {"time": {"start": 0.0, "dt": 1.0, "duration": 10.0}}
-    for truth, problem in (({"model": "sgp4", "tle": list(ISS)}, "needs a calendar epoch: set 'time.epoch'"),
-                           ({"model": "sgp4"}, "exactly one of 'tle'"),
-                           ({"model": "sgp4", "tle_file": str(tmp_path / "missing.tle")}, "cannot be read")):
+    for truth, problem in (
+        ({"model": "sgp4", "tle": list(ISS)}, "needs a calendar epoch: set 'time.epoch'"),
+        ({"model": "sgp4"}, "exactly one of 'tle'"),
+        ({"model": "sgp4", "tle_file": str(tmp_path / "missing.tle")}, "cannot be read"),
+    ):
         with pytest.raises(ScenarioError, match=problem):
             build_truth({**base, "truth": truth})
 
@@ -222,7 +242,7 @@ def test_fuzzed_element_sets_are_read_or_refused_in_one_line(position, char, fix
     the reader returns an element set SGP4 propagates at its epoch, or refuses it with one TleError line."""
     lines = list(ISS)
     which, column = divmod(position, 69)
-    line = lines[which][:column] + char + lines[which][column + 1:]
+    line = lines[which][:column] + char + lines[which][column + 1 :]
     if fix_checksum:
         line = line[:68] + str(checksum(line))
     lines[which] = line

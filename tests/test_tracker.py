@@ -2,6 +2,7 @@
 gating and global-nearest-neighbour association on hand-computed cases, a tracker that is exactly its filter
 when there is nothing to associate, coasting, deletion and re-initiation, and tracking in clutter.
 The same layer through the real ROS 2 graph: tests/test_tracker_graph.py."""
+
 from __future__ import annotations
 
 import math
@@ -21,8 +22,14 @@ from bench_models.isl import RangeAzElModel
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from radar_sensor.clutter import build_cluttered
 from radar_sensor.messages import DETECTION_SET
-from tracker_filters.association import (NO_DETECTION, Association, GlobalNearestNeighbour, hypothesise,
-                                         linearised_prediction, measurement_prediction)
+from tracker_filters.association import (
+    NO_DETECTION,
+    Association,
+    GlobalNearestNeighbour,
+    hypothesise,
+    linearised_prediction,
+    measurement_prediction,
+)
 from tracker_filters.builders import build_filter_stack
 from tracker_filters.filter_stage import FilterStage
 from tracker_filters.kf import KalmanFilter
@@ -30,7 +37,7 @@ from tracker_filters.tracker import Tracker
 from tracker_filters.tracker_stage import build_tracker
 
 DATA = Path(__file__).parent / "data"
-DEMO = str(DATA / "clutter_demo.yaml")            # hill_cw truth, KF, clutter box +-15 m around sigma 0.5 m
+DEMO = str(DATA / "clutter_demo.yaml")  # hill_cw truth, KF, clutter box +-15 m around sigma 0.5 m
 FORMATION = str(DATA / "tracker_formation.yaml")  # formation_cqkf's linear 1 km case, CQKF, 60 s
 
 
@@ -40,6 +47,7 @@ def cv_filter() -> KalmanFilter:
 
 
 # ---- association --------------------------------------------------------------------------------------------
+
 
 def test_gating_and_gnn_on_a_hand_computed_case():
     """Two 1-D tracks at 0 and 10 (position variance 1), detections at 0.5, 9.0, 30 (variance 1): S = 2, so
@@ -84,8 +92,10 @@ def test_gnn_assigns_jointly_not_greedily():
     # no detection at all: every track missed, weight 1 on "missed"
     hyp = hypothesise(x, P, np.zeros((0, 1)), np.zeros((0, 1, 1)), model, 0.0, 0.99)
     assert hyp.d2.shape == (2, 0)
-    assert [(a.detection, a.weights.tolist()) for a in GlobalNearestNeighbour().associate(hyp)] == \
-        [(NO_DETECTION, [1.0]), (NO_DETECTION, [1.0])]
+    assert [(a.detection, a.weights.tolist()) for a in GlobalNearestNeighbour().associate(hyp)] == [
+        (NO_DETECTION, [1.0]),
+        (NO_DETECTION, [1.0]),
+    ]
 
 
 def test_a_non_finite_detection_is_outside_every_gate():
@@ -104,10 +114,11 @@ def test_measurement_prediction_of_a_particle_cloud_averages_angles_across_the_w
     model = RangeAzElModel("radial_along_normal")
     rng = np.random.default_rng(0)
     particles = np.zeros((2000, 6))
-    particles[:, 0] = 1000.0                                # on the radial axis: azimuth 0
-    particles[:, 1] = rng.normal(0.0, 10.0, 2000)           # +-10 m along track: azimuth +-0.01 rad
-    cloud = SimpleNamespace(particles=particles, weights=np.full(2000, 1 / 2000), x=particles.mean(0),
-                            P=np.cov(particles.T))
+    particles[:, 0] = 1000.0  # on the radial axis: azimuth 0
+    particles[:, 1] = rng.normal(0.0, 10.0, 2000)  # +-10 m along track: azimuth +-0.01 rad
+    cloud = SimpleNamespace(
+        particles=particles, weights=np.full(2000, 1 / 2000), x=particles.mean(0), P=np.cov(particles.T)
+    )
     pred = measurement_prediction(cloud, model, 0.0)
     assert abs(math.remainder(pred.z[1], 2 * math.pi)) < 1e-3
     assert math.sqrt(pred.Pzz[1, 1]) == pytest.approx(0.01, rel=0.1)
@@ -120,6 +131,7 @@ def test_measurement_prediction_of_a_particle_cloud_averages_angles_across_the_w
 
 # ---- the cluttered sensor and its message -------------------------------------------------------------------
 
+
 def test_the_cluttered_sensor_draws_target_and_poisson_clutter_in_the_box():
     cfg = load_scenario(DEMO)  # P_D 0.9, clutter_rate 3, half-width 15 m, sigma 0.5 m
     sensor = build_cluttered(cfg, "cam")
@@ -128,9 +140,9 @@ def test_the_cluttered_sensor_draws_target_and_poisson_clutter_in_the_box():
     sets = [sensor.observe(x, float(k), k, rng) for k in range(4000)]
     counts = np.array([len(Z) for Z in sets])
     assert counts.mean() == pytest.approx(0.9 + 3.0, abs=0.1)
-    assert counts.var() == pytest.approx(3.0 + 0.09, rel=0.1)       # Poisson(3) + Bernoulli(0.9)
+    assert counts.var() == pytest.approx(3.0 + 0.09, rel=0.1)  # Poisson(3) + Bernoulli(0.9)
     Z = np.vstack(sets)
-    assert np.all(np.abs(Z - x[:3]) <= 15.0 + 3.0)                   # clutter in the box (+ target noise)
+    assert np.all(np.abs(Z - x[:3]) <= 15.0 + 3.0)  # clutter in the box (+ target noise)
     near = np.array([np.any(np.linalg.norm(S - x[:3], axis=1) < 2.0) for S in sets])
     # the target is within 4 sigma of the truth when detected (P_D 0.9); clutter lands there 0.5 % of steps
     assert near.mean() == pytest.approx(0.9, abs=0.02)
@@ -163,28 +175,36 @@ def test_detection_set_codec_round_trip(n):
     assert (msg.step, msg.sensor_id, msg.header.stamp.sec, msg.header.stamp.nanosec) == (7, "cam", 12, 500_000_000)
     assert len(msg.values) == 3 * n and len(msg.covariance) == 9 * n
     back = DETECTION_SET.decode(msg)
-    assert (back.step, back.t_ns, back.frame_id, back.source, back.labels) == \
-        (7, 12_500_000_000, "lvlh", "cam", ["x", "y", "z"])
+    assert (back.step, back.t_ns, back.frame_id, back.source, back.labels) == (
+        7,
+        12_500_000_000,
+        "lvlh",
+        "cam",
+        ["x", "y", "z"],
+    )
     assert back.Z.shape == (n, 3) and back.R.shape == (n, 3, 3)
     np.testing.assert_array_equal(back.Z, Z)
     np.testing.assert_array_equal(back.R, R)
 
 
-@pytest.mark.parametrize("override, named", [
-    ("trackers.gnn.colour=red", "'trackers.gnn.colour'"),
-    ("trackers.gnn.detections=pos", "'trackers.gnn.detections'"),        # a plain sensor, not a cluttered one
-    ("trackers.gnn.filter=ukf", "'trackers.gnn.filter'"),                # not in the filters section
-    ("trackers.gnn.gate_probability=1.0", "'trackers.gnn.gate_probability'"),
-    ("trackers.gnn.max_misses=0", "'trackers.gnn.max_misses'"),
-    ("trackers=[gnn]", "'trackers'"),
-    ("cluttered_sensors.cam.clutter_halfwidth=[15.0, 15.0]", "'cluttered_sensors.cam.clutter_halfwidth'"),
-    ("cluttered_sensors.cam.clutter_halfwidth=[a, b, c]", "'cluttered_sensors.cam.clutter_halfwidth'"),
-    ("cluttered_sensors.cam.clutter_rate=-1", "'cluttered_sensors.cam.clutter_rate'"),
-    ("cluttered_sensors.cam.clutter_rate=.inf", "'cluttered_sensors.cam.clutter_rate'"),
-    ("cluttered_sensors.cam.p_detect=1.5", "'cluttered_sensors.cam.p_detect'"),
-    ("cluttered_sensors.cam.colour=red", "'cluttered_sensors.cam.colour'"),
-    ("cluttered_sensors=[cam]", "'cluttered_sensors'"),
-])
+@pytest.mark.parametrize(
+    "override, named",
+    [
+        ("trackers.gnn.colour=red", "'trackers.gnn.colour'"),
+        ("trackers.gnn.detections=pos", "'trackers.gnn.detections'"),  # a plain sensor, not a cluttered one
+        ("trackers.gnn.filter=ukf", "'trackers.gnn.filter'"),  # not in the filters section
+        ("trackers.gnn.gate_probability=1.0", "'trackers.gnn.gate_probability'"),
+        ("trackers.gnn.max_misses=0", "'trackers.gnn.max_misses'"),
+        ("trackers=[gnn]", "'trackers'"),
+        ("cluttered_sensors.cam.clutter_halfwidth=[15.0, 15.0]", "'cluttered_sensors.cam.clutter_halfwidth'"),
+        ("cluttered_sensors.cam.clutter_halfwidth=[a, b, c]", "'cluttered_sensors.cam.clutter_halfwidth'"),
+        ("cluttered_sensors.cam.clutter_rate=-1", "'cluttered_sensors.cam.clutter_rate'"),
+        ("cluttered_sensors.cam.clutter_rate=.inf", "'cluttered_sensors.cam.clutter_rate'"),
+        ("cluttered_sensors.cam.p_detect=1.5", "'cluttered_sensors.cam.p_detect'"),
+        ("cluttered_sensors.cam.colour=red", "'cluttered_sensors.cam.colour'"),
+        ("cluttered_sensors=[cam]", "'cluttered_sensors'"),
+    ],
+)
 def test_bad_tracker_and_clutter_keys_are_named(override, named):
     cfg = load_scenario(DEMO)
     validate(cfg, resolve_estimators(cfg, None), "truth")  # the scenario itself is valid
@@ -195,18 +215,21 @@ def test_bad_tracker_and_clutter_keys_are_named(override, named):
 
 # ---- the tracker --------------------------------------------------------------------------------------------
 
+
 def test_without_clutter_and_misses_the_tracker_stage_is_its_filter():
     """P_D = 1 and no clutter: every set holds one detection, and the tracker's estimates equal, bit for bit,
     the plain filter's on the same measurements (same prior, same predict and update calls)."""
-    cfg = apply_overrides(load_scenario(DEMO), ["cluttered_sensors.cam.p_detect=1.0",
-                                                "cluttered_sensors.cam.clutter_rate=0.0"])
+    cfg = apply_overrides(
+        load_scenario(DEMO), ["cluttered_sensors.cam.p_detect=1.0", "cluttered_sensors.cam.clutter_rate=0.0"]
+    )
     run = run_in_process(cfg, ["kf", "gnn"], seed=3)
     sets, tracked = run.items["/cam/detections"], run.items["/gnn/estimate"]
     assert [len(d.Z) for d in sets] == [1] * 121 and len(tracked) == 121
     plain = FilterStage(cfg, "kf")
     for d, est in zip(sets, tracked):
-        [(_, ref)] = plain.on_input("/pos/measurement", Measurement(d.step, d.t_ns, d.frame_id, d.source,
-                                                                     d.Z[0], d.R[0], d.labels))
+        [(_, ref)] = plain.on_input(
+            "/pos/measurement", Measurement(d.step, d.t_ns, d.frame_id, d.source, d.Z[0], d.R[0], d.labels)
+        )
         assert (est.step, est.t_ns, est.labels) == (ref.step, ref.t_ns, ref.labels)
         np.testing.assert_array_equal(est.x, ref.x)
         np.testing.assert_array_equal(est.P, ref.P)
@@ -219,8 +242,9 @@ def test_the_tracker_is_its_filter_on_the_clean_sensor_measurements():
     cfg = load_scenario(FORMATION)  # a CQKF: the sigma-point update through Filter.process as well
     stack = build_filter_stack(cfg, "cw")
     sensor = stack.sensors["isl"]
-    tracker = Tracker(lambda: build_filter_stack(cfg, "cw").filter,
-                      lambda z, R, t: stack.initialise(z, R, sensor, t), sensor.model)
+    tracker = Tracker(
+        lambda: build_filter_stack(cfg, "cw").filter, lambda z, R, t: stack.initialise(z, R, sensor, t), sensor.model
+    )
     run = run_in_process(cfg, ["cw"], seed=3)
     measurements, estimates = run.items["/isl/measurement"], run.items["/cw/estimate"]
     assert len(measurements) == len(estimates) == 61
@@ -237,15 +261,15 @@ def test_a_track_coasts_on_a_miss_is_deleted_and_restarts_from_a_free_detection(
     R1 = np.ones((1, 1, 1))
     report = tracker.step(0.0, np.array([[0.0]]), R1)
     assert report.started and len(tracker.tracks) == 1 and tracker.tracks[0].filter.x.tolist() == [0.0, 0.0]
-    report = tracker.step(1.0, np.zeros((0, 1)), np.zeros((0, 1, 1)))      # empty set: coast
+    report = tracker.step(1.0, np.zeros((0, 1)), np.zeros((0, 1, 1)))  # empty set: coast
     track = tracker.tracks[0]
     assert report.associated == [NO_DETECTION] and report.results == [None] and not report.started
     assert track.filter.t == 1.0 and track.filter.P[0, 0] > 2.0 and (track.misses, track.consecutive_misses) == (1, 1)
-    report = tracker.step(2.0, np.array([[1.5]]), R1)                       # in the gate: update
+    report = tracker.step(2.0, np.array([[1.5]]), R1)  # in the gate: update
     assert report.associated == [0] and report.results[0].accepted
     assert (track.hits, track.consecutive_misses) == (2, 0)
-    tracker.step(3.0, np.array([[500.0]]), R1)                              # outside the gate: miss 1
-    report = tracker.step(4.0, np.array([[900.0], [-700.0]]), R1)          # miss 2: deleted, restarted
+    tracker.step(3.0, np.array([[500.0]]), R1)  # outside the gate: miss 1
+    report = tracker.step(4.0, np.array([[900.0], [-700.0]]), R1)  # miss 2: deleted, restarted
     assert report.deleted == 1 and report.started and len(tracker.tracks) == 1
     assert tracker.tracks[0] is not track and tracker.tracks[0].filter.x.tolist() == [900.0, 0.0]
 
@@ -253,11 +277,14 @@ def test_a_track_coasts_on_a_miss_is_deleted_and_restarts_from_a_free_detection(
 def test_a_soft_associator_needs_a_probabilistic_update():
     class Halves:
         def associate(self, hypotheses):
-            return [Association(0, np.full(hypotheses.n_detections + 1, 1.0 / (hypotheses.n_detections + 1)))
-                    for _ in range(hypotheses.n_tracks)]
+            return [
+                Association(0, np.full(hypotheses.n_detections + 1, 1.0 / (hypotheses.n_detections + 1)))
+                for _ in range(hypotheses.n_tracks)
+            ]
 
-    tracker = Tracker(cv_filter, lambda z, R, t: (np.array([z[0], 0.0]), np.eye(2)), PositionMeasurement(1),
-                      associator=Halves())
+    tracker = Tracker(
+        cv_filter, lambda z, R, t: (np.array([z[0], 0.0]), np.eye(2)), PositionMeasurement(1), associator=Halves()
+    )
     tracker.step(0.0, np.array([[0.0]]), np.ones((1, 1, 1)))
     with pytest.raises(TypeError, match="soft weights"):
         tracker.step(1.0, np.array([[0.1]]), np.ones((1, 1, 1)))
@@ -289,14 +316,14 @@ def test_the_tracker_follows_the_target_through_clutter(scenario, runs):
         run = run_in_process(cfg, None, seed=seed)
         truth = {s.step: s.state for s in run.items["/truth/state"]}
         sets = run.items["/cam/detections"]
-        assert np.mean([len(d.Z) for d in sets]) > 0.6 * (0.9 + rate)    # the sets do hold clutter
+        assert np.mean([len(d.Z) for d in sets]) > 0.6 * (0.9 + rate)  # the sets do hold clutter
         estimates = run.items["/gnn/estimate"]
-        first = next(k for k, d in enumerate(sets) if len(d.Z))          # the track starts on a non-empty set
+        first = next(k for k, d in enumerate(sets) if len(d.Z))  # the track starts on a non-empty set
         assert [e.step for e in estimates] == [d.step for d in sets[first:]]
         held.append(np.max(np.abs(sigma_errors(estimates, truth)[5:])) < 5.0)
         if held[-1]:
-            assert np.mean([e.diagnostics["associated"] for e in estimates]) >= 0.75   # P_D = 0.9
-            assert np.nanmean([e.diagnostics["gated"] for e in estimates]) < 1.2      # ~the target alone
+            assert np.mean([e.diagnostics["associated"] for e in estimates]) >= 0.75  # P_D = 0.9
+            assert np.nanmean([e.diagnostics["gated"] for e in estimates]) < 1.2  # ~the target alone
     assert sum(held) >= runs - 1, held
 
     naive = build_tracker(cfg, "gnn")

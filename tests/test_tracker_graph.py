@@ -2,6 +2,7 @@
 formation_cqkf's linear 1 km case shortened to 60 s (tests/data/tracker_formation.yaml), a cluttered sensor
 publishing bench_msgs/DetectionSet, and the GNN tracker next to the plain CQKF. The bag is read back with
 rosbags; the graph carries exactly what the same cores give in process (codec round trip, seeded streams)."""
+
 from __future__ import annotations
 
 import json
@@ -30,16 +31,16 @@ def test_the_detection_sets_are_in_the_bag(graph_run):
     out, bag, _ = graph_run
     assert {"/truth/state", "/isl/measurement", "/cam/detections", "/cw/estimate", "/gnn/estimate"} <= set(bag)
     sets = [m for _, m in bag["/cam/detections"]]
-    assert [m.step for m in sets] == list(range(61))                 # one set per 1 s step, empty ones too
+    assert [m.step for m in sets] == list(range(61))  # one set per 1 s step, empty ones too
     assert all(stamp(m) == pytest.approx(m.step) for m in sets)
-    assert all(list(m.labels) == ["x", "y", "z"] and m.sensor_id == "cam" and m.header.frame_id == "lvlh"
-               for m in sets)
+    assert all(list(m.labels) == ["x", "y", "z"] and m.sensor_id == "cam" and m.header.frame_id == "lvlh" for m in sets)
     counts = np.array([len(m.values) // 3 for m in sets])
     assert all(len(m.values) == 3 * n and len(m.covariance) == 9 * n for m, n in zip(sets, counts))
-    assert 1.5 < counts.mean() < 4.5                                 # P_D 0.9 + Poisson(2) clutter
+    assert 1.5 < counts.mean() < 4.5  # P_D 0.9 + Poisson(2) clutter
     for m, n in zip(sets, counts):
-        np.testing.assert_array_equal(np.asarray(m.covariance).reshape(n, 3, 3), np.tile(SIGMA**2 * np.eye(3),
-                                                                                           (n, 1, 1)))
+        np.testing.assert_array_equal(
+            np.asarray(m.covariance).reshape(n, 3, 3), np.tile(SIGMA**2 * np.eye(3), (n, 1, 1))
+        )
     # the target's detection is in most sets, within 5 sigma of the true position; clutter spreads +-100 m
     truth = {m.step: np.asarray(m.state) for _, m in bag["/truth/state"]}
     Z = [np.asarray(m.values).reshape(-1, 3) for m in sets]
@@ -69,14 +70,14 @@ def test_the_tracker_estimates_are_accurate_and_scored(graph_run):
     truth = {m.step: np.asarray(m.state) for _, m in bag["/truth/state"]}
     estimates = [m for _, m in bag["/gnn/estimate"]]
     first_set = next(m.step for _, m in bag["/cam/detections"] if len(m.values))
-    assert [m.step for m in estimates] == list(range(first_set, 61))   # one estimate per set once started
+    assert [m.step for m in estimates] == list(range(first_set, 61))  # one estimate per set once started
     assert list(estimates[0].labels) == ["x", "y", "z", "vx", "vy", "vz"]
     diag = [dict(zip(m.diagnostic_names, m.diagnostic_values)) for m in estimates]
     assert np.mean([d["associated"] for d in diag]) >= 0.75
     errors = np.array([np.asarray(m.state)[:3] - truth[m.step][:3] for m in estimates])
     sigmas = np.array([np.sqrt(np.diag(np.asarray(m.covariance).reshape(6, 6))[:3]) for m in estimates])
-    assert np.all(np.abs(errors[10:]) < 5 * sigmas[10:])              # within 5 of its own sigmas once settled
-    assert np.all(np.linalg.norm(errors[10:], axis=1) < 0.1)           # 10 cm: ~3 sensor sigmas, not 100 m clutter
+    assert np.all(np.abs(errors[10:]) < 5 * sigmas[10:])  # within 5 of its own sigmas once settled
+    assert np.all(np.linalg.norm(errors[10:], axis=1) < 0.1)  # 10 cm: ~3 sensor sigmas, not 100 m clutter
     # the scorer scores the tracker like a filter, close to the clean filter's accuracy
     filters = score["estimators"]
     assert {"cw", "gnn"} <= set(filters)
@@ -87,7 +88,6 @@ def test_the_tracker_estimates_are_accurate_and_scored(graph_run):
 
 
 def test_a_bad_tracker_key_stops_the_launcher_before_any_node(tmp_path):
-    res = script("launch.py", str(SCENARIO), "--out", str(tmp_path), "--set", "trackers.gnn.detections=isl",
-                 timeout=60)
+    res = script("launch.py", str(SCENARIO), "--out", str(tmp_path), "--set", "trackers.gnn.detections=isl", timeout=60)
     assert res.returncode == 2, res.stderr[-2000:]
     assert "trackers.gnn.detections" in res.stderr and not (tmp_path / "bag").exists()

@@ -2,6 +2,7 @@
 label, covariance blocks placed right, frames named, no Odometry for a state without velocity, attitudes as ROS
 poses, diagnostics read back exactly and periodic, trajectory markers cheap and cumulative, the Odometry encoder's
 bytes the serialiser's; and the graph's view topics."""
+
 from __future__ import annotations
 
 import json
@@ -31,8 +32,17 @@ def spd(n: int, seed: int) -> np.ndarray:
 
 
 def estimate(labels, x, P, t_ns=12_300_000_000, nis=2.5, diagnostics=None, frame="eci", source="ukf", step=7):
-    return Estimate(step, t_ns, frame, source, list(labels), np.asarray(x, float), np.asarray(P, float), nis,
-                    dict(diagnostics or {}))
+    return Estimate(
+        step,
+        t_ns,
+        frame,
+        source,
+        list(labels),
+        np.asarray(x, float),
+        np.asarray(P, float),
+        nis,
+        dict(diagnostics or {}),
+    )
 
 
 def read_back(type_name: str, msg):
@@ -42,32 +52,47 @@ def read_back(type_name: str, msg):
 
 # --- graph ------------------------------------------------------------------------------------------------
 
+
 def test_view_topics_follow_the_topic_contract():
     assert views.view_topics("/ukf/estimate", "bench_msgs/msg/StateEstimate") == {
-        "/ukf/odometry": "nav_msgs/msg/Odometry", "/ukf/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
-        "/ukf/attitude": "bench_msgs/msg/AttitudeEstimate", "/ukf/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
-        "/ukf/markers": "visualization_msgs/msg/Marker"}
+        "/ukf/odometry": "nav_msgs/msg/Odometry",
+        "/ukf/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "/ukf/attitude": "bench_msgs/msg/AttitudeEstimate",
+        "/ukf/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+        "/ukf/markers": "visualization_msgs/msg/Marker",
+    }
     assert views.view_topics("/truth/state", "bench_msgs/msg/TruthState") == {
-        "/truth/odometry": "nav_msgs/msg/Odometry", "/truth/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
-        "/truth/markers": "visualization_msgs/msg/Marker"}
+        "/truth/odometry": "nav_msgs/msg/Odometry",
+        "/truth/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "/truth/markers": "visualization_msgs/msg/Marker",
+    }
     orbit, attitude = ("x", "y", "z", "vx", "vy", "vz"), ("qw", "qx", "qy", "qz")
     assert sorted(views.view_topics("/ukf/estimate", "bench_msgs/msg/StateEstimate", orbit)) == [
-        "/ukf/diagnostics", "/ukf/markers", "/ukf/odometry"]                  # no attitude in an orbit state
+        "/ukf/diagnostics",
+        "/ukf/markers",
+        "/ukf/odometry",
+    ]  # no attitude in an orbit state
     assert sorted(views.view_topics("/st/estimate", "bench_msgs/msg/StateEstimate", attitude)) == [
-        "/st/attitude", "/st/diagnostics", "/st/pose"]                        # no position in an attitude
-    assert sorted(views.view_topics("/truth/state", "bench_msgs/msg/TruthState", ("x", "y", "z"))) == [
-        "/truth/markers"]
+        "/st/attitude",
+        "/st/diagnostics",
+        "/st/pose",
+    ]  # no position in an attitude
+    assert sorted(views.view_topics("/truth/state", "bench_msgs/msg/TruthState", ("x", "y", "z"))) == ["/truth/markers"]
     assert views.view_topics("/truth/state", "bench_msgs/msg/TruthState", ("x1", "bx")) == {}
-    for topic, type_name in (("/radar/measurement", "bench_msgs/msg/RangeAzEl"), ("/clock", "rosgraph_msgs/msg/Clock"),
-                             ("/ukf/stars", "bench_msgs/msg/StarCentroids"),
-                             ("/ukf/estimate", "bench_msgs/msg/TruthState"),
-                             ("/a/b/estimate", "bench_msgs/msg/StateEstimate")):
+    for topic, type_name in (
+        ("/radar/measurement", "bench_msgs/msg/RangeAzEl"),
+        ("/clock", "rosgraph_msgs/msg/Clock"),
+        ("/ukf/stars", "bench_msgs/msg/StarCentroids"),
+        ("/ukf/estimate", "bench_msgs/msg/TruthState"),
+        ("/a/b/estimate", "bench_msgs/msg/StateEstimate"),
+    ):
         assert views.view_topics(topic, type_name) == {}
 
 
 def test_add_standard_views_adds_each_publisher_its_views():
-    truth = NodeSpec("truth", "truth", publishes={"/truth/state": "bench_msgs/msg/TruthState",
-                                                   "/clock": "rosgraph_msgs/msg/Clock"})
+    truth = NodeSpec(
+        "truth", "truth", publishes={"/truth/state": "bench_msgs/msg/TruthState", "/clock": "rosgraph_msgs/msg/Clock"}
+    )
     radar = NodeSpec("radar", "sensor", publishes={"/radar/measurement": "bench_msgs/msg/RangeAzEl"})
     ukf = NodeSpec("ukf", "filter", publishes={"/ukf/estimate": "bench_msgs/msg/StateEstimate"})
     views.add_standard_views([truth, radar, ukf], {"standard_views": False})
@@ -76,24 +101,34 @@ def test_add_standard_views_adds_each_publisher_its_views():
     assert sorted(truth.publishes) == ["/clock", "/truth/markers", "/truth/odometry", "/truth/pose", "/truth/state"]
     assert list(radar.publishes) == ["/radar/measurement"]
     assert sorted(ukf.publishes) == sorted(["/ukf/estimate"] + [f"/ukf/{s}" for s in views.SUFFIXES])
-    kf = NodeSpec("kf", "filter", publishes={"/kf/estimate": "bench_msgs/msg/StateEstimate"},
-                  labels={"/kf/estimate": ("bx", "by", "bz")})
+    kf = NodeSpec(
+        "kf",
+        "filter",
+        publishes={"/kf/estimate": "bench_msgs/msg/StateEstimate"},
+        labels={"/kf/estimate": ("bx", "by", "bz")},
+    )
     views.add_standard_views([kf], {})
     assert sorted(kf.publishes) == ["/kf/diagnostics", "/kf/estimate"]
 
 
-@pytest.mark.parametrize("scenario, node, advertised", [
-    ("leo_radar", "ukf", ["diagnostics", "estimate", "markers", "odometry"]),
-    ("leo_radar", "truth", ["clock", "markers", "odometry", "state"]),
-    ("star_tracker", "jpdaf_wahba", ["attitude", "diagnostics", "estimate", "pose", "stars"]),
-    ("star_tracker", "truth", ["clock", "pose", "state"]),
-    ("grace_velocity", "kf_a", ["diagnostics", "estimate"]),
-    ("grace_velocity", "kf_a_lag", ["diagnostics", "estimate"]),
-    ("grace_velocity", "truth", ["clock", "state"]),
-    ("formation_cqkf", "cwb", ["diagnostics", "estimate", "markers", "odometry"]),
-    (str(Path(__file__).parent / "data" / "tracker_formation.yaml"), "gnn", ["diagnostics", "estimate", "markers",
-                                                                             "odometry"]),
-])
+@pytest.mark.parametrize(
+    "scenario, node, advertised",
+    [
+        ("leo_radar", "ukf", ["diagnostics", "estimate", "markers", "odometry"]),
+        ("leo_radar", "truth", ["clock", "markers", "odometry", "state"]),
+        ("star_tracker", "jpdaf_wahba", ["attitude", "diagnostics", "estimate", "pose", "stars"]),
+        ("star_tracker", "truth", ["clock", "pose", "state"]),
+        ("grace_velocity", "kf_a", ["diagnostics", "estimate"]),
+        ("grace_velocity", "kf_a_lag", ["diagnostics", "estimate"]),
+        ("grace_velocity", "truth", ["clock", "state"]),
+        ("formation_cqkf", "cwb", ["diagnostics", "estimate", "markers", "odometry"]),
+        (
+            str(Path(__file__).parent / "data" / "tracker_formation.yaml"),
+            "gnn",
+            ["diagnostics", "estimate", "markers", "odometry"],
+        ),
+    ],
+)
 def test_a_node_advertises_only_the_views_its_state_supports(scenario: str, node: str, advertised: list) -> None:
     """The graph gives each estimate and truth topic the views its state's labels support (a leo_radar UKF's
     orbit state has no attitude: no /ukf/pose, no /ukf/attitude), from the kinds' settings alone."""
@@ -113,6 +148,7 @@ def test_the_views_module_imports_no_rclpy():
 
 
 # --- Odometry ---------------------------------------------------------------------------------------------
+
 
 @settings(max_examples=40, deadline=None)
 @given(st.permutations(["x", "y", "z", "vx", "vy", "vz", "bx", "ax"]), st.integers(0, 10_000))
@@ -139,16 +175,24 @@ def test_odometry_selects_by_label_and_places_the_covariance_blocks(labels, seed
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.permutations(["x", "y", "z", "vx", "vy", "vz", "bx", "ax"]), st.integers(0, 10_000),
-       st.sampled_from(["eci", "lvlh", "a_longer_frame_name"]), st.sampled_from(["ukf", "kf_a_q", "truth"]),
-       st.integers(0, 2**40), st.booleans())
+@given(
+    st.permutations(["x", "y", "z", "vx", "vy", "vz", "bx", "ax"]),
+    st.integers(0, 10_000),
+    st.sampled_from(["eci", "lvlh", "a_longer_frame_name"]),
+    st.sampled_from(["ukf", "kf_a_q", "truth"]),
+    st.integers(0, 2**40),
+    st.booleans(),
+)
 def test_the_odometry_encoder_writes_the_serialisers_bytes(labels, seed, frame, child, t_ns, is_truth):
     """OdometryEncoder skips the message objects and rosbags' serialiser: its bytes must be theirs exactly (CDR
     layout and alignment, stamp, frame names of any length, every number), for estimates and the truth."""
     n = len(labels)
     x = np.random.default_rng(seed).normal(size=n) * 1e6
-    item = (TruthSample(4, t_ns, frame, list(labels), x) if is_truth
-            else estimate(labels, x, spd(n, seed), t_ns=t_ns, frame=frame))
+    item = (
+        TruthSample(4, t_ns, frame, list(labels), x)
+        if is_truth
+        else estimate(labels, x, spd(n, seed), t_ns=t_ns, frame=frame)
+    )
     encoder = views.OdometryEncoder(child)
     expected = cdr.serialize(views.ODOMETRY_TYPE, views.odometry(item, child))
     assert encoder(item) == expected
@@ -174,6 +218,7 @@ def test_truth_odometry_is_exact_where_known():
 
 
 # --- attitude ---------------------------------------------------------------------------------------------
+
 
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 10_000), st.booleans())
@@ -218,8 +263,9 @@ def test_a_pose_with_position_and_attitude_carries_the_cross_covariance():
 
 
 def test_attitude_truth_has_a_pose_and_no_estimate_views():
-    truth = TruthSample(2, 200_000_000, "icrs", ["qw", "qx", "qy", "qz", "wx", "wy", "wz"],
-                        np.array([1.0, 0, 0, 0, 0.1, 0.2, 0.3]))
+    truth = TruthSample(
+        2, 200_000_000, "icrs", ["qw", "qx", "qy", "qz", "wx", "wy", "wz"], np.array([1.0, 0, 0, 0, 0.1, 0.2, 0.3])
+    )
     msg = views.pose(truth)
     assert msg.pose.pose.orientation.w == 1.0 and not np.reshape(msg.pose.covariance, (6, 6))[3:, 3:].any()
     assert views.attitude(truth) is None and views.diagnostics(truth) is None and views.odometry(truth, "t") is None
@@ -227,6 +273,7 @@ def test_attitude_truth_has_a_pose_and_no_estimate_views():
 
 
 # --- diagnostics ------------------------------------------------------------------------------------------
+
 
 def test_diagnostics_read_back_exactly():
     item = estimate(["x"], [1.0], [[1.0]], nis=0.1 + 0.2, diagnostics={"n_eff": 1234.5678, "gated": 1.0})
@@ -257,14 +304,17 @@ def test_diagnostics_are_periodic_and_count_the_estimates_without_an_update():
         values = {kv.key: kv.value for kv in status.values}
         assert int(values["step"]) == k and float(values["nis"]) == 1.0 + k
         assert values["window_estimates"] == ("1" if k == 0 else "10")
-    levels = [(msg.status[0].level, {kv.key: kv.value for kv in msg.status[0].values}["window_without_update"])
-              for _, msg in out]
+    levels = [
+        (msg.status[0].level, {kv.key: kv.value for kv in msg.status[0].values}["window_without_update"])
+        for _, msg in out
+    ]
     assert levels == [(b"\x00", "0"), (b"\x00", "0"), (b"\x01", "3"), (b"\x01", "1")]  # OK, OK, WARN, WARN
     assert "3 of the 10 estimates" in out[2][1].status[0].message
     assert diag(TruthSample(0, 9_000_000_000, "eci", ["x"], np.ones(1))) is None
 
 
 # --- markers ----------------------------------------------------------------------------------------------
+
 
 def test_trajectory_markers_are_decimated_joined_segments_with_unique_ids():
     markers = views.TrajectoryMarkers("ukf", period_s=1.0)
@@ -294,8 +344,11 @@ def test_standard_views_of_an_estimate_topic():
     sv = views.StandardViews("ekf", {s: f"/ekf/{s}" for s in views.SUFFIXES})
     item = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), source="ekf")
     got = [(topic, type_name) for topic, type_name, _ in sv.encoded(item)]
-    assert got == [("/ekf/odometry", views.ODOMETRY_TYPE), ("/ekf/diagnostics", views.DIAGNOSTICS_TYPE),
-                   ("/ekf/markers", views.MARKERS_TYPE)]
+    assert got == [
+        ("/ekf/odometry", views.ODOMETRY_TYPE),
+        ("/ekf/diagnostics", views.DIAGNOSTICS_TYPE),
+        ("/ekf/markers", views.MARKERS_TYPE),
+    ]
     truth = views.StandardViews("truth", {s: f"/truth/{s}" for s in (views.ODOMETRY, views.MARKERS)})
     sample = TruthSample(0, 0, "eci", ["x", "y", "z", "vx", "vy", "vz"], np.ones(6))
     assert [t for t, _, _ in truth.encoded(sample)] == ["/truth/odometry", "/truth/markers"]
@@ -329,12 +382,21 @@ def test_item_publishers_publish_each_item_then_its_views():
     outputs = views.item_publishers(shell, publishes)
     assert sorted(outputs) == ["/ukf/estimate", "/ukf/stars"] and sorted(shell.publishers) == sorted(publishes)
     outputs["/ukf/estimate"](estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6)))
-    assert shell.sent == [("/ukf/estimate", 7), ("/ukf/odometry", bytes), ("/ukf/diagnostics", bytes),
-                          ("/ukf/markers", bytes)]
+    assert shell.sent == [
+        ("/ukf/estimate", 7),
+        ("/ukf/odometry", bytes),
+        ("/ukf/diagnostics", bytes),
+        ("/ukf/markers", bytes),
+    ]
     shell.sent.clear()
     later = 2 * int(views.DIAGNOSTICS_PERIOD_S * 1e9)  # a new diagnostics period: its diagnostics are built
-    bad = estimate(["x", "y", "z", "vx", "vy", "vz"], np.ones(6), np.eye(6), diagnostics={"n_eff": "many"},
-                   t_ns=12_300_000_000 + later)
+    bad = estimate(
+        ["x", "y", "z", "vx", "vy", "vz"],
+        np.ones(6),
+        np.eye(6),
+        diagnostics={"n_eff": "many"},
+        t_ns=12_300_000_000 + later,
+    )
     outputs["/ukf/estimate"](bad)  # a view that fails is logged, the estimate is published
     outputs["/ukf/estimate"](bad)
     assert shell.sent[0] == ("/ukf/estimate", 7) and len(shell.warnings) == 1 and "not published" in shell.warnings[0]
@@ -345,11 +407,15 @@ def test_the_foxglove_layout_names_bench_topics_and_fields():
     numeric field of that topic's message, and the layout tree holds exactly its panels."""
     layout = json.loads((Path(__file__).resolve().parent.parent / "foxglove" / "bench_layout.json").read_text())
     panels = layout["configById"]
-    types = {**{s: t for s, t in views.ESTIMATE_VIEWS.items()}, "estimate": "bench_msgs/msg/StateEstimate",
-             "state": "bench_msgs/msg/TruthState"}
+    types = {
+        **{s: t for s, t in views.ESTIMATE_VIEWS.items()},
+        "estimate": "bench_msgs/msg/StateEstimate",
+        "state": "bench_msgs/msg/TruthState",
+    }
 
     def leaves(node):
         return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+
     assert sorted(leaves(layout["layout"])) == sorted(panels)
     paths = [p["value"] for cfg in panels.values() for p in cfg.get("paths", [])]
     assert len(paths) > 10

@@ -2,6 +2,7 @@
 the scenario's ``estimators`` whatever its kind (filter, tracker, smoother, star tracker). The old words still
 work, each with a one-line notice: ``--filters``, the scenario key ``default_filters``, and bags recorded before
 the change (their run_config.yaml says ``filters``) still score and replay."""
+
 from __future__ import annotations
 
 import json
@@ -24,7 +25,7 @@ FORMATION = str(DATA / "tracker_formation.yaml")
 
 @pytest.fixture(autouse=True)
 def fresh_notices():
-    settings._NOTICES.clear()   # each notice is printed once per process
+    settings._NOTICES.clear()  # each notice is printed once per process
     yield
     settings._NOTICES.clear()
 
@@ -35,9 +36,9 @@ def estimator_kinds(cfg: dict, selected: list[str] | None) -> dict[str, str]:
 
 def test_every_estimator_kind_is_selected_by_name_trackers_and_smoothers_included() -> None:
     cfg = load_scenario(FORMATION)
-    assert estimator_kinds(cfg, None) == {"cw": "filter", "gnn": "tracker"}       # the scenario's estimators
-    assert estimator_kinds(cfg, ["gnn"]) == {"gnn": "tracker"}                    # a tracker alone
-    assert estimator_kinds(cfg, ["cw"]) == {"cw": "filter"}                       # no tracker unless selected
+    assert estimator_kinds(cfg, None) == {"cw": "filter", "gnn": "tracker"}  # the scenario's estimators
+    assert estimator_kinds(cfg, ["gnn"]) == {"gnn": "tracker"}  # a tracker alone
+    assert estimator_kinds(cfg, ["cw"]) == {"cw": "filter"}  # no tracker unless selected
     grace = load_scenario("grace_velocity")
     assert estimator_kinds(grace, ["kf_a", "kf_a_lag"]) == {"kf_a": "filter", "kf_a_lag": "fixed_lag"}
     assert estimator_kinds(grace, ["kf_b"]) == {"kf_b": "filter"}
@@ -71,8 +72,19 @@ def _old_form(run_dir: Path) -> None:
 
 def test_filters_still_runs_and_a_bag_of_the_old_form_scores_and_replays(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    res = script("launch.py", "leo_radar", "--filters", "ukf", "--set", "time.duration=20", "--out", str(run),
-                 "--single-process", "--json", timeout=240)
+    res = script(
+        "launch.py",
+        "leo_radar",
+        "--filters",
+        "ukf",
+        "--set",
+        "time.duration=20",
+        "--out",
+        str(run),
+        "--single-process",
+        "--json",
+        timeout=240,
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     assert "notice: --filters is deprecated: use --estimators" in res.stderr
     assert yaml.safe_load((run / "run_config.yaml").read_text())["estimators"] == ["ukf"]

@@ -12,6 +12,7 @@ one, ``plain_layout`` makes its layout valid reStructuredText without changing i
 value, not a substitution) and a stray ``*`` escaped, and a blank line where a list starts under a paragraph or
 ends above one, where an indented continuation starts or where one ends. So a docstring written for ``help()`` renders without warnings.
 """
+
 from __future__ import annotations
 
 import ast
@@ -55,8 +56,7 @@ def shell_modules(files: dict[str, Path]) -> set[str]:
     """The modules that import one of LEFT_OUT at their top level, directly or through one another (a fixed
     point)."""
     imports = {name: top_level_imports(path) for name, path in files.items()}
-    shell = {n for n, used in imports.items()
-             if any(u == r or u.startswith(r + ".") for u in used for r in LEFT_OUT)}
+    shell = {n for n, used in imports.items() if any(u == r or u.startswith(r + ".") for u in used for r in LEFT_OUT)}
     while True:
         more = {n for n, used in imports.items() if n not in shell and used & shell}
         if not more:
@@ -67,8 +67,13 @@ def shell_modules(files: dict[str, Path]) -> set[str]:
 def page(package: str, names: list[str]) -> str:
     """A package's API page (reStructuredText): a title, then an automodule per module."""
     title = f"``{package}``"
-    lines = [title, "=" * len(title), "", f"The modules of ``{package}`` but its node shells, cross-checks and commands.",
-             ""]
+    lines = [
+        title,
+        "=" * len(title),
+        "",
+        f"The modules of ``{package}`` but its node shells, cross-checks and commands.",
+        "",
+    ]
     for name in names:
         lines += [f"``{name}``", "-" * (len(name) + 4), "", f".. automodule:: {name}", ""]
     return "\n".join(lines)

@@ -22,6 +22,7 @@ A ``run`` directive shows a shell or Python block to the reader and, when ``run_
   a step may read what an earlier step of its page wrote; pages may be read in parallel (``sphinx -j``), so a
   page never relies on another page's steps.
 """
+
 from __future__ import annotations
 
 import os
@@ -69,7 +70,7 @@ def shortened(text: str, extra: str) -> str:
         if BENCH_SCRIPT.search(line) and not line.lstrip().startswith("#"):
             code, hash_, comment = line.partition(" #")
             match = re.search(r"\s*(&|\|.*)\s*$", code)
-            head, end = (code[:match.start()], code[match.start():]) if match else (code.rstrip(), "")
+            head, end = (code[: match.start()], code[match.start() :]) if match else (code.rstrip(), "")
             line = f"{head} {extra}{end}" + (f" #{comment}" if hash_ else "")
         out.append(line)
     return "\n".join(out)
@@ -94,6 +95,7 @@ def make_scratch(app) -> None:
 
 class Run(SphinxDirective):
     """``{run} bash|python``: show the block; run it when the build executes steps (see the module)."""
+
     required_arguments = 1
     has_content = True
     option_spec = {"shorten": directives.unchanged, "output": directives.flag}
@@ -124,15 +126,27 @@ class Run(SphinxDirective):
         """Run one step in the scratch directory; a warning naming this block if it fails. Returns its stdout."""
         work = scratch(self.env.app)
         command = ["bash", "-euo", "pipefail", "-c", code] if language == "bash" else [sys.executable, "-c", code]
-        env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "OPENBLAS_NUM_THREADS": "1",
-               "PYTHONUNBUFFERED": "1"}
+        env = {
+            **os.environ,
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "OPENBLAS_NUM_THREADS": "1",
+            "PYTHONUNBUFFERED": "1",
+        }
         start = time.perf_counter()
         try:
-            done = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True,
-                                  timeout=self.config.run_blocks_timeout_s, stdin=subprocess.DEVNULL)
+            done = subprocess.run(
+                command,
+                cwd=work,
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=self.config.run_blocks_timeout_s,
+                stdin=subprocess.DEVNULL,
+            )
         except subprocess.TimeoutExpired:
-            LOG.warning("run: step timed out after %s s", self.config.run_blocks_timeout_s,
-                        location=self.get_location())
+            LOG.warning(
+                "run: step timed out after %s s", self.config.run_blocks_timeout_s, location=self.get_location()
+            )
             return None
         LOG.info("run: %s step of %s in %.1f s", language, self.env.docname, time.perf_counter() - start)
         if done.returncode != 0:

@@ -3,6 +3,7 @@ settings (bench_engine.settings_reference.markdown: every scenario key with its 
 from the declarations the readers read), so the page and the validation cannot disagree. It writes
 ``reference/settings.md`` (generated, not tracked), only when its text changes.
 """
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -4,6 +4,7 @@ It registers (entry points, see entry_points.txt beside this file): a range-only
 inflation), a metric family (the final position error), two node kinds that make a three-stage pipeline sensor -> relay -> smoother, and the scenario
 sections those kinds read. Nothing of the bench is edited to run them.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from bench_eval.metric_families import Metric
 from radar_sensor.sensor import Sensor
 from radar_sensor.sensor_types import SensorType
 from tracker_filters.ekf import ExtendedKalmanFilter
+
 
 class RangeModel:
     """z = |r|, r = the first three state components."""
@@ -44,8 +46,16 @@ class RangeOnly(Settings):
 
 
 def _build_range_only(s, name: str, earth, every: int) -> Sensor:
-    return Sensor(name, "range_only", RangeModel(), np.array([[s.model.sigma_range**2]]), s.p_detect, every,
-                  "lvlh", lambda x, t: True)
+    return Sensor(
+        name,
+        "range_only",
+        RangeModel(),
+        np.array([[s.model.sigma_range**2]]),
+        s.p_detect,
+        every,
+        "lvlh",
+        lambda x, t: True,
+    )
 
 
 RANGE_ONLY = SensorType("bench_msgs/msg/VectorMeasurement", RangeOnly, _build_range_only)
@@ -91,8 +101,7 @@ class Relay:
         self.name, self.log = name, python_log(name)
 
     def on_input(self, topic: str, m: Measurement) -> Outputs:
-        return [(estimate_topic(self.name), Estimate(m.step, m.t_ns, m.frame_id, self.name, list(m.labels), m.z,
-                                                     m.R))]
+        return [(estimate_topic(self.name), Estimate(m.step, m.t_ns, m.frame_id, self.name, list(m.labels), m.z, m.R))]
 
 
 class Smoother:
@@ -103,16 +112,26 @@ class Smoother:
 
     def on_input(self, topic: str, e: Estimate) -> Outputs:
         self.total, self.count = self.total + e.x, self.count + 1
-        return [(estimate_topic(self.name), Estimate(e.step, e.t_ns, e.frame_id, self.name, e.labels,
-                                                     self.total / self.count, e.P / self.count))]
+        return [
+            (
+                estimate_topic(self.name),
+                Estimate(e.step, e.t_ns, e.frame_id, self.name, e.labels, self.total / self.count, e.P / self.count),
+            )
+        ]
 
 
 def _kind(name: str, key: str, stage: type, reader) -> NodeKind:
-    return NodeKind(name, "estimator", "bench_engine.stage_node:StageNode",
-                    instances=lambda cfg, requested: list(reader(cfg)),
-                    spec=lambda cfg, n: NodeSpec(n, name, publishes={estimate_topic(n): ESTIMATE_TYPE},
-                                                 subscribes={reader(cfg)[n].input: ""}),
-                    stage=stage, order=1 if name == "smoother" else 0)
+    return NodeKind(
+        name,
+        "estimator",
+        "bench_engine.stage_node:StageNode",
+        instances=lambda cfg, requested: list(reader(cfg)),
+        spec=lambda cfg, n: NodeSpec(
+            n, name, publishes={estimate_topic(n): ESTIMATE_TYPE}, subscribes={reader(cfg)[n].input: ""}
+        ),
+        stage=stage,
+        order=1 if name == "smoother" else 0,
+    )
 
 
 RELAY = _kind("relay", "relays", Relay, read_relays)
@@ -120,8 +139,13 @@ SMOOTHER = _kind("smoother", "smoothers", Smoother, read_smoothers)
 
 
 def _final_error(tracks: dict, runs: list, options) -> dict:
-    return {name: {"runs": len(group), "final_error_m": float(np.mean(
-        [np.linalg.norm(tr.error(options.components)[-1]) for tr in group]))} for name, group in tracks.items()}
+    return {
+        name: {
+            "runs": len(group),
+            "final_error_m": float(np.mean([np.linalg.norm(tr.error(options.components)[-1]) for tr in group])),
+        }
+        for name, group in tracks.items()
+    }
 
 
 @dataclass(frozen=True, kw_only=True)

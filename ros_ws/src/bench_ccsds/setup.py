@@ -1,6 +1,7 @@
 """ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
 The entry points register this package's commands."""
+
 from setuptools import find_packages, setup
 
 PACKAGE = "bench_ccsds"
@@ -22,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "bench_export = bench_ccsds.cli.export:command",
-            "bench_import_tdm = bench_ccsds.cli.import_tdm:command"],
+            "bench_import_tdm = bench_ccsds.cli.import_tdm:command",
+        ],
     },
 )

@@ -1,6 +1,7 @@
 """ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
 The entry points register this package's components with the bench (bench_engine.plugins)."""
+
 from setuptools import find_packages, setup
 
 PACKAGE = "bench_engine"
@@ -25,12 +26,12 @@ setup(
             "source_node = bench_engine.source_node:main",
             "recorder_node = bench_engine.recorder_node:main",
             "player_node = bench_engine.player_node:main",
-            "bench_recover_bag = bench_engine.cli.recover_bag:command"],
-        "tracking_bench.node_kinds": [
-            "recorder = bench_engine.kinds:RECORDER",
-            "player = bench_engine.kinds:PLAYER"],
+            "bench_recover_bag = bench_engine.cli.recover_bag:command",
+        ],
+        "tracking_bench.node_kinds": ["recorder = bench_engine.kinds:RECORDER", "player = bench_engine.kinds:PLAYER"],
         "tracking_bench.codecs": [
             "bench_msgs.msg.TruthState = bench_engine.stage:TRUTH_CODEC",
-            "bench_msgs.msg.StateEstimate = bench_engine.stage:ESTIMATE_CODEC"]
+            "bench_msgs.msg.StateEstimate = bench_engine.stage:ESTIMATE_CODEC",
+        ],
     },
 )

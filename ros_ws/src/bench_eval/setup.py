@@ -1,6 +1,7 @@
 """ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
 The entry points register this package's components with the bench (bench_engine.plugins)."""
+
 from setuptools import find_packages, setup
 
 PACKAGE = "bench_eval"
@@ -27,17 +28,18 @@ setup(
             "bench_replay = bench_eval.cli.replay:command",
             "bench_sweep = bench_eval.cli.sweep:command",
             "bench_demo = bench_eval.cli.demo:command",
-            "bench_reproduce = bench_eval.cli.reproduce:command"],
-        "tracking_bench.sections": [
-            "scoring = bench_eval.scoring:SCORING"],
+            "bench_reproduce = bench_eval.cli.reproduce:command",
+        ],
+        "tracking_bench.sections": ["scoring = bench_eval.scoring:SCORING"],
         "tracking_bench.metrics": [
             "convergence = bench_eval.metric_families:CONVERGENCE",
-            "errors = bench_eval.metric_families:ERRORS"],
+            "errors = bench_eval.metric_families:ERRORS",
+        ],
         "tracking_bench.offline": [
             "rts = bench_eval.offline:RTS",
             "newton = bench_eval.offline:NEWTON",
-            "savgol = bench_eval.offline:SAVGOL"],
-        "tracking_bench.bounds": [
-            "pcrb = bench_eval.bounds:PCRB"]
+            "savgol = bench_eval.offline:SAVGOL",
+        ],
+        "tracking_bench.bounds": ["pcrb = bench_eval.bounds:PCRB"],
     },
 )

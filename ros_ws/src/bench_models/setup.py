@@ -1,6 +1,7 @@
 """ament_python package: builds with colcon in a ROS 2 Jazzy workspace; the bench installs it editable.
 
 The entry points register this package's components with the bench (bench_engine.plugins)."""
+
 from setuptools import find_packages, setup
 
 PACKAGE = "bench_models"
@@ -19,7 +20,5 @@ setup(
     maintainer_email="bench@example.org",
     description=open("package.xml").read().split("<description>")[1].split("</description>")[0],
     license="Apache-2.0",
-    entry_points={
-
-    },
+    entry_points={},
 )

@@ -8,6 +8,7 @@ at it is its sidereal time, the bench's ``eci`` is TEME and its ECEF the pseudo-
 TEME and ECEF is PEF, and an exported station sees the satellite where the bench did; every message says which
 epoch it is on. CCSDS time system: UTC (sim time counts SI seconds without leap seconds: bench_engine.timegrid).
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -46,9 +47,11 @@ class RunTime:
     def note(self) -> str:
         """What a message says about its time line."""
         if self.nominal:
-            return (f"the scenario has no calendar epoch: its t = 0 is placed at the nominal epoch "
-                    f"{epoch_text(self.epoch_ns)} UTC, the first instant from 2000-01-01T12:00:00 whose GMST "
-                    "(IAU-82) is the scenario's earth.theta0; t = 0 + sim time in SI seconds")
+            return (
+                f"the scenario has no calendar epoch: its t = 0 is placed at the nominal epoch "
+                f"{epoch_text(self.epoch_ns)} UTC, the first instant from 2000-01-01T12:00:00 whose GMST "
+                "(IAU-82) is the scenario's earth.theta0; t = 0 + sim time in SI seconds"
+            )
         return f"t = 0 of the run is its time.epoch, {epoch_text(self.epoch_ns)} UTC"
 
 

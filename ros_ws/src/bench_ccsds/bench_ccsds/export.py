@@ -18,6 +18,7 @@ Values are written with 17 significant digits in the CCSDS units (km, km/s, deg)
 they are the bag's to within one or two units in the last place (tests/test_ccsds_orekit.py checks Orekit reads
 them so). Epochs are UTC to the nanosecond (the bag's stamps) on the run's time line (bench_ccsds.epochs).
 """
+
 from __future__ import annotations
 
 import re
@@ -57,8 +58,9 @@ class Export:
         return "\n".join(lines)
 
 
-def export_bag(bag_dir: str | Path, out_dir: str | Path, estimators: list[str] | None = None,
-               truth: bool = True) -> Export:
+def export_bag(
+    bag_dir: str | Path, out_dir: str | Path, estimators: list[str] | None = None, truth: bool = True
+) -> Export:
     """Write ``out_dir/NAME.oem`` for the truth and every estimator (or those named) and ``out_dir/SENSOR.tdm``
     for every sensor of the bag whose content CCSDS can hold; returns what was written and what was not."""
     bag_dir, out_dir = Path(bag_dir), Path(out_dir)
@@ -71,14 +73,18 @@ def export_bag(bag_dir: str | Path, out_dir: str | Path, estimators: list[str] |
     if estimators:
         unknown = sorted(set(estimators) - {name for name, *_ in sources})
         if unknown:
-            raise ScenarioError(f"no estimates of {unknown} in {bag_dir}; it has "
-                                f"{sorted(n for n, _t, kind in sources if kind == 'estimate')}")
+            raise ScenarioError(
+                f"no estimates of {unknown} in {bag_dir}; it has "
+                f"{sorted(n for n, _t, kind in sources if kind == 'estimate')}"
+            )
     tables = reader.tables([topic for _name, topic, _kind in sources])
     out_dir.mkdir(parents=True, exist_ok=True)
     result = Export()
     created = time.time_ns()
-    header = [f"exported by the tracking bench from the bag {bag_dir.resolve()}",
-              f"scenario {cfg.get('scenario')}, seed {run.get('seed')}; {clock.note()}"]
+    header = [
+        f"exported by the tracking bench from the bag {bag_dir.resolve()}",
+        f"scenario {cfg.get('scenario')}, seed {run.get('seed')}; {clock.note()}",
+    ]
     target = _target(cfg)
     for name, topic, kind in sources:
         if topic not in tables:
@@ -135,15 +141,26 @@ def _groups(labels: list[str]) -> dict[str, list[int]]:
     return groups
 
 
-def _export_states(name: str, items: list, kind: str, out_dir: Path, clock: RunTime, target: tuple[str, str],
-                   created: int, header: list[str], result: Export) -> None:
+def _export_states(
+    name: str,
+    items: list,
+    kind: str,
+    out_dir: Path,
+    clock: RunTime,
+    target: tuple[str, str],
+    created: int,
+    header: list[str],
+    result: Export,
+) -> None:
     items = sorted(items, key=lambda item: item.t_ns)
     labels = list(items[0].labels)
     frame = ccsds_frame(items[0].frame_id)
     groups = _groups(labels)
     if frame is None:
-        result.skipped[name] = (f"states in frame '{items[0].frame_id}': OEM has no reference frame for it (a deputy "
-                                "relative to its chief, a star tracker's attitude)")
+        result.skipped[name] = (
+            f"states in frame '{items[0].frame_id}': OEM has no reference frame for it (a deputy "
+            "relative to its chief, a star tracker's attitude)"
+        )
         return
     if not groups:
         result.skipped[name] = f"state {labels} has no x y z vx vy vz: nothing an OEM holds"
@@ -156,13 +173,20 @@ def _export_states(name: str, items: list, kind: str, out_dir: Path, clock: RunT
     segments = []
     for suffix, index in groups.items():
         title = target[0] if not suffix else f"{target[0]} {suffix}"
-        seg = Segment(title, target[1] if not suffix else f"{target[1]}-{suffix}", frame, times, values[:, index],
-                      time_system=TIME_SYSTEM)
+        seg = Segment(
+            title,
+            target[1] if not suffix else f"{target[1]}-{suffix}",
+            frame,
+            times,
+            values[:, index],
+            time_system=TIME_SYSTEM,
+        )
         if kind == "estimate":
             pv = index[:6]
             seg.covariances = [(t, item.P[np.ix_(pv, pv)]) for t, item in zip(times, items)]
-            seg.comments.append(f"estimates of the bench's estimator '{name}' after each measurement, with their "
-                                "covariance")
+            seg.comments.append(
+                f"estimates of the bench's estimator '{name}' after each measurement, with their covariance"
+            )
         else:
             seg.comments.append("the run's truth (the simulated satellite's state at every step)")
             seg.interpolation = ("HERMITE", 5)
@@ -172,8 +196,16 @@ def _export_states(name: str, items: list, kind: str, out_dir: Path, clock: RunT
     result.written[path] = f"OEM, {len(segments)} segment(s), {len(times)} states{covs}, {frame}, {TIME_SYSTEM}"
 
 
-def _export_measurements(name: str, items: list, out_dir: Path, clock: RunTime, target: tuple[str, str],
-                         created: int, header: list[str], result: Export) -> None:
+def _export_measurements(
+    name: str,
+    items: list,
+    out_dir: Path,
+    clock: RunTime,
+    target: tuple[str, str],
+    created: int,
+    header: list[str],
+    result: Export,
+) -> None:
     first = items[0]
     labels = list(first.labels)
     keywords: dict[str, int] = {}
@@ -183,8 +215,10 @@ def _export_measurements(name: str, items: list, out_dir: Path, clock: RunTime, 
         if first.frame_id.endswith("_enu"):
             keywords.update(ANGLE_1=1, ANGLE_2=2)
         else:
-            comments.append(f"azimuth and elevation in frame '{first.frame_id}' are not exported: no TDM ANGLE_TYPE "
-                            "names a spacecraft's LVLH axes")
+            comments.append(
+                f"azimuth and elevation in frame '{first.frame_id}' are not exported: no TDM ANGLE_TYPE "
+                "names a spacecraft's LVLH axes"
+            )
         if "range_rate" in labels:
             keywords["DOPPLER_INSTANTANEOUS"] = labels.index("range_rate")
     else:
@@ -196,18 +230,30 @@ def _export_measurements(name: str, items: list, out_dir: Path, clock: RunTime, 
         result.skipped[name] = f"measurements of {labels}: TDM has no keyword for any of them"
         return
     items = sorted(items, key=lambda item: item.t_ns)
-    metadata = {"TIME_SYSTEM": TIME_SYSTEM, "START_TIME": epoch_text(clock.utc(items[0].t_ns)),
-                "STOP_TIME": epoch_text(clock.utc(items[-1].t_ns)), "PARTICIPANT_1": name,
-                "PARTICIPANT_2": target[0], "MODE": "SEQUENTIAL", "PATH": "1,2,1"}
+    metadata = {
+        "TIME_SYSTEM": TIME_SYSTEM,
+        "START_TIME": epoch_text(clock.utc(items[0].t_ns)),
+        "STOP_TIME": epoch_text(clock.utc(items[-1].t_ns)),
+        "PARTICIPANT_1": name,
+        "PARTICIPANT_2": target[0],
+        "MODE": "SEQUENTIAL",
+        "PATH": "1,2,1",
+    }
     if "ANGLE_1" in keywords:
         metadata["ANGLE_TYPE"] = "AZEL"
     metadata["RANGE_UNITS"] = "km"
-    seg = TdmSegment(metadata, comments=[f"measurements of the bench's sensor '{name}' (frame {first.frame_id}): "
-                                         "geometric values at their time tags, no light time, noise as simulated; "
-                                         "RANGE is the one-way distance", *comments])
+    seg = TdmSegment(
+        metadata,
+        comments=[
+            f"measurements of the bench's sensor '{name}' (frame {first.frame_id}): "
+            "geometric values at their time tags, no light time, noise as simulated; "
+            "RANGE is the one-way distance",
+            *comments,
+        ],
+    )
     for keyword, index in keywords.items():
         seg.observations[keyword] = [(clock.utc(item.t_ns), float(item.z[index])) for item in items]
     path = write_tdm(out_dir / f"{name}.tdm", [seg], ORIGINATOR, created, header)
-    result.written[path] = (f"TDM, {', '.join(keywords)}: {len(items)} epochs each, {TIME_SYSTEM}")
+    result.written[path] = f"TDM, {', '.join(keywords)}: {len(items)} epochs each, {TIME_SYSTEM}"
     if comments:
         result.skipped[f"{name} (part)"] = "; ".join(comments)

@@ -19,6 +19,7 @@ reference.
 The bag written: the measurement topics (and ``/truth/state``) as CDR in a rosbag2 MCAP bag with
 ``run_config.yaml``; its ``time.duration`` is lengthened when the data run past the scenario's grid.
 """
+
 from __future__ import annotations
 
 import copy
@@ -58,9 +59,11 @@ class Imported:
     notes: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
-        lines = [f"{self.bag_dir}: " + ", ".join(f"{n} measurements of sensor '{s}'" for s, n in
-                                                 self.measurements.items())
-                 + (f", the reference at {self.reference} of their steps" if self.reference else ", no reference")]
+        lines = [
+            f"{self.bag_dir}: "
+            + ", ".join(f"{n} measurements of sensor '{s}'" for s, n in self.measurements.items())
+            + (f", the reference at {self.reference} of their steps" if self.reference else ", no reference")
+        ]
         return "\n".join(lines + [f"note: {note}" for note in self.notes])
 
 
@@ -70,31 +73,40 @@ def radar_sensors(cfg: dict) -> dict:
     return {name: s for name, s in sensors.items() if s.kind == "ground_radar"}
 
 
-def import_tdm(tdm: str | Path, cfg: dict, bag_dir: str | Path, reference: str | Path | None = None,
-               sensor: str | None = None) -> Imported:
+def import_tdm(
+    tdm: str | Path, cfg: dict, bag_dir: str | Path, reference: str | Path | None = None, sensor: str | None = None
+) -> Imported:
     """Write the bag of ``tdm`` (and ``reference``) under the scenario ``cfg`` into ``bag_dir``."""
     tdm, bag_dir = Path(tdm), Path(bag_dir)
     radars = radar_sensors(cfg)
     if not radars:
         raise ScenarioError("the scenario has no ground_radar sensor to give the TDM's measurements to")
     if sensor is not None and sensor not in radars:
-        raise ScenarioError(f"--sensor {sensor!r} is not a ground_radar sensor of the scenario; it has {sorted(radars)}")
+        raise ScenarioError(
+            f"--sensor {sensor!r} is not a ground_radar sensor of the scenario; it has {sorted(radars)}"
+        )
     clock, grid = run_time(cfg), build_time(cfg)
     result = Imported(bag_dir)
     measured: dict[str, dict[int, Measurement]] = {}
     for n, seg in enumerate(read_tdm(tdm), start=1):
         name = _sensor_for(seg, radars, sensor, f"{tdm}: segment {n}")
         if name != seg.metadata["PARTICIPANT_1"]:
-            result.notes.append(f"segment {n}: PARTICIPANT_1 {seg.metadata['PARTICIPANT_1']!r} taken as sensor '{name}'")
+            result.notes.append(
+                f"segment {n}: PARTICIPANT_1 {seg.metadata['PARTICIPANT_1']!r} taken as sensor '{name}'"
+            )
         for m in _measurements(seg, radars[name], clock, f"{tdm}: segment {n}", result):
             k = int(round((m.t_ns - grid.start_ns) / grid.dt_ns))
             if m.t_ns < grid.start_ns:
-                raise CcsdsError(f"{tdm}: segment {n}: epoch {epoch_text(clock.utc(m.t_ns))} is before the scenario's "
-                                 f"time.start ({grid.start_ns * 1e-9:g} s after its epoch): lower time.start")
+                raise CcsdsError(
+                    f"{tdm}: segment {n}: epoch {epoch_text(clock.utc(m.t_ns))} is before the scenario's "
+                    f"time.start ({grid.start_ns * 1e-9:g} s after its epoch): lower time.start"
+                )
             if k in measured.setdefault(name, {}):
-                raise CcsdsError(f"{tdm}: sensor '{name}' has two epochs in step {k} ({epoch_text(clock.utc(m.t_ns))} "
-                                 f"and {epoch_text(clock.utc(measured[name][k].t_ns))}): choose a time.dt below "
-                                 "their spacing")
+                raise CcsdsError(
+                    f"{tdm}: sensor '{name}' has two epochs in step {k} ({epoch_text(clock.utc(m.t_ns))} "
+                    f"and {epoch_text(clock.utc(measured[name][k].t_ns))}): choose a time.dt below "
+                    "their spacing"
+                )
             m.step = k
             measured[name][k] = m
     if not any(measured.values()):
@@ -115,16 +127,20 @@ def _sensor_for(seg: TdmSegment, radars: dict, sensor: str | None, where: str) -
         return seg.metadata["PARTICIPANT_1"]
     if len(radars) == 1:
         return next(iter(radars))
-    raise CcsdsError(f"{where}: PARTICIPANT_1 {seg.metadata['PARTICIPANT_1']!r} is none of the scenario's ground "
-                     f"radars {sorted(radars)}: name one with --sensor")
+    raise CcsdsError(
+        f"{where}: PARTICIPANT_1 {seg.metadata['PARTICIPANT_1']!r} is none of the scenario's ground "
+        f"radars {sorted(radars)}: name one with --sensor"
+    )
 
 
 def _measurements(seg: TdmSegment, radar, clock, where: str, result: Imported) -> list[Measurement]:
     if seg.metadata["TIME_SYSTEM"] != TIME_SYSTEM:
         raise CcsdsError(f"{where}: TIME_SYSTEM {seg.metadata['TIME_SYSTEM']}: the importer reads UTC")
     if ("ANGLE_1" in seg.observations or "ANGLE_2" in seg.observations) and seg.metadata.get("ANGLE_TYPE") != "AZEL":
-        raise CcsdsError(f"{where}: ANGLE_TYPE {seg.metadata.get('ANGLE_TYPE')!r}: a ground radar's angles are "
-                         "AZEL (azimuth, elevation)")
+        raise CcsdsError(
+            f"{where}: ANGLE_TYPE {seg.metadata.get('ANGLE_TYPE')!r}: a ground radar's angles are "
+            "AZEL (azimuth, elevation)"
+        )
     wanted = RADAR_KEYWORDS + ((RANGE_RATE,) if len(radar.model.labels) == 4 else ())
     values: dict[int, dict[str, float]] = {}
     for key in wanted:
@@ -142,11 +158,15 @@ def _measurements(seg: TdmSegment, radar, clock, where: str, result: Imported) -
     for epoch in whole:
         t_ns = clock.sim(epoch)
         if t_ns < 0:
-            raise CcsdsError(f"{where}: epoch {epoch_text(epoch)} is before the run's epoch {epoch_text(clock.epoch_ns)}")
+            raise CcsdsError(
+                f"{where}: epoch {epoch_text(epoch)} is before the run's epoch {epoch_text(clock.epoch_ns)}"
+            )
         z = np.array([values[epoch][k] for k in wanted])
         z[1] = np.mod(z[1], 2.0 * np.pi)
         if not -np.pi / 2 <= z[2] <= np.pi / 2 or z[0] <= 0.0:
-            raise CcsdsError(f"{where}: at {epoch_text(epoch)} RANGE must be > 0 and ANGLE_2 (elevation) in [-90, 90] deg")
+            raise CcsdsError(
+                f"{where}: at {epoch_text(epoch)} RANGE must be > 0 and ANGLE_2 (elevation) in [-90, 90] deg"
+            )
         out.append(Measurement(0, t_ns, radar.frame_id, radar.name, z, radar.R.copy(), list(radar.model.labels)))
     return out
 
@@ -156,11 +176,14 @@ def _reference_samples(path: Path, clock, grid, measured: dict, result: Imported
     for seg in segments:
         where = f"{path}: segment of {seg.object_name!r}"
         if seg.frame != FRAMES["eci"] or seg.center.upper() != "EARTH" or seg.time_system != TIME_SYSTEM:
-            raise CcsdsError(f"{where}: REF_FRAME {seg.frame}, CENTER_NAME {seg.center}, TIME_SYSTEM {seg.time_system}: "
-                             "the reference must be TEME, EARTH, UTC (the bench's eci on its UTC time line)")
+            raise CcsdsError(
+                f"{where}: REF_FRAME {seg.frame}, CENTER_NAME {seg.center}, TIME_SYSTEM {seg.time_system}: "
+                "the reference must be TEME, EARTH, UTC (the bench's eci on its UTC time line)"
+            )
     if len({seg.object_name for seg in segments}) > 1:
-        raise CcsdsError(f"{path}: the reference holds several objects {sorted({s.object_name for s in segments})}; "
-                         "give one")
+        raise CcsdsError(
+            f"{path}: the reference holds several objects {sorted({s.object_name for s in segments})}; give one"
+        )
     epochs = np.array([e for seg in segments for e in seg.epochs], dtype=object)
     states = np.vstack([seg.states[:, :6] for seg in segments])
     order = np.argsort(epochs)
@@ -179,7 +202,6 @@ def _reference_samples(path: Path, clock, grid, measured: dict, result: Imported
     elif len(samples) < len(steps):
         result.notes.append(f"{path}: the reference covers {len(samples)} of the {len(steps)} measurement steps")
     return samples
-
 
 
 def _state_at(epochs: list[int], states: np.ndarray, utc: int) -> np.ndarray | None:
@@ -204,14 +226,23 @@ def _run_config(cfg: dict, grid, last_step: int, bag_dir: Path, tdm: Path, refer
     cfg = copy.deepcopy(cfg)
     if last_step >= grid.steps:
         cfg["time"]["duration"] = last_step * grid.dt
-    return {"scenario": cfg, "estimators": [], "record": True, "source": "ccsds", "out": str(bag_dir.parent),
-            "bag_dir": str(bag_dir), "seed": scenario_seed(cfg),
-            "ccsds_import": {"tdm": str(tdm.resolve()), "reference": str(Path(reference).resolve()) if reference else None}}
+    return {
+        "scenario": cfg,
+        "estimators": [],
+        "record": True,
+        "source": "ccsds",
+        "out": str(bag_dir.parent),
+        "bag_dir": str(bag_dir),
+        "seed": scenario_seed(cfg),
+        "ccsds_import": {"tdm": str(tdm.resolve()), "reference": str(Path(reference).resolve()) if reference else None},
+    }
 
 
 def _write_bag(bag_dir: Path, run: dict, measured: dict, radars: dict, truth: list[TruthSample], start_ns: int) -> None:
-    streams = [(measurement_topic(name), "bench_msgs/msg/RangeAzEl", sorted(by_step.values(), key=lambda m: m.t_ns))
-               for name, by_step in measured.items()]
+    streams = [
+        (measurement_topic(name), "bench_msgs/msg/RangeAzEl", sorted(by_step.values(), key=lambda m: m.t_ns))
+        for name, by_step in measured.items()
+    ]
     if truth:
         streams.append((TRUTH_TOPIC, TRUTH_TYPE, truth))
     write_bag(bag_dir, run, streams, start_ns)
@@ -228,9 +259,14 @@ def write_bag(bag_dir: Path, run: dict, streams: list[tuple[str, str, list]], st
             bag.add_topic(topic, type_name)
             clock.add_topic(topic, type_name)
         encode = {type_name: (codec(type_name).encode, lite_class(type_name)) for _t, type_name, _i in streams}
-        rows = sorted(((item.t_ns, topic != TRUTH_TOPIC, n, topic, type_name, item)
-                       for topic, type_name, items in streams for n, item in enumerate(items)),
-                      key=lambda r: r[:3])
+        rows = sorted(
+            (
+                (item.t_ns, topic != TRUTH_TOPIC, n, topic, type_name, item)
+                for topic, type_name, items in streams
+                for n, item in enumerate(items)
+            ),
+            key=lambda r: r[:3],
+        )
         for *_key, topic, type_name, item in rows:
             enc, cls = encode[type_name]
             data = serialize(type_name, enc(item, cls))

@@ -13,6 +13,7 @@ beyond it such as ``1_0``), epochs in either CCSDS calendar form (``YYYY-MM-DDTh
 Absolute times are integers: nanoseconds of UTC since 1970-01-01T00:00:00, days of 86400 s (a leap second has
 no reading, as in POSIX time).
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -73,8 +74,9 @@ def parse_epoch(text: str, where: str) -> int:
     ``where`` for anything else. Digits beyond nanoseconds are rounded."""
     m = EPOCH.match(text.strip())
     if not m:
-        raise CcsdsError(f"{where}: {_shown(text)} is not a CCSDS epoch (YYYY-MM-DDThh:mm:ss[.f] or "
-                         "YYYY-DDDThh:mm:ss[.f])")
+        raise CcsdsError(
+            f"{where}: {_shown(text)} is not a CCSDS epoch (YYYY-MM-DDThh:mm:ss[.f] or YYYY-DDDThh:mm:ss[.f])"
+        )
     year, month, day, doy, hh, mm, ss, fraction = m.groups()
     year = int(year)
     if not YEARS[0] <= year <= YEARS[1]:
@@ -122,8 +124,9 @@ def read_lines(path: str | Path) -> list[Line]:
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError as err:
-        raise CcsdsError(f"{path}: byte {err.start} is not ASCII: a KVN message is ASCII text "
-                         "(an XML message or a binary file?)") from None
+        raise CcsdsError(
+            f"{path}: byte {err.start} is not ASCII: a KVN message is ASCII text (an XML message or a binary file?)"
+        ) from None
     if text.lstrip().startswith("<"):
         raise CcsdsError(f"{path}: an XML message: this reader takes the KVN form (CCSDS_..._VERS = ... lines)")
     lines = []

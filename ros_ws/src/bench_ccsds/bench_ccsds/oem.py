@@ -11,6 +11,7 @@ The reader takes version 1.0 to 3.0 KVN files, checks what it uses (required key
 increasing epochs inside START_TIME..STOP_TIME, whole covariance triangles) and reports any problem in one line
 naming the file and line (kvn.CcsdsError).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -22,8 +23,14 @@ from bench_ccsds.kvn import CcsdsError, Cursor, Writer, epoch_text, number, pars
 
 VERSION = "2.0"
 REQUIRED = ("OBJECT_NAME", "OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME")
-METADATA_KEYS = set(REQUIRED) | {"REF_FRAME_EPOCH", "USEABLE_START_TIME", "USEABLE_STOP_TIME", "INTERPOLATION",
-                                 "INTERPOLATION_DEGREE", "COMMENT"}
+METADATA_KEYS = set(REQUIRED) | {
+    "REF_FRAME_EPOCH",
+    "USEABLE_START_TIME",
+    "USEABLE_STOP_TIME",
+    "INTERPOLATION",
+    "INTERPOLATION_DEGREE",
+    "COMMENT",
+}
 LOWER = np.tril_indices(6)
 
 
@@ -45,8 +52,9 @@ class Segment:
     interpolation: tuple[str, int] | None = None
 
 
-def write_oem(path: str | Path, segments: list[Segment], originator: str, created_ns: int,
-              comments: list[str] = ()) -> Path:
+def write_oem(
+    path: str | Path, segments: list[Segment], originator: str, created_ns: int, comments: list[str] = ()
+) -> Path:
     """Write ``segments`` as one OEM (KVN) at ``path``."""
     w = Writer()
     w.key("CCSDS_OEM_VERS", VERSION)
@@ -65,9 +73,15 @@ def _write_segment(w: Writer, seg: Segment) -> None:
     w.raw("META_START")
     for text in seg.comments:
         w.comment(text)
-    for key, value in (("OBJECT_NAME", seg.object_name), ("OBJECT_ID", seg.object_id), ("CENTER_NAME", seg.center),
-                       ("REF_FRAME", seg.frame), ("TIME_SYSTEM", seg.time_system),
-                       ("START_TIME", epoch_text(seg.epochs[0])), ("STOP_TIME", epoch_text(seg.epochs[-1]))):
+    for key, value in (
+        ("OBJECT_NAME", seg.object_name),
+        ("OBJECT_ID", seg.object_id),
+        ("CENTER_NAME", seg.center),
+        ("REF_FRAME", seg.frame),
+        ("TIME_SYSTEM", seg.time_system),
+        ("START_TIME", epoch_text(seg.epochs[0])),
+        ("STOP_TIME", epoch_text(seg.epochs[-1])),
+    ):
         w.key(key, value)
     if seg.interpolation is not None:
         w.key("INTERPOLATION", seg.interpolation[0])
@@ -119,8 +133,10 @@ def _read_segment(it: Cursor) -> Segment:
     missing = [k for k in REQUIRED if k not in meta]
     if missing:
         raise it.error(start, f"the segment's metadata lacks {', '.join(missing)}")
-    window = (parse_epoch(meta["START_TIME"].value, it.where(meta["START_TIME"])),
-              parse_epoch(meta["STOP_TIME"].value, it.where(meta["STOP_TIME"])))
+    window = (
+        parse_epoch(meta["START_TIME"].value, it.where(meta["START_TIME"])),
+        parse_epoch(meta["STOP_TIME"].value, it.where(meta["STOP_TIME"])),
+    )
     epochs: list[int] = []
     rows: list[list[float]] = []
     covariances: list[tuple[int, np.ndarray]] = []
@@ -148,9 +164,17 @@ def _read_segment(it: Cursor) -> Segment:
         rows.append([parse_number(v, it.where(line)) for v in fields[1:]])
     if not epochs:
         raise it.error(start, "the segment has no data lines")
-    return Segment(meta["OBJECT_NAME"].value, meta["OBJECT_ID"].value, meta["REF_FRAME"].value, epochs,
-                   np.array(rows) * 1e3, center=meta["CENTER_NAME"].value, time_system=meta["TIME_SYSTEM"].value,
-                   covariances=covariances, covariance_frame=cov_frame)
+    return Segment(
+        meta["OBJECT_NAME"].value,
+        meta["OBJECT_ID"].value,
+        meta["REF_FRAME"].value,
+        epochs,
+        np.array(rows) * 1e3,
+        center=meta["CENTER_NAME"].value,
+        time_system=meta["TIME_SYSTEM"].value,
+        covariances=covariances,
+        covariance_frame=cov_frame,
+    )
 
 
 def _read_covariances(it: Cursor, out: list, frame: str | None) -> str | None:

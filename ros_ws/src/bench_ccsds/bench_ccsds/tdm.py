@@ -16,6 +16,7 @@ Other data keywords are read as numbers and kept under their name, unconverted (
 The reader takes version 1.0 and 2.0 KVN files and reports any problem in one line naming the file and line
 (kvn.CcsdsError).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -41,8 +42,9 @@ class TdmSegment:
     comments: list[str] = field(default_factory=list)
 
 
-def write_tdm(path: str | Path, segments: list[TdmSegment], originator: str, created_ns: int,
-              comments: list[str] = ()) -> Path:
+def write_tdm(
+    path: str | Path, segments: list[TdmSegment], originator: str, created_ns: int, comments: list[str] = ()
+) -> Path:
     """Write ``segments`` as one TDM (KVN); each segment's observations (converted from SI) and ``other`` keywords
     (as they are) in time order, keyword order kept per epoch."""
     w = Writer()
@@ -62,8 +64,10 @@ def write_tdm(path: str | Path, segments: list[TdmSegment], originator: str, cre
         w.raw()
         w.raw("DATA_START")
         streams = [*seg.observations.items(), *seg.other.items()]
-        rows = sorted(((epoch, order, key, value) for order, (key, values) in enumerate(streams)
-                       for epoch, value in values), key=lambda r: (r[0], r[1]))
+        rows = sorted(
+            ((epoch, order, key, value) for order, (key, values) in enumerate(streams) for epoch, value in values),
+            key=lambda r: (r[0], r[1]),
+        )
         for epoch, _order, key, value in rows:
             w.key(key, f"{epoch_text(epoch)} {number(value / SCALE.get(key, 1.0))}")
         w.raw("DATA_STOP")

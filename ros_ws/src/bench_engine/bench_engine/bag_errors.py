@@ -18,6 +18,7 @@ Every reader turns whatever is wrong with a bag into one of these, with a one-li
 The classes are ValueErrors, as the readers raised before they had their own. This module imports nothing, so
 the lowest reader (bench_engine.columns) can raise them too.
 """
+
 from __future__ import annotations
 
 

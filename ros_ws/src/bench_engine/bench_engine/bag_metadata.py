@@ -4,6 +4,7 @@ stores, as rosbag2's ``jazzy`` branch encodes them (``rosbag2_storage/include/ro
 enums; ``custom_data`` (``ros2 bag record --custom-data``) as string keys and values, or ``~`` when empty. The
 YAML is written in yaml-cpp's style (:func:`dump_yaml`), so the files read like the ones rosbag2 writes.
 """
+
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
@@ -14,7 +15,7 @@ import yaml
 
 METADATA_VERSION = 9
 STORAGE_IDENTIFIER = "mcap"
-NS_MAX = 2**63 - 1           # rosbag2's starting time of a bag without messages (nanoseconds::max)
+NS_MAX = 2**63 - 1  # rosbag2's starting time of a bag without messages (nanoseconds::max)
 
 DEFAULT_QOS: dict[str, Any] = {
     # What a reliable keep-last publisher offers, as rosbag2 stores it: durations and liveliness as the
@@ -50,7 +51,8 @@ class _Rosbag2Dumper(yaml.SafeDumper):
 
 _Rosbag2Dumper.add_representer(type(None), lambda d, _: d.represent_scalar("tag:yaml.org,2002:null", "~"))
 _Rosbag2Dumper.add_representer(
-    str, lambda d, s: d.represent_scalar("tag:yaml.org,2002:str", s, style='"' if s == "" else None))
+    str, lambda d, s: d.represent_scalar("tag:yaml.org,2002:str", s, style='"' if s == "" else None)
+)
 
 
 def dump_yaml(data: Any) -> str:
@@ -148,23 +150,28 @@ def string_pairs(items: Mapping[str, str]) -> dict[str, str]:
     return dict(items)
 
 
-def bag_information(topics: Sequence[BagTopic], span: LogSpan, storage_name: str, custom_data: Mapping[str, str],
-                    ros_distro: str) -> dict[str, Any]:
+def bag_information(
+    topics: Sequence[BagTopic], span: LogSpan, storage_name: str, custom_data: Mapping[str, str], ros_distro: str
+) -> dict[str, Any]:
     """The bag metadata (rosbag2 ``BagMetadata``, version 9) of one storage file: the topics that have a channel,
     the messages counted in ``span``. ``starting_time`` and ``duration`` are the least log time and the span to
     the greatest (log times need not be monotonic in the file)."""
     start = {"nanoseconds_since_epoch": span.first_ns}
     duration = {"nanoseconds": span.duration_ns}
-    listed = [{
-        "topic_metadata": {
-            "name": t.name,
-            "type": t.type_name,
-            "serialization_format": "cdr",
-            "offered_qos_profiles": t.qos,
-            "type_description_hash": t.type_hash,
-        },
-        "message_count": t.count,
-    } for t in topics if t.channel_id]
+    listed = [
+        {
+            "topic_metadata": {
+                "name": t.name,
+                "type": t.type_name,
+                "serialization_format": "cdr",
+                "offered_qos_profiles": t.qos,
+                "type_description_hash": t.type_hash,
+            },
+            "message_count": t.count,
+        }
+        for t in topics
+        if t.channel_id
+    ]
     return {
         "version": METADATA_VERSION,
         "storage_identifier": STORAGE_IDENTIFIER,
@@ -175,8 +182,7 @@ def bag_information(topics: Sequence[BagTopic], span: LogSpan, storage_name: str
         "compression_format": "",
         "compression_mode": "",
         "relative_file_paths": [storage_name],
-        "files": [{"path": storage_name, "starting_time": start, "duration": duration,
-                   "message_count": span.count}],
+        "files": [{"path": storage_name, "starting_time": start, "duration": duration, "message_count": span.count}],
         "custom_data": dict(custom_data) or None,
         "ros_distro": ros_distro,
     }

@@ -7,6 +7,7 @@ or a bare ``.mcap`` file.
 :class:`BagError`), one line naming the file and what is wrong. A bag directory a crashed recorder left
 without ``metadata.yaml`` is rebuilt first (bench_engine.recovery). tests/test_fuzz_readers.py fuzzes it.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -57,15 +58,19 @@ class BagReader:
             except (yaml.YAMLError, UnicodeDecodeError, LookupError, TypeError) as err:
                 mark = getattr(err, "problem_mark", None)
                 where = f" (line {mark.line + 1})" if mark is not None else ""
-                raise BagDamaged(f"{metadata} is not rosbag2 metadata{where}: rebuild it with "
-                                 f"scripts/recover_bag.py --force {self.path}") from err
+                raise BagDamaged(
+                    f"{metadata} is not rosbag2 metadata{where}: rebuild it with "
+                    f"scripts/recover_bag.py --force {self.path}"
+                ) from err
             if storage != STORAGE_IDENTIFIER:
                 raise BagDamaged(f"{self.path}: storage {storage!r} is not mcap")
             files = [self.path / PurePath(str(p)).name for p in relative]
             missing = [f.name for f in files if not f.is_file()]
             if missing or not files:
-                raise BagDamaged(f"{self.path}: metadata.yaml names {', '.join(missing) or 'no file'}, which is "
-                                 "not there: the bag is incomplete (copy its .mcap file too)")
+                raise BagDamaged(
+                    f"{self.path}: metadata.yaml names {', '.join(missing) or 'no file'}, which is "
+                    "not there: the bag is incomplete (copy its .mcap file too)"
+                )
             return files
         files = sorted(self.path.glob("*.mcap"))
         if not files:
@@ -92,8 +97,9 @@ class BagReader:
         except BagDamaged as err:
             if type(err) is not BagDamaged:
                 raise
-            raise BagDamaged(f"{err}; scripts/recover_bag.py --force {self.path} rebuilds the bag from what comes "
-                             f"before it") from None
+            raise BagDamaged(
+                f"{err}; scripts/recover_bag.py --force {self.path} rebuilds the bag from what comes before it"
+            ) from None
 
     @staticmethod
     def _chunks(f: BinaryIO, path: Path, summary: Summary, channels: Iterable[int]) -> Iterator[tuple[bytes, str]]:
@@ -114,8 +120,9 @@ class BagReader:
             for record in records:
                 if isinstance(record, Message):
                     if record.channel_id not in summary.channels:
-                        raise BagDamaged(f"{path}: a message of channel {record.channel_id}, which the summary "
-                                         f"does not hold")
+                        raise BagDamaged(
+                            f"{path}: a message of channel {record.channel_id}, which the summary does not hold"
+                        )
                     yield record
 
     def topics(self) -> dict[str, str]:
@@ -136,21 +143,28 @@ class BagReader:
         wanted = None if topics is None else set(topics)
         for path in self.files:
             summary = self._summary(path)
-            channels = {cid: (ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id else "")
-                        for cid, ch in summary.channels.items() if wanted is None or ch.topic in wanted}
+            channels = {
+                cid: (ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id else "")
+                for cid, ch in summary.channels.items()
+                if wanted is None or ch.topic in wanted
+            }
             if not channels:
                 continue
             if not summary.chunk_indexes:  # no index: read in file order, then sort (mcap does the same)
-                found = [(m.log_time, *channels[m.channel_id], m.data) for m in self._unindexed(path, summary)
-                         if m.channel_id in channels]
+                found = [
+                    (m.log_time, *channels[m.channel_id], m.data)
+                    for m in self._unindexed(path, summary)
+                    if m.channel_id in channels
+                ]
                 for log_time, topic, type_name, data in sorted(found, key=lambda m: m[0]):
                     yield topic, type_name, log_time, data
                 continue
             with open(path, "rb") as f, self._salvage():
                 yield from self._merged(f, path, summary, channels)
 
-    def _merged(self, f: BinaryIO, path: Path, summary: Summary, channels: dict[int, tuple[str, str]]
-                ) -> Iterator[tuple[str, str, int, bytes]]:
+    def _merged(
+        self, f: BinaryIO, path: Path, summary: Summary, channels: dict[int, tuple[str, str]]
+    ) -> Iterator[tuple[str, str, int, bytes]]:
         """Messages of indexed chunks in log-time order: a heap of chunks (by first log time) and of the messages
         of the chunks read so far; ties by chunk offset, then by record index in the chunk (mcap's order)."""
         size = os.fstat(f.fileno()).st_size
@@ -166,11 +180,11 @@ class BagReader:
                 yield item
                 continue
             where = f"the chunk at byte {item.chunk_start_offset}"
-            for i, cid, log_time, data in messages_in(chunk_at(f, size, item, path), summary.channels, path,
-                                                       where):
+            for i, cid, log_time, data in messages_in(chunk_at(f, size, item, path), summary.channels, path, where):
                 if cid in channels:
-                    heapq.heappush(heap, ((log_time, item.chunk_start_offset, i), serial,
-                                          (*channels[cid], log_time, data)))
+                    heapq.heappush(
+                        heap, ((log_time, item.chunk_start_offset, i), serial, (*channels[cid], log_time, data))
+                    )
                     serial += 1
 
     def payloads(self, topics: Iterable[str]) -> dict[str, list[bytes]]:
@@ -220,12 +234,14 @@ class BagReader:
                 try:
                     cls = classes[type_name] = message_class(type_name)
                 except (ImportError, LookupError, AttributeError, ValueError) as err:
-                    raise BagUnsupported(f"{self.path}: {topic}: message type {type_name!r} cannot be loaded "
-                                         f"({err})") from None
+                    raise BagUnsupported(
+                        f"{self.path}: {topic}: message type {type_name!r} cannot be loaded ({err})"
+                    ) from None
             try:
                 message = deserialize_message(data, cls)
             except Exception as err:  # noqa: BLE001 - rclpy's RMWError, or whatever its C deserialiser raises
                 reason = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-                raise MessageDamaged(f"{self.path}: {topic}: the message at log time {log_ns} ns is not a "
-                                     f"{type_name} ({reason})") from None
+                raise MessageDamaged(
+                    f"{self.path}: {topic}: the message at log time {log_ns} ns is not a {type_name} ({reason})"
+                ) from None
             yield topic, log_ns, message

@@ -28,6 +28,7 @@ closes the bag once spinning returns). :meth:`BagWriter.flush` ends the current 
 operating system, so such a crash loses only what came after the last flush; bench_engine.recovery then
 rebuilds a complete bag from the chunks on disk.
 """
+
 from __future__ import annotations
 
 import collections
@@ -44,10 +45,10 @@ from bench_engine.bag_metadata import BagTopic, LogSpan, bag_information, dump_y
 from bench_engine.msg_schema import schema_text, type_hash
 
 CHUNK_SIZE = 768 * 1024
-MAX_QUEUED = 20_000          # write() waits for the writer thread beyond this many queued messages
-POLL_S = 0.005               # writer thread's idle wait
+MAX_QUEUED = 20_000  # write() waits for the writer thread beyond this many queued messages
+POLL_S = 0.005  # writer thread's idle wait
 LIBRARY = f"bench_engine.bag_writer; {LIBRARY_IDENTIFIER}"
-_FLUSH = object()            # writer-thread work item: end the chunk and flush the file
+_FLUSH = object()  # writer-thread work item: end the chunk and flush the file
 
 
 class BagWriter:
@@ -58,8 +59,12 @@ class BagWriter:
     :meth:`set_custom_data` before closing). Usable as a context manager.
     """
 
-    def __init__(self, directory: str | os.PathLike, storage_name: str | None = None,
-                 custom_data: Mapping[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        directory: str | os.PathLike,
+        storage_name: str | None = None,
+        custom_data: Mapping[str, str] | None = None,
+    ) -> None:
         self.directory = Path(directory)
         self.storage_name = storage_name or f"{self.directory.name}_0.mcap"
         self.mcap_path = self.directory / self.storage_name
@@ -204,8 +209,11 @@ class BagWriter:
             schema_id = self._mcap.register_schema(topic.type_name, "ros2msg", definition.encode("utf-8"))
             self._schemas[topic.type_name] = schema_id
         topic.channel_id = self._mcap.register_channel(
-            topic.name, "cdr", schema_id,
-            {"offered_qos_profiles": dump_yaml(topic.qos), "topic_type_hash": topic.type_hash})
+            topic.name,
+            "cdr",
+            schema_id,
+            {"offered_qos_profiles": dump_yaml(topic.qos), "topic_type_hash": topic.type_hash},
+        )
 
     def _add_message(self, name: str, data: bytes, log_ns: int, pub_ns: int) -> None:
         topic = self._topics[name]
@@ -228,5 +236,6 @@ class BagWriter:
 
     def _metadata(self) -> dict[str, Any]:
         """The bag metadata for the messages written so far."""
-        return bag_information(list(self._topics.values()), self._stats, self.storage_name, self._custom_data,
-                               self.ros_distro)
+        return bag_information(
+            list(self._topics.values()), self._stats, self.storage_name, self._custom_data, self.ros_distro
+        )

@@ -12,6 +12,7 @@ Either way a run one of whose nodes was killed (by a signal: the OOM killer, an 
 again (batch_run.NODE_RETRIES times at most, a line naming the run and the node as each retry starts;
 RunResult.killed and RunResult.reruns tell them afterwards).
 """
+
 from __future__ import annotations
 
 import shutil
@@ -55,9 +56,15 @@ def reusable_run(out: Path, expected: dict, resume: bool) -> bool:
     return True
 
 
-def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = None, desc: str = "runs",
-              on_done: Callable[[RunResult], None] | None = None, scheduler: str | None = None,
-              retries: int = 2) -> list[RunResult]:
+def run_batch(
+    specs: list[RunSpec],
+    jobs: int = 2,
+    domains: list[int] | None = None,
+    desc: str = "runs",
+    on_done: Callable[[RunResult], None] | None = None,
+    scheduler: str | None = None,
+    retries: int = 2,
+) -> list[RunResult]:
     """Run every spec, ``jobs`` at a time with a progress bar; ``domains`` (one per job) pins the ROS domains,
     else each run reserves a free one. ``on_done`` is called as each run ends (in the caller's thread).
     ``scheduler``: run on a Dask cluster instead (an address or ``"local"``; bench_engine.executors), each
@@ -66,6 +73,7 @@ def run_batch(specs: list[RunSpec], jobs: int = 2, domains: list[int] | None = N
     for them (RunSpec.standard_views)."""
     if scheduler is not None:
         from bench_engine.executors import run_dask  # dask.distributed: only with a scheduler
+
         return run_dask(specs, scheduler, jobs, desc, on_done, retries)
     free = list(domains) if domains is not None else [None] * jobs
     if len(free) < jobs:

@@ -14,6 +14,7 @@ chaos test; not SIGINT, SIGTERM or SIGHUP, which stop a run on purpose): it is s
 log ``RUN.killedK.log``, its partial bag ``RUN.killedK/bag.partial``) and run again, up to NODE_RETRIES times;
 with the same seed it records the bag it would have recorded (tests/test_chaos.py).
 """
+
 from __future__ import annotations
 
 import multiprocessing
@@ -64,8 +65,16 @@ class RunSpec:
     double the messages of a step (bench_engine.views.SWITCH) and the scorer does not read them."""
 
     def command(self, domain: int | None) -> list[str]:
-        cmd = [sys.executable, "-m", "bench_engine.run", self.scenario, "--seed", str(self.seed), "--out",
-               str(self.out)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "bench_engine.run",
+            self.scenario,
+            "--seed",
+            str(self.seed),
+            "--out",
+            str(self.out),
+        ]
         if domain is not None:
             cmd += ["--domain-id", str(domain)]
         if self.estimators:
@@ -132,6 +141,7 @@ def _forked_run(argv: list[str], log: str) -> None:
     os.dup2(fd, 2)
     os.close(fd)
     from bench_engine.run import main  # sets a node's environment when imported: only in the forked run
+
     code = main(argv)
     print(f"{EXIT_LINE}{code}", file=sys.stderr, flush=True)
     exit_now(code)  # as bench_engine.run's own end: the run's ROS objects are left to it (launcher.run_single_process)
@@ -171,7 +181,7 @@ def launch_run(cmd: list[str], log: Path, **popen) -> int:
     if process.exitcode == 255:  # the status never came back: the run's own last word, if it got that far
         lines = log.read_text(errors="replace").splitlines() if log.exists() else []
         if lines and lines[-1].startswith(EXIT_LINE):
-            return int(lines[-1][len(EXIT_LINE):])
+            return int(lines[-1][len(EXIT_LINE) :])
     return process.exitcode
 
 
@@ -197,8 +207,9 @@ def _set_aside(spec: RunSpec, tag: str, with_log: bool = False) -> str:
     """Rename OUT to the first free OUT.TAGk (and OUT.log to OUT.TAGk.log with ``with_log``, the partial bag to
     OUT.TAGk/bag.partial, so that ``OUT/run_*/bag`` never matches it); returns the new name."""
     k = 0
-    while (aside := spec.out.with_name(f"{spec.out.name}.{tag}{k}")).exists() \
-            or aside.with_name(aside.name + ".log").exists():
+    while (aside := spec.out.with_name(f"{spec.out.name}.{tag}{k}")).exists() or aside.with_name(
+        aside.name + ".log"
+    ).exists():
         k += 1
     if spec.out.exists():
         spec.out.rename(aside)
@@ -210,8 +221,7 @@ def _set_aside(spec: RunSpec, tag: str, with_log: bool = False) -> str:
     return aside.name
 
 
-def run_one(spec: RunSpec, domain: int | None, report: Callable[[str], None] | None = None,
-            **popen) -> RunResult:
+def run_one(spec: RunSpec, domain: int | None, report: Callable[[str], None] | None = None, **popen) -> RunResult:
     """Run ``spec``, again after cross-talk (up to CROSSTALK_RETRIES times) or after a node was killed (up to
     NODE_RETRIES times; ``report`` is called with a line naming the run and what died, as each retry starts);
     its log is OUT.log. ``popen``: extra subprocess arguments (the Dask executor's environment)."""
@@ -239,8 +249,10 @@ def run_one(spec: RunSpec, domain: int | None, report: Callable[[str], None] | N
             return result
         aside = _set_aside(spec, "killed", with_log=True)
         result.killed.append(what)
-        note = (f"{spec.out}: {what} in attempt {attempts}; set aside as {aside}, running it again "
-                f"(retry {len(result.killed)} of {NODE_RETRIES})")
+        note = (
+            f"{spec.out}: {what} in attempt {attempts}; set aside as {aside}, running it again "
+            f"(retry {len(result.killed)} of {NODE_RETRIES})"
+        )
         result.reruns.append(note)
         if report is not None:
             report(note)

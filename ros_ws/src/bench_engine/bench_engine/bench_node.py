@@ -23,6 +23,7 @@ Lock-step protocol (bench mode):
    (transient-local) when every consumer has caught up; the recorder closes the bag once it holds those
    counts, and each node stops once its published messages are acknowledged by their readers or they left.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,8 +47,7 @@ from bench_msgs.msg import StepAck
 from bench_engine import phases, shm, yamlio
 from bench_engine.config import ScenarioError
 from bench_engine.cdr import lite_class, serialize
-from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph,
-                                node_kinds)
+from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph, node_kinds
 from bench_engine.parameters import description, unflatten
 from bench_engine.msg_schema import message_class
 from bench_engine.process import exit_now, keep_until_exit
@@ -55,10 +55,15 @@ from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_engine.timegrid import build_time
 
-DATA_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DATA_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
+)
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 FLUSH_TIMEOUT_S = 10.0
 ACK_FLUSH_S = 0.01
 ACK_POLL_S = 0.01
@@ -71,8 +76,11 @@ def delivered(publishers: list, timeout_s: float = FLUSH_TIMEOUT_S) -> list:
     deadline = time.monotonic() + timeout_s
     pending = list(publishers)
     while pending and time.monotonic() < deadline:
-        pending = [p for p in pending if p.get_subscription_count() > 0
-                   and not p.wait_for_all_acked(rclpy.duration.Duration(seconds=ACK_POLL_S))]
+        pending = [
+            p
+            for p in pending
+            if p.get_subscription_count() > 0 and not p.wait_for_all_acked(rclpy.duration.Duration(seconds=ACK_POLL_S))
+        ]
     return pending
 
 
@@ -95,13 +103,16 @@ def standalone_graph(settings: dict, name: str, kind: str) -> Graph:
     their types. An estimator kind's node is the one estimator requested."""
     kinds = node_kinds()
     if kind not in kinds:
-        raise ScenarioError(f"parameter 'kind' must name a registered node kind, got {kind!r}; registered: "
-                            f"{sorted(kinds)}")
+        raise ScenarioError(
+            f"parameter 'kind' must name a registered node kind, got {kind!r}; registered: {sorted(kinds)}"
+        )
     graph = build_graph(settings, [name] if kinds[kind].role == "estimator" else None, record=False)
     spec = graph.node(name) if name in [n.name for n in graph.nodes] else None
     if spec is None or spec.kind != kind:
-        raise ScenarioError(f"the parameters describe no {kind} node named '{name}' (the node's name is its name "
-                            f"in the scenario: rename it with -r __node:=NAME, or check the parameters file)")
+        raise ScenarioError(
+            f"the parameters describe no {kind} node named '{name}' (the node's name is its name "
+            f"in the scenario: rename it with -r __node:=NAME, or check the parameters file)"
+        )
     return graph
 
 
@@ -110,10 +121,16 @@ def ns_to_stamp(t_ns: int, stamp) -> None:
 
 
 SHELL_PARAMETERS = {
-    "kind": ("", "the node kind whose core this node runs (bench_engine.graph.NodeKind, e.g. filter, "
-                       "sensor); set by the launcher or the console script"),
-    "qos.reliability": ("reliable", "QoS reliability of the data topics: reliable or best_effort (a best-effort "
-                                    "subscription also hears reliable publishers)"),
+    "kind": (
+        "",
+        "the node kind whose core this node runs (bench_engine.graph.NodeKind, e.g. filter, "
+        "sensor); set by the launcher or the console script",
+    ),
+    "qos.reliability": (
+        "reliable",
+        "QoS reliability of the data topics: reliable or best_effort (a best-effort "
+        "subscription also hears reliable publishers)",
+    ),
     "qos.history": ("keep_all", "QoS history of the data topics: keep_all or keep_last"),
     "qos.depth": (100, "QoS depth of the data topics with keep_last history"),
 }
@@ -137,8 +154,12 @@ def data_qos(reliability: str, history: str, depth: int) -> QoSProfile:
         raise ScenarioError(f"parameter 'qos.history' must be one of {sorted(histories)}, got {history!r}")
     if not isinstance(depth, int) or depth < 1:
         raise ScenarioError(f"parameter 'qos.depth' must be an integer >= 1, got {depth!r}")
-    return QoSProfile(history=histories[history], depth=depth, reliability=reliabilities[reliability],
-                      durability=DurabilityPolicy.VOLATILE)
+    return QoSProfile(
+        history=histories[history],
+        depth=depth,
+        reliability=reliabilities[reliability],
+        durability=DurabilityPolicy.VOLATILE,
+    )
 
 
 class BenchNode(Node):
@@ -148,8 +169,9 @@ class BenchNode(Node):
     given in code (the single-process launcher), besides those of ``--params-file``. ``kind``: the default of
     the ``kind`` parameter (a standalone console script's kind). ``context``: rclpy's (default: the global one)."""
 
-    def __init__(self, name: str, run: dict | None, parameters: dict | None = None, kind: str = "",
-                 context=None) -> None:
+    def __init__(
+        self, name: str, run: dict | None, parameters: dict | None = None, kind: str = "", context=None
+    ) -> None:
         overrides = [Parameter(k, value=v) for k, v in (parameters or {}).items()]
         super().__init__(name, parameter_overrides=overrides, context=context)
         self.settings, shell = self._declare_parameters(kind)
@@ -185,14 +207,26 @@ class BenchNode(Node):
     def _declare_parameters(self, kind: str) -> tuple[dict, dict]:
         """Declare every parameter read-only: the shell's (SHELL_PARAMETERS, with their defaults) and every
         scenario key given (params file or constructor); returns (scenario settings, shell values)."""
-        given = {name: p.value for name, p in self._parameter_overrides.items()  # rclpy's merged overrides
-                 if name not in ROS_OWN_PARAMETERS}
+        given = {
+            name: p.value
+            for name, p in self._parameter_overrides.items()  # rclpy's merged overrides
+            if name not in ROS_OWN_PARAMETERS
+        }
         shell_defaults = {**{k: v for k, (v, _) in SHELL_PARAMETERS.items()}, "kind": kind}
-        declared = self.declare_parameters("", [
-            *((name, default, ParameterDescriptor(description=SHELL_PARAMETERS[name][1], read_only=True))
-              for name, default in shell_defaults.items()),
-            *((name, value, ParameterDescriptor(description=description(name), read_only=True))
-              for name, value in sorted(given.items()) if name not in SHELL_PARAMETERS)])
+        declared = self.declare_parameters(
+            "",
+            [
+                *(
+                    (name, default, ParameterDescriptor(description=SHELL_PARAMETERS[name][1], read_only=True))
+                    for name, default in shell_defaults.items()
+                ),
+                *(
+                    (name, value, ParameterDescriptor(description=description(name), read_only=True))
+                    for name, value in sorted(given.items())
+                    if name not in SHELL_PARAMETERS
+                ),
+            ],
+        )
         values = {p.name: p.value for p in declared}
         shell = {name: values[name] for name in SHELL_PARAMETERS}
         return unflatten({k: v for k, v in values.items() if k not in SHELL_PARAMETERS}), shell
@@ -237,8 +271,9 @@ class BenchNode(Node):
         With a pacing window W > 0 an acknowledgement is sent once the step or the count has advanced by
         max(1, W // 4) since the last one sent, and otherwise within ACK_FLUSH_S by a timer: the source
         never waits on a held-back one for long, and the graph carries a quarter of the ack traffic."""
-        if self._ack_every == 1 or (step - self._ack_sent[0] >= self._ack_every
-                                    or count - self._ack_sent[1] >= self._ack_every):
+        if self._ack_every == 1 or (
+            step - self._ack_sent[0] >= self._ack_every or count - self._ack_sent[1] >= self._ack_every
+        ):
             self._send_ack(step, count)
         else:
             self._ack_unsent = (step, count)
@@ -329,8 +364,12 @@ DomainParticipant::set_listener). Only where the nodes are torn down: a node pro
 after LINGER_S) and a standalone node; a single-process run tears nothing down (``teardown=False``)."""
 
 
-def spin_in_process(domain_id: int, make_nodes: Callable[[], list[BenchNode]], executor_kind: str = "events",
-                    on_exit: Callable[[], None] = lambda: None) -> int:
+def spin_in_process(
+    domain_id: int,
+    make_nodes: Callable[[], list[BenchNode]],
+    executor_kind: str = "events",
+    on_exit: Callable[[], None] = lambda: None,
+) -> int:
     """rclpy initialised on ``domain_id`` (no signal handlers: :func:`spin_nodes` installs its own), the nodes
     ``make_nodes`` creates spun in this process until they finish and closed, ``on_exit`` called; an exit code,
     the run's. Nothing of ROS is torn down, and the caller ends the process with exit_now (a single-process run).
@@ -351,8 +390,13 @@ def spin_in_process(domain_id: int, make_nodes: Callable[[], list[BenchNode]], e
         shm.release_own()
 
 
-def spin_nodes(nodes: list[BenchNode], executor_kind: str = "events", parent_pid: int | None = None,
-               shutdown_executor: bool = True, teardown: bool = True) -> int:
+def spin_nodes(
+    nodes: list[BenchNode],
+    executor_kind: str = "events",
+    parent_pid: int | None = None,
+    shutdown_executor: bool = True,
+    teardown: bool = True,
+) -> int:
     """Spin until every node finished, SIGINT/SIGTERM, or (when ``parent_pid`` is given) the parent process
     went away; close nodes; return an exit code. ``shutdown_executor=False`` leaves the executor to the end of
     the process: a node process exits right after, and rclpy's EventsExecutor was seen spinning for good in
@@ -426,7 +470,7 @@ def _tear_down(executor, nodes: list[BenchNode], shutdown_executor: bool, deadli
 
 def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
     """(the node's own arguments, ``--ros-args …`` onwards)."""
-    ros_args = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
+    ros_args = argv[argv.index("--ros-args") :] if "--ros-args" in argv else []
     return argv[: len(argv) - len(ros_args)], ros_args
 
 
@@ -480,8 +524,11 @@ def standalone_main(node_class: type[BenchNode], kind: str, argv: list[str] | No
     remaps from ``--ros-args``; runs until SIGINT/SIGTERM."""
     own, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
     command = Path(sys.argv[0]).name
-    parser = argparse.ArgumentParser(prog=command, description=STANDALONE_HELP.format(kind=kind, command=command),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog=command,
+        description=STANDALONE_HELP.format(kind=kind, command=command),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--executor", default="events", choices=["events", "single"])
     args = parser.parse_args(own)
     rclpy.init(args=[command] + ros_args, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)

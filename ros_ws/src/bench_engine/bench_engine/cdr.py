@@ -39,6 +39,7 @@ deserialised.
 :func:`compiled` describes a type's fields for the columnar bag decoder (bench_engine.columns), which reads
 whole topics as numpy columns without building messages.
 """
+
 from __future__ import annotations
 
 import struct
@@ -53,19 +54,38 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from bench_engine.msg_schema import (canonical_type_name, dependencies, interface_file, message_class, msg_text,
-                                     split_type_name)
+from bench_engine.msg_schema import (
+    canonical_type_name,
+    dependencies,
+    interface_file,
+    message_class,
+    msg_text,
+    split_type_name,
+)
 
 ENCAPSULATION = b"\x00\x01\x00\x00"  # plain CDR, little endian, no options (what rmw_fastrtps writes)
 HEADER = len(ENCAPSULATION)
 _DTYPES = {  # rosbags' primitive names -> numpy dtype of the wire values (little endian)
-    "float64": "<f8", "float32": "<f4", "int64": "<i8", "uint64": "<u8", "int32": "<i4", "uint32": "<u4",
-    "int16": "<i2", "uint16": "<u2", "int8": "i1", "uint8": "u1", "byte": "u1", "char": "u1", "octet": "u1",
-    "bool": "?"}
+    "float64": "<f8",
+    "float32": "<f4",
+    "int64": "<i8",
+    "uint64": "<u8",
+    "int32": "<i4",
+    "uint32": "<u4",
+    "int16": "<i2",
+    "uint16": "<u2",
+    "int8": "i1",
+    "uint8": "u1",
+    "byte": "u1",
+    "char": "u1",
+    "octet": "u1",
+    "bool": "?",
+}
 _LITTLE = sys.byteorder == "little"
 
 
 # --- the typestore ----------------------------------------------------------------------------------------
+
 
 @lru_cache(maxsize=None)
 def typestore() -> Typestore:
@@ -107,6 +127,7 @@ def _dtype(desc: tuple) -> np.dtype:
 
 # --- light classes ----------------------------------------------------------------------------------------
 
+
 class _Missing:
     def __repr__(self) -> str:
         return "<default>"
@@ -130,19 +151,22 @@ def _lite(name: str) -> type:
             ns[f"_f{i}"] = _lite(_registered(sub))
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and sub[0][0] == Nodetype.NAME:
             cls = _lite(_registered(sub[0][1]))
-            ns[f"_f{i}"] = ((lambda c=cls, n=sub[1]: [c() for _ in range(n)]) if kind == Nodetype.ARRAY else list)
+            ns[f"_f{i}"] = (lambda c=cls, n=sub[1]: [c() for _ in range(n)]) if kind == Nodetype.ARRAY else list
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and _is_number(sub[0]):
             default = np.array(getattr(proto, attr), dtype=_dtype(sub[0])).reshape(-1)
             ns[f"_f{i}"] = default.copy
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):  # strings
-            ns[f"_f{i}"] = (lambda v=list(getattr(proto, attr)): list(v))
+            ns[f"_f{i}"] = lambda v=list(getattr(proto, attr)): list(v)
         else:
             value = getattr(proto, attr)
             if desc[1][0] in ("byte", "char"):
                 ns[f"_d{i}"] = _as_byte(value) if desc[1][0] == "byte" else _as_char(value)
                 params.append(f"{attr}=_d{i}")
-                body.append(f"    self.{attr} = {attr} if {attr}.__class__ is int else _byte({attr})"
-                            if desc[1][0] == "byte" else f"    self.{attr} = {attr}")
+                body.append(
+                    f"    self.{attr} = {attr} if {attr}.__class__ is int else _byte({attr})"
+                    if desc[1][0] == "byte"
+                    else f"    self.{attr} = {attr}"
+                )
                 continue
             ns[f"_d{i}"] = value
             params.append(f"{attr}=_d{i}")
@@ -151,18 +175,24 @@ def _lite(name: str) -> type:
         params.append(f"{attr}=_M")
         body.append(f"    self.{attr} = _f{i}() if {attr} is _M else {attr}")
     short = name.rsplit("/", 1)[-1]
-    source = (f"def __init__(self, {', '.join(params)}{', ' if params else ''}**_unknown):\n"
-              + "\n".join(body) + "\n"
-              f"    if _unknown:\n"
-              f"        raise TypeError(f'{short} has no field(s) {{sorted(_unknown)}}')\n")
+    source = (
+        f"def __init__(self, {', '.join(params)}{', ' if params else ''}**_unknown):\n" + "\n".join(body) + "\n"
+        f"    if _unknown:\n"
+        f"        raise TypeError(f'{short} has no field(s) {{sorted(_unknown)}}')\n"
+    )
     exec(source, ns)  # noqa: S102 - the code is built above from the type's field names only
     names = tuple(attr for attr, _ in fields)
 
     def __repr__(self) -> str:
         return f"{short}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"
 
-    attrs: dict[str, Any] = {"__slots__": names, "__init__": ns["__init__"], "__repr__": __repr__,
-                             "__msgtype__": name, "__doc__": f"Light message of {name} (bench_engine.cdr)."}
+    attrs: dict[str, Any] = {
+        "__slots__": names,
+        "__init__": ns["__init__"],
+        "__repr__": __repr__,
+        "__msgtype__": name,
+        "__doc__": f"Light message of {name} (bench_engine.cdr).",
+    }
     for const, _ctype, value in _constants(name):
         attrs[const] = value
     cls = type(short, (), attrs)
@@ -190,6 +220,7 @@ def lite_class(type_name: str) -> type:
 
 
 # --- serialize --------------------------------------------------------------------------------------------
+
 
 def serialize(type_name: str, msg: Any) -> bytes:
     """CDR bytes of ``msg`` (a light message of ``type_name``, or any object with its fields: an rclpy
@@ -225,17 +256,20 @@ def _serializer(type_name: str) -> Callable[[Any], bytes]:
         except SerdeError as err:  # e.g. a fixed-size array of messages of another length
             raise ValueError(f"{type_name}: {err}") from None
         return bytes(raw)
+
     return ser
 
 
 def _coerce(attr: str, dtype: np.dtype, size: int | None) -> Callable[[Any], np.ndarray]:
     """A number field's value as the contiguous 1-D array of ``dtype`` rosbags writes (``size``: a fixed
     array's length, checked)."""
+
     def coerce(value: Any) -> np.ndarray:
         out = np.ascontiguousarray(value, dtype=dtype).reshape(-1)
         if size is not None and len(out) != size:
             raise ValueError(f"{attr}: {len(out)} values for a {size}-array")
         return out
+
     return coerce
 
 
@@ -276,37 +310,45 @@ def _preparer(name: str) -> Callable[[Any], None]:
             if not _needs_preparing(sub_name):
                 continue
             ns[f"_L{i}"], ns[f"_c{i}"], ns[f"_p{i}"] = _lite(sub_name), _converter(sub_name), _preparer(sub_name)
-            lines += [f"  v = msg.{attr}",
-                      f"  if v.__class__ is not _L{i}:",
-                      f"    msg.{attr} = v = _c{i}(v)",
-                      f"  _p{i}(v)"]
+            lines += [
+                f"  v = msg.{attr}",
+                f"  if v.__class__ is not _L{i}:",
+                f"    msg.{attr} = v = _c{i}(v)",
+                f"  _p{i}(v)",
+            ]
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and sub[0][0] == Nodetype.NAME:
             sub_name = _registered(sub[0][1])
             if not _needs_preparing(sub_name):
                 continue
             ns[f"_L{i}"], ns[f"_c{i}"], ns[f"_p{i}"] = _lite(sub_name), _converter(sub_name), _preparer(sub_name)
-            lines += [f"  v = msg.{attr}",
-                      f"  if v.__class__ is not list:",
-                      f"    msg.{attr} = v = list(v)",
-                      "  for j, m in enumerate(v):",
-                      f"    if m.__class__ is not _L{i}:",
-                      f"      v[j] = m = _c{i}(m)",
-                      f"    _p{i}(m)"]
+            lines += [
+                f"  v = msg.{attr}",
+                f"  if v.__class__ is not list:",
+                f"    msg.{attr} = v = list(v)",
+                "  for j, m in enumerate(v):",
+                f"    if m.__class__ is not _L{i}:",
+                f"      v[j] = m = _c{i}(m)",
+                f"    _p{i}(m)",
+            ]
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and _is_number(sub[0]):
             dtype = _dtype(sub[0])
             ns[f"_t{i}"] = dtype
             ns[f"_k{i}"] = _coerce(attr, dtype, sub[1] if kind == Nodetype.ARRAY else None)
             fixed = kind == Nodetype.ARRAY
-            lines += [f"  v = msg.{attr}",  # a list (what codecs give) of numbers: straight to an array
-                      f"  if v.__class__ is list{f' and len(v) == {sub[1]}' if fixed else ''}:",
-                      f"    msg.{attr} = _array(v, _t{i})",
-                      f"  elif v.__class__ is not _nd or v.dtype is not _t{i} or v.ndim != 1"
-                      f" or not v.flags.c_contiguous{f' or len(v) != {sub[1]}' if fixed else ''}:",
-                      f"    msg.{attr} = _k{i}(v)"]
+            lines += [
+                f"  v = msg.{attr}",  # a list (what codecs give) of numbers: straight to an array
+                f"  if v.__class__ is list{f' and len(v) == {sub[1]}' if fixed else ''}:",
+                f"    msg.{attr} = _array(v, _t{i})",
+                f"  elif v.__class__ is not _nd or v.dtype is not _t{i} or v.ndim != 1"
+                f" or not v.flags.c_contiguous{f' or len(v) != {sub[1]}' if fixed else ''}:",
+                f"    msg.{attr} = _k{i}(v)",
+            ]
         elif kind == Nodetype.BASE and sub[0] in ("byte", "char"):
-            lines += [f"  v = msg.{attr}",
-                      "  if v.__class__ is not int:",
-                      f"    msg.{attr} = {'_byte' if sub[0] == 'byte' else '_char'}(v)"]
+            lines += [
+                f"  v = msg.{attr}",
+                "  if v.__class__ is not int:",
+                f"    msg.{attr} = {'_byte' if sub[0] == 'byte' else '_char'}(v)",
+            ]
     exec("def prepare(msg):\n" + "\n".join(lines) + "\n", ns)  # noqa: S102 - built from field names only
     return ns["prepare"]
 
@@ -342,10 +384,12 @@ def _converter(name: str) -> Callable[[Any], Any]:
         if obj.__class__ is lite:
             return obj
         return lite(**{attr: conv(getattr(obj, attr)) for attr, conv in steps})
+
     return convert
 
 
 # --- deserialize ------------------------------------------------------------------------------------------
+
 
 def deserialize(type_name: str, data: bytes) -> Any:
     """A light message of ``type_name`` from its CDR bytes (plain CDR, either byte order; bytes after the message
@@ -378,10 +422,12 @@ def _deserializer(type_name: str) -> Callable[[bytes], Any]:
             return reader(memoryview(bytearray(data))[HEADER:], 0, cls, store)[0]
         except (SerdeError, struct.error, ValueError, UnicodeDecodeError, IndexError) as err:
             raise ValueError(f"{type_name}: message ends early or is of another type: {err}") from None
+
     return read
 
 
 # --- the layout the columnar decoder reads ----------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Field:
@@ -391,8 +437,8 @@ class Field:
     name: str
     kind: str
     dtype: np.dtype | None = None
-    size: int = 0                                   # fixed array length
-    sub: "MessageType | None" = None                # nested message
+    size: int = 0  # fixed array length
+    sub: "MessageType | None" = None  # nested message
 
 
 @dataclass(frozen=True)
@@ -427,8 +473,10 @@ def _layout_field(name: str, attr: str, desc: tuple) -> Field:
             return Field(attr, "array" if fixed else "seq", _dtype(sub[0]), size)
         if sub[0][0] == Nodetype.BASE and sub[0][1][0] == "string":
             return Field(attr, "strarray" if fixed else "strseq", size=size)
-    raise TypeError(f"{name}.{attr}: arrays of messages and wide strings have no columnar layout here; "
-                    f"decode this type message by message (bench_engine.cdr.deserialize)")
+    raise TypeError(
+        f"{name}.{attr}: arrays of messages and wide strings have no columnar layout here; "
+        f"decode this type message by message (bench_engine.cdr.deserialize)"
+    )
 
 
 def warm(type_names: Iterable[str]) -> None:

@@ -18,6 +18,7 @@ messages of the same length whose length prefixes and strings are byte-equal hav
 walk of the first message of a group places the fields of the whole group. tests/test_cdr.py checks
 every field against rclpy's own deserialisation.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -68,13 +69,15 @@ class _Walker:
     def _need(self, n: int, what: str) -> None:
         """Refuse ``n`` more bytes at the current position when the message has fewer left."""
         if self.pos + n > self.end:
-            raise MessageDamaged(f"message ends inside {what} at byte {self.pos + HEADER} (needs {n} bytes, "
-                                 f"{max(self.end - self.pos, 0)} left): truncated or not of this type")
+            raise MessageDamaged(
+                f"message ends inside {what} at byte {self.pos + HEADER} (needs {n} bytes, "
+                f"{max(self.end - self.pos, 0)} left): truncated or not of this type"
+            )
 
     def _count(self, path: str) -> int:
         self._align(4)
         self._need(4, f"the length of {path!r}")
-        count = int.from_bytes(self.data[self.pos:self.pos + 4], "little")
+        count = int.from_bytes(self.data[self.pos : self.pos + 4], "little")
         self._structure.append(range(self.pos, self.pos + 4))
         self.pos += 4
         return count
@@ -87,7 +90,7 @@ class _Walker:
             raise MessageDamaged(f"string {path!r} does not end in a NUL")
         self._structure.append(range(start, self.pos))
         try:
-            return bytes(self.data[start:max(self.pos - 1, start)]).decode("utf-8")
+            return bytes(self.data[start : max(self.pos - 1, start)]).decode("utf-8")
         except UnicodeDecodeError as err:
             raise MessageDamaged(f"string {path!r} is not UTF-8 ({err.reason} at byte {err.start})") from None
 
@@ -203,8 +206,11 @@ def _group_columns(rows: np.ndarray, layout: _Layout) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for path, offset, dtype, count, scalar in layout.numeric:
         start = HEADER + offset
-        block = (np.ascontiguousarray(rows[:, start:start + dtype.itemsize * count]).view(dtype) if count
-                 else np.empty((len(rows), 0), dtype))
+        block = (
+            np.ascontiguousarray(rows[:, start : start + dtype.itemsize * count]).view(dtype)
+            if count
+            else np.empty((len(rows), 0), dtype)
+        )
         out[path] = block[:, 0] if scalar else block
     for path, value in layout.strings.items():
         out[path] = value
@@ -214,8 +220,9 @@ def _group_columns(rows: np.ndarray, layout: _Layout) -> dict[str, Any]:
 def _merge(groups: list[tuple[np.ndarray, Any]], n: int) -> Any:
     """One column from its groups: an array when every group's rows have one shape, else a list per row."""
     first = groups[0][1]
-    if isinstance(first, np.ndarray) and all(isinstance(v, np.ndarray) and v.shape[1:] == first.shape[1:]
-                                             and v.dtype == first.dtype for _, v in groups):
+    if isinstance(first, np.ndarray) and all(
+        isinstance(v, np.ndarray) and v.shape[1:] == first.shape[1:] and v.dtype == first.dtype for _, v in groups
+    ):
         column = np.empty((n, *first.shape[1:]), dtype=first.dtype)
         for index, values in groups:
             column[index] = values

@@ -7,6 +7,7 @@ naming it and the allowed keys; checks on values raise :class:`ScenarioError` na
 scenario's sections are declared and read through it by bench_engine.settings (typed, once); other files of
 the bench (a study's paper.yaml and tables.yaml, a sweep grid) use it directly.
 """
+
 from __future__ import annotations
 
 import copy
@@ -16,7 +17,7 @@ from typing import Any, Callable, Iterable, Mapping
 import yaml
 
 from bench_engine import plugins, yamlio
-from bench_engine.errors import ScenarioError   # defined below plugins, which raises it too; imported from here
+from bench_engine.errors import ScenarioError  # defined below plugins, which raises it too; imported from here
 
 
 def _registered_scenarios() -> dict[str, Path]:
@@ -39,7 +40,8 @@ def scenario_path(name_or_path: str) -> Path:
         return registered[name_or_path]
     raise ScenarioError(
         f"unknown scenario '{name_or_path}'; available: {', '.join(sorted(registered))} "
-        "(or give the path of a scenario YAML file)")
+        "(or give the path of a scenario YAML file)"
+    )
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:
@@ -108,8 +110,10 @@ def load_scenario(name_or_path: str, overrides: Iterable[str] = ()) -> dict:
 
 def override_strings(mapping: dict) -> list[str]:
     """{key.path: value} -> ["key.path=value", ...] (values as flow-style YAML)."""
-    return [f"{k}={yamlio.dump(v, default_flow_style=True, width=10**6).strip().removesuffix(chr(10) + '...')}"
-            for k, v in mapping.items()]
+    return [
+        f"{k}={yamlio.dump(v, default_flow_style=True, width=10**6).strip().removesuffix(chr(10) + '...')}"
+        for k, v in mapping.items()
+    ]
 
 
 def merge(base: dict, extra: dict) -> dict:
@@ -149,8 +153,14 @@ class Section:
     def _key(self, key: str) -> str:
         return f"{self.path}.{key}" if self.path else key
 
-    def get(self, key: str, kind: type | tuple[type, ...], default: Any = ...,
-            check: Callable[[Any], bool] | None = None, expect: str = "") -> Any:
+    def get(
+        self,
+        key: str,
+        kind: type | tuple[type, ...],
+        default: Any = ...,
+        check: Callable[[Any], bool] | None = None,
+        expect: str = "",
+    ) -> Any:
         """Value of ``key`` converted to ``kind``; ``check`` failing raises naming ``expect``."""
         self._known.add(key)
         if key not in self.data or self.data[key] is None:
@@ -190,7 +200,8 @@ class Section:
             where = f"'{self.path}'" if self.path else "the scenario's top level"
             raise ScenarioError(
                 f"unknown key(s) {', '.join(repr(self._key(k)) for k in unknown)} in {where}; "
-                f"allowed: {', '.join(sorted(self._known))}")
+                f"allowed: {', '.join(sorted(self._known))}"
+            )
 
 
 def _coerce(value: Any, kind: type | tuple[type, ...], key: str) -> Any:
@@ -214,5 +225,14 @@ def _coerce(value: Any, kind: type | tuple[type, ...], key: str) -> Any:
 
 
 def _names(kinds: tuple[type, ...]) -> str:
-    return " or ".join({float: "a number", int: "an integer", str: "a string", bool: "true/false",
-                        list: "a list", dict: "a mapping"}.get(k, k.__name__) for k in kinds)
+    return " or ".join(
+        {
+            float: "a number",
+            int: "an integer",
+            str: "a string",
+            bool: "true/false",
+            list: "a list",
+            dict: "a mapping",
+        }.get(k, k.__name__)
+        for k in kinds
+    )

@@ -4,6 +4,7 @@ A run holds an exclusive ``flock`` on ``$TMPDIR/tracking_bench_domains/<id>.lock
 by the OS even if the process is killed). ``reserve(None)`` takes the first free domain; ``reserve(id)`` takes
 that one or fails naming the run that holds it.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -56,8 +57,10 @@ def reserve(domain: int | None) -> Reservation:
             raise DomainInUse(f"ROS domain id must be in [0, {LAST_DOMAIN}], got {domain}")
         handle, holder = _try(domain)
         if handle is None:
-            raise DomainInUse(f"ROS_DOMAIN_ID {domain} is in use by another bench run ({holder}); "
-                              "choose another --domain-id or leave it out to take a free one")
+            raise DomainInUse(
+                f"ROS_DOMAIN_ID {domain} is in use by another bench run ({holder}); "
+                "choose another --domain-id or leave it out to take a free one"
+            )
         return Reservation(domain, handle)
     for candidate in range(FIRST_AUTO, LAST_DOMAIN + 1):
         handle, _ = _try(candidate)

@@ -1,4 +1,5 @@
 """The bench's own error, below every other module (config and plugins both raise it; nothing to import)."""
+
 from __future__ import annotations
 
 

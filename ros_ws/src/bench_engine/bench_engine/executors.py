@@ -12,6 +12,7 @@ times. A run whose node was killed is run again by the task itself (bench_engine
 on the worker's stderr as each retry starts. bench_engine.batch imports this module (and dask) only when a
 scheduler is given.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -45,8 +46,13 @@ def run_task(spec: RunSpec) -> RunResult:
             return RunResult(spec, 0, [f"{spec.out}: kept the complete run of an earlier attempt"])
         shutil.rmtree(spec.out)
         notes.append(f"{spec.out}: an earlier attempt was lost with its worker; ran it again")
-    result = run_one(spec, None, lambda note: print(f"[batch] {note}", file=sys.stderr, flush=True),
-                     env={**os.environ, **RUN_ENV}, preexec_fn=_die_with_worker)
+    result = run_one(
+        spec,
+        None,
+        lambda note: print(f"[batch] {note}", file=sys.stderr, flush=True),
+        env={**os.environ, **RUN_ENV},
+        preexec_fn=_die_with_worker,
+    )
     result.reruns = notes + result.reruns
     return result
 
@@ -55,8 +61,9 @@ def connect(scheduler: str, jobs: int):
     """A dask.distributed Client: of the scheduler at ``scheduler``, or of a new LocalCluster of ``jobs``
     single-threaded worker processes on 127.0.0.1 when ``scheduler`` is ``"local"``."""
     if scheduler == "local":
-        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None)
+        cluster = LocalCluster(
+            n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+        )
         client = Client(cluster)
         client.bench_cluster = cluster
         return client
@@ -70,18 +77,31 @@ def close(client) -> None:
         cluster.close()
 
 
-def run_dask(specs: list[RunSpec], scheduler: str, jobs: int = 2, desc: str = "runs",
-             on_done: Callable[[RunResult], None] | None = None, retries: int = 2,
-             task: Callable[[RunSpec], RunResult] = run_task) -> list[RunResult]:
+def run_dask(
+    specs: list[RunSpec],
+    scheduler: str,
+    jobs: int = 2,
+    desc: str = "runs",
+    on_done: Callable[[RunResult], None] | None = None,
+    retries: int = 2,
+    task: Callable[[RunSpec], RunResult] = run_task,
+) -> list[RunResult]:
     """Run every spec as a task on the cluster (``connect``), with a progress bar; results in the order they
     end, each carrying the caller's own spec object. A run whose task failed for good (it raised more than
     ``retries`` times, or lost too many workers) is a failed RunResult naming the error."""
     client = connect(scheduler, jobs)
     results = []
     try:
-        futures = {client.submit(task, replace(s, out=s.out.resolve()), retries=retries, pure=False,
-                                 key=f"run-{i:05d}-{s.out.name}-{os.urandom(4).hex()}"): s
-                   for i, s in enumerate(specs)}
+        futures = {
+            client.submit(
+                task,
+                replace(s, out=s.out.resolve()),
+                retries=retries,
+                pure=False,
+                key=f"run-{i:05d}-{s.out.name}-{os.urandom(4).hex()}",
+            ): s
+            for i, s in enumerate(specs)
+        }
         with tqdm(total=len(specs), unit="run", desc=desc) as bar:
             for future in as_completed(futures):
                 spec = futures[future]
@@ -99,15 +119,18 @@ def run_dask(specs: list[RunSpec], scheduler: str, jobs: int = 2, desc: str = "r
     return results
 
 
-def map_dask(fn: Callable[[Any], Any], items: list, scheduler: str, jobs: int = 2, desc: str = "tasks",
-             retries: int = 2) -> list:
+def map_dask(
+    fn: Callable[[Any], Any], items: list, scheduler: str, jobs: int = 2, desc: str = "tasks", retries: int = 2
+) -> list:
     """``[fn(item) for item in items]`` on the cluster at ``scheduler`` (:func:`connect`), in order, with a
     progress bar; ``fn`` and the items must pickle, and any path in an item must be the same on every host (a
     shared file system). A task that raises is retried ``retries`` times, then its error is raised here."""
     client = connect(scheduler, jobs)
     try:
-        futures = [client.submit(fn, item, retries=retries, pure=False,
-                                 key=f"{desc}-{i:05d}-{os.urandom(4).hex()}") for i, item in enumerate(items)]
+        futures = [
+            client.submit(fn, item, retries=retries, pure=False, key=f"{desc}-{i:05d}-{os.urandom(4).hex()}")
+            for i, item in enumerate(items)
+        ]
         with tqdm(total=len(items), unit="task", desc=desc) as bar:
             for _ in as_completed(futures):
                 bar.update()

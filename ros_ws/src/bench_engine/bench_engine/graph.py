@@ -11,6 +11,7 @@ Roles: ``source`` paces the run (the truth); ``sensor`` nodes turn the source's 
 any topics and publish estimates; the ``recorder`` writes every data topic. Sensors and estimators are
 paced (bench_engine.lockstep): any acyclic chain of them, e.g. camera -> identifier -> tracker -> attitude.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,8 +21,23 @@ from bench_engine import plugins
 from bench_engine.config import ScenarioError
 from bench_engine.scenario import default_estimators
 from bench_engine.topics import (  # noqa: F401 - re-exported: the graph is where callers find a run's topics
-    ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DONE_TOPIC, ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, READY_TOPIC,
-    TOTALS_TOPIC, TRUTH_TOPIC, TRUTH_TYPE, NodeSpec, estimate_topic, measurement_topic, topic_owner)
+    ACK_TOPIC,
+    ACK_TYPE,
+    CLOCK_TOPIC,
+    CLOCK_TYPE,
+    DONE_TOPIC,
+    ESTIMATE,
+    ESTIMATE_TYPE,
+    MEASUREMENT,
+    READY_TOPIC,
+    TOTALS_TOPIC,
+    TRUTH_TOPIC,
+    TRUTH_TYPE,
+    NodeSpec,
+    estimate_topic,
+    measurement_topic,
+    topic_owner,
+)
 from bench_engine.views import add_standard_views
 
 RUN_ONLY_KEYS = ("description", "variants", "sweeps")
@@ -111,12 +127,16 @@ class Graph:
         placed: set[str] = set()
         remaining = list(self.nodes)
         while remaining:
-            ready = [n for n in remaining
-                     if all(publisher.get(t) in placed or publisher.get(t) == n.name for t in n.subscribes)]
+            ready = [
+                n
+                for n in remaining
+                if all(publisher.get(t) in placed or publisher.get(t) == n.name for t in n.subscribes)
+            ]
             if not ready:
                 names = sorted(n.name for n in remaining)
-                raise ScenarioError(f"the nodes {names} consume each other's topics in a cycle: "
-                                    "the data flow of a run must be acyclic")
+                raise ScenarioError(
+                    f"the nodes {names} consume each other's topics in a cycle: the data flow of a run must be acyclic"
+                )
             order += ready
             placed.update(n.name for n in ready)
             remaining = [n for n in remaining if n.name not in placed]
@@ -130,8 +150,11 @@ class Graph:
 def resolve_estimators(cfg: dict, requested: list[str] | None) -> list[str]:
     """The run's selected estimators, of any kind: ``requested`` (the command line's ``--estimators``), else the
     scenario's ``estimators``, else every estimator a kind's section defines (``NodeKind.claims``)."""
-    names = requested or default_estimators(cfg) or [
-        n for k in node_kinds().values() if k.claims is not None for n in k.claims(cfg)]
+    names = (
+        requested
+        or default_estimators(cfg)
+        or [n for k in node_kinds().values() if k.claims is not None for n in k.claims(cfg)]
+    )
     if not names:
         raise ScenarioError("no estimators selected, and the scenario has no 'estimators' and defines none")
     if len(set(names)) != len(names):
@@ -187,6 +210,7 @@ def build_graph(cfg: dict, estimators: list[str] | None, record: bool = True, so
 
     def of_role(role: str) -> list[NodeSpec]:
         return [s for k in kinds if k.role == role for s in _kind_nodes(k, cfg, owned.get(k.name, selected))]
+
     truth, sensors, estimator_nodes = of_role("source"), of_role("sensor"), of_role("estimator")
     if by_name[source].role == "source":
         nodes = [s for s in truth if s.kind == source] + sensors
@@ -216,12 +240,17 @@ def _check_topic_contract(nodes: list[NodeSpec]) -> None:
         for topic, type_name in node.publishes.items():
             sensor, estimator = topic_owner(topic, MEASUREMENT), topic_owner(topic, ESTIMATE)
             if sensor is not None and node.role != "replay" and (sensor != node.name or node.role != "sensor"):
-                raise ScenarioError(f"node '{node.name}' ({node.kind}) publishes {topic}: only sensor '{sensor}' "
-                                    f"may (the topic contract of bench_engine.graph.MEASUREMENT)")
-            if estimator is not None and (estimator != node.name or node.role != "estimator"
-                                          or type_name != ESTIMATE_TYPE):
-                raise ScenarioError(f"node '{node.name}' ({node.kind}) publishes {topic} as {type_name}: only "
-                                    f"estimator '{estimator}' may, as {ESTIMATE_TYPE} (bench_engine.graph.ESTIMATE)")
+                raise ScenarioError(
+                    f"node '{node.name}' ({node.kind}) publishes {topic}: only sensor '{sensor}' "
+                    f"may (the topic contract of bench_engine.graph.MEASUREMENT)"
+                )
+            if estimator is not None and (
+                estimator != node.name or node.role != "estimator" or type_name != ESTIMATE_TYPE
+            ):
+                raise ScenarioError(
+                    f"node '{node.name}' ({node.kind}) publishes {topic} as {type_name}: only "
+                    f"estimator '{estimator}' may, as {ESTIMATE_TYPE} (bench_engine.graph.ESTIMATE)"
+                )
 
 
 def _resolve_topics(nodes: list[NodeSpec]) -> None:
@@ -240,6 +269,8 @@ def _resolve_topics(nodes: list[NodeSpec]) -> None:
             if topic not in publisher:
                 source = topic_owner(topic, ESTIMATE)
                 hint = f"; select estimator '{source}' too" if source is not None else ""
-                raise ScenarioError(f"node '{node.name}' consumes {topic}, which no node of the run publishes"
-                                    f"{hint}; published topics: {sorted(publisher)}")
+                raise ScenarioError(
+                    f"node '{node.name}' consumes {topic}, which no node of the run publishes"
+                    f"{hint}; published topics: {sorted(publisher)}"
+                )
             node.subscribes[topic] = publisher[topic].publishes[topic]

@@ -9,6 +9,7 @@ produces the same items as a run through ROS 2.
     run = run_in_process(load_scenario(name), ["ekf", "ukf"], seed=3)
     run.items["/ekf/estimate"]      # [Estimate, ...] in publication order
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -34,8 +35,13 @@ def _collector(run: InProcessRun, node: str) -> Log:
     return lambda level, text: run.logs.append((node, level, text))
 
 
-def run_in_process(cfg: dict, estimators: list[str] | None = None, seed: int | None = None,
-                   until_step: int | None = None, roles: tuple[str, ...] = ("sensor", "estimator")) -> InProcessRun:
+def run_in_process(
+    cfg: dict,
+    estimators: list[str] | None = None,
+    seed: int | None = None,
+    until_step: int | None = None,
+    roles: tuple[str, ...] = ("sensor", "estimator"),
+) -> InProcessRun:
     """Run ``cfg`` (a resolved scenario) with ``estimators`` (default: its own selection) and ``seed``
     (default: the scenario's) up to step ``until_step`` (default: the last). ``roles=("sensor",)`` runs the
     truth and the sensors only (the measurements, without estimators)."""
@@ -47,8 +53,9 @@ def run_in_process(cfg: dict, estimators: list[str] | None = None, seed: int | N
     context = {"scenario": cfg, "seed": scenario_seed(cfg)}
     kinds = node_kinds()
     source_spec = graph.of_role("source")[0]
-    source = kinds[source_spec.kind].stage(node_settings(cfg, source_spec.kind, source_spec.name), source_spec.name,
-                                           context)
+    source = kinds[source_spec.kind].stage(
+        node_settings(cfg, source_spec.kind, source_spec.name), source_spec.name, context
+    )
     stages, subscribers = {}, {}
     for spec in graph.topological():
         if spec.role in roles:

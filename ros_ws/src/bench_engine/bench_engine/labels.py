@@ -14,6 +14,7 @@ the label and its value the module that defines the component (for the reader; i
 
 :func:`angle_labels` is the built-in and registered ones together.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache

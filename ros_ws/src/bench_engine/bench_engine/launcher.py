@@ -3,6 +3,7 @@
 Everything is validated before anything starts: the scenario's top-level keys, every registered section and
 every node's core objects are built once in the launcher, so a bad key stops the run with a message naming it.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -52,8 +53,15 @@ class RunPlan:
 
     def node_argv(self, name: str) -> list[str]:
         """A node process's arguments after ``python -m MODULE``."""
-        return ["--name", name, "--config", str(self.config_path),
-                "--ros-args", "--params-file", str(self.parameters_file(name))]
+        return [
+            "--name",
+            name,
+            "--config",
+            str(self.config_path),
+            "--ros-args",
+            "--params-file",
+            str(self.parameters_file(name)),
+        ]
 
 
 def local_dds_env(domain_id: int) -> dict[str, str]:
@@ -95,9 +103,18 @@ def write_parameters(plan: "RunPlan") -> None:
         plan.parameters_file(spec.name).write_text(parameters_file(flat))
 
 
-def prepare_run(scenario: str, out: Path, estimators: list[str] | None = None, seed: int | None = None,
-                overrides: list[str] = (), variant: str | None = None, record: bool = True,
-                source: str = "truth", extra: dict | None = None, cfg: dict | None = None) -> RunPlan:
+def prepare_run(
+    scenario: str,
+    out: Path,
+    estimators: list[str] | None = None,
+    seed: int | None = None,
+    overrides: list[str] = (),
+    variant: str | None = None,
+    record: bool = True,
+    source: str = "truth",
+    extra: dict | None = None,
+    cfg: dict | None = None,
+) -> RunPlan:
     """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``: the
     scenario as validated (every value of its declared type, deprecated keys renamed:
     bench_engine.scenario.coerce_scenario), the selected ``estimators``, the seed and the run's options."""
@@ -113,8 +130,15 @@ def prepare_run(scenario: str, out: Path, estimators: list[str] | None = None, s
     if record and (out / "bag").exists():
         raise ScenarioError(f"{out / 'bag'} already exists: choose another output directory or remove it")
     out.mkdir(parents=True, exist_ok=True)
-    run = {"scenario": cfg, "estimators": names, "record": record, "source": source, "out": str(out),
-           "bag_dir": str(out / "bag"), "seed": scenario_seed(cfg)}
+    run = {
+        "scenario": cfg,
+        "estimators": names,
+        "record": record,
+        "source": source,
+        "out": str(out),
+        "bag_dir": str(out / "bag"),
+        "seed": scenario_seed(cfg),
+    }
     run.update(extra or {})
     config_path = out / "run_config.yaml"
     config_path.write_text(yamlio.dump(run, sort_keys=False))
@@ -203,8 +227,9 @@ def fork_node(module: str, argv: list[str], env: dict[str, str], log: Path) -> F
         exit_now(code)
 
 
-def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False,
-                     fork: bool = True) -> int:
+def run_multiprocess(
+    plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, quiet: bool = False, fork: bool = True
+) -> int:
     """One process per node, forked from this one when it can (``fork_node``: the fast start-up), else or
     without ``fork`` each a fresh interpreter; returns 0 on success, non-zero (naming the failed node)
     otherwise."""
@@ -236,7 +261,11 @@ def run_multiprocess(plan: RunPlan, domain_id: int, timeout_s: float = 3600.0, q
             log = open(log_path, "w")
             procs[spec.name] = subprocess.Popen(
                 [sys.executable, "-m", module, *plan.node_argv(spec.name)],
-                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
         phases.mark("spawned", "launcher", plan.out)
         return _supervise(plan, procs, interrupted, timeout_s, quiet)
     finally:
@@ -295,8 +324,11 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
     if first or interrupted or lingering or time.monotonic() > deadline:
         _stop_all(procs, LINGER_GRACE_S if lingering else STOP_GRACE_S)  # lingering: nothing else went wrong
     for name in lingering:
-        print(f"[launcher] warning: node '{name}' had not exited {LINGER_S:.0f} s after the run completed (the "
-              f"bag is complete); stopped it", file=sys.stderr)
+        print(
+            f"[launcher] warning: node '{name}' had not exited {LINGER_S:.0f} s after the run completed (the "
+            f"bag is complete); stopped it",
+            file=sys.stderr,
+        )
     phases.mark("nodes_exited", "launcher", plan.out)
     _recover_bag(plan)
     phases.mark("bag_checked", "launcher", plan.out)
@@ -308,8 +340,11 @@ def _supervise(plan: RunPlan, procs: dict, interrupted: list, timeout_s: float, 
         return 124
     first = first or [n for n, p in procs.items() if p.returncode not in (0, None) and n not in lingering]
     for name in first:
-        print(f"[launcher] node '{name}' died first ({_exit_text(procs[name].returncode)}); "
-              f"log: {plan.logs / (name + '.log')}", file=sys.stderr)
+        print(
+            f"[launcher] node '{name}' died first ({_exit_text(procs[name].returncode)}); "
+            f"log: {plan.logs / (name + '.log')}",
+            file=sys.stderr,
+        )
         if not quiet:
             tail = (plan.logs / f"{name}.log").read_text(errors="replace").splitlines()[-8:]
             print("\n".join(f"    {line}" for line in tail), file=sys.stderr)
@@ -357,8 +392,15 @@ def _stop_all(procs: dict, grace_s: float = STOP_GRACE_S) -> None:
                 p.wait()
 
 
-def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, executor: str = "events",
-              tag: str = "launch", pin: bool = True, fork_nodes: bool = True) -> int:
+def run_graph(
+    plan: RunPlan,
+    domain_id: int | None,
+    single_process: bool,
+    executor: str = "events",
+    tag: str = "launch",
+    pin: bool = True,
+    fork_nodes: bool = True,
+) -> int:
     """Reserve a ROS domain (the given one, or the first free one), run the graph on it, release it (a
     single-process run's at the process's end: run_single_process)."""
     try:
@@ -366,8 +408,11 @@ def run_graph(plan: RunPlan, domain_id: int | None, single_process: bool, execut
     except DomainInUse as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(f"[{tag}] {plan.run['scenario'].get('scenario')}: nodes {[n.name for n in plan.graph.nodes]}, "
-          f"ROS_DOMAIN_ID={reservation.domain}, out {plan.out}", file=sys.stderr)
+    print(
+        f"[{tag}] {plan.run['scenario'].get('scenario')}: nodes {[n.name for n in plan.graph.nodes]}, "
+        f"ROS_DOMAIN_ID={reservation.domain}, out {plan.out}",
+        file=sys.stderr,
+    )
     if single_process:  # its DDS participant outlives the run, and so does the domain's reservation
         return run_single_process(plan, reservation, executor, pin)
     try:
@@ -418,10 +463,13 @@ def run_single_process(plan: RunPlan, reservation: Reservation, executor: str = 
 
     def make_nodes() -> list:
         phases.mark("rclpy_init", "launcher", plan.out)
-        nodes = [node_class(spec.node)(spec.name, plan.run, parameters=_file_parameters(plan, spec.name))
-                 for spec in plan.graph.start_order()]
+        nodes = [
+            node_class(spec.node)(spec.name, plan.run, parameters=_file_parameters(plan, spec.name))
+            for spec in plan.graph.start_order()
+        ]
         phases.mark("node_created", "launcher", plan.out)
         return nodes
 
-    return spin_in_process(reservation.domain, make_nodes, executor,
-                           on_exit=lambda: phases.mark("nodes_exited", "launcher", plan.out))
+    return spin_in_process(
+        reservation.domain, make_nodes, executor, on_exit=lambda: phases.mark("nodes_exited", "launcher", plan.out)
+    )

@@ -16,6 +16,7 @@ has handled step k - 1 - W"; for an estimator it bounds the unprocessed measurem
 Acknowledgements are cumulative, so a node may hold some back: with W > 0 each node sends one once its step
 or count has advanced by W // 4, and any held-back one within 10 ms (bench_engine.bench_node.BenchNode.ack).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -9,6 +9,7 @@ against MAX_CHUNK_BYTES before anything is decompressed, and the output grows on
 (in reads of at most _PIECE bytes, never past the claim); CRCs are checked where the file has them (summary,
 chunks), so a flipped bit reads as damage, not as other numbers.
 """
+
 from __future__ import annotations
 
 import io
@@ -45,16 +46,35 @@ _MESSAGE_HEADER = struct.Struct("<HIQQ")  # a message record's channel id, seque
 _CHUNK_HEADER = struct.Struct("<QQQII")  # message start and end time, uncompressed size and CRC, compression length
 _FOOTER = struct.Struct("<BQQQI")  # opcode, length (20), summary start, summary offset start, summary CRC
 _U64, _U32, _U16 = struct.Struct("<Q"), struct.Struct("<I"), struct.Struct("<H")
-_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = (int(Opcode.SCHEMA), int(Opcode.CHANNEL), int(Opcode.MESSAGE),
-                                                   int(Opcode.CHUNK))
+_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = (
+    int(Opcode.SCHEMA),
+    int(Opcode.CHANNEL),
+    int(Opcode.MESSAGE),
+    int(Opcode.CHUNK),
+)
 _OP_FOOTER, _OP_DATA_END = int(Opcode.FOOTER), int(Opcode.DATA_END)
 _OP_HEADER, _OP_MESSAGE_INDEX = int(Opcode.HEADER), int(Opcode.MESSAGE_INDEX)
 _OP_METADATA, _OP_ATTACHMENT = int(Opcode.METADATA), int(Opcode.ATTACHMENT)
-_DATA_SECTION = {_OP_HEADER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX, _OP_ATTACHMENT,
-                 _OP_METADATA, _OP_DATA_END, _OP_FOOTER}  # what a scan from the start may meet
-_SUMMARY_RECORDS = {int(Opcode.SCHEMA): Schema, int(Opcode.CHANNEL): Channel, int(Opcode.CHUNK_INDEX): ChunkIndex,
-                    int(Opcode.STATISTICS): Statistics, int(Opcode.METADATA_INDEX): MetadataIndex,
-                    int(Opcode.ATTACHMENT_INDEX): AttachmentIndex}
+_DATA_SECTION = {
+    _OP_HEADER,
+    _OP_SCHEMA,
+    _OP_CHANNEL,
+    _OP_MESSAGE,
+    _OP_CHUNK,
+    _OP_MESSAGE_INDEX,
+    _OP_ATTACHMENT,
+    _OP_METADATA,
+    _OP_DATA_END,
+    _OP_FOOTER,
+}  # what a scan from the start may meet
+_SUMMARY_RECORDS = {
+    int(Opcode.SCHEMA): Schema,
+    int(Opcode.CHANNEL): Channel,
+    int(Opcode.CHUNK_INDEX): ChunkIndex,
+    int(Opcode.STATISTICS): Statistics,
+    int(Opcode.METADATA_INDEX): MetadataIndex,
+    int(Opcode.ATTACHMENT_INDEX): AttachmentIndex,
+}
 _COMPRESSIONS = ("", "zstd", "lz4")
 
 
@@ -75,7 +95,7 @@ class _RecordBody(ReadDataStream):
             raise _Cut
         start = self._count
         self._count += length
-        return bytes(self._body[start:self._count])
+        return bytes(self._body[start : self._count])
 
 
 def _parse(record_class: type, body: bytes | memoryview, path: Path, what: str) -> Any:
@@ -89,8 +109,9 @@ def _parse(record_class: type, body: bytes | memoryview, path: Path, what: str) 
 def _read_at(f: BinaryIO, size: int, offset: int, length: int, path: Path, what: str) -> bytes:
     """``length`` bytes of the file at ``offset``, refused unless the file (``size`` bytes) holds them."""
     if offset < 0 or length < 0 or offset + length > size:
-        raise BagDamaged(f"{path}: {what} at byte {offset} claims {length} bytes, past the end of the file "
-                         f"({size} bytes)")
+        raise BagDamaged(
+            f"{path}: {what} at byte {offset} claims {length} bytes, past the end of the file ({size} bytes)"
+        )
     f.seek(offset)
     data = f.read(length)
     if len(data) != length:
@@ -107,8 +128,9 @@ def _records(buf: bytes, start: int, end: int, path: Path, where: str) -> Iterat
             raise BagDamaged(f"{path}: {where}: the record at byte {pos} is cut short")
         stop = body + _U64.unpack_from(buf, pos + 1)[0]
         if stop > end:
-            raise BagDamaged(f"{path}: {where}: the record at byte {pos} claims {stop - body} bytes, "
-                             f"{end - body} are left")
+            raise BagDamaged(
+                f"{path}: {where}: the record at byte {pos} claims {stop - body} bytes, {end - body} are left"
+            )
         yield buf[pos], body, stop
         pos = stop
 
@@ -123,25 +145,31 @@ def read_summary(f: BinaryIO, size: int, path: Path, rebuild: str) -> Summary:
     footer_at = size - len(_MAGIC) - _FOOTER.size
     tail = _read_at(f, size, footer_at, _FOOTER.size + len(_MAGIC), path, "the footer")
     opcode, length, start, _offsets, crc = _FOOTER.unpack_from(tail)
-    footer_ok = tail[_FOOTER.size:] == _MAGIC and opcode == _OP_FOOTER and length == _FOOTER.size - _RECORD_PREFIX
+    footer_ok = tail[_FOOTER.size :] == _MAGIC and opcode == _OP_FOOTER and length == _FOOTER.size - _RECORD_PREFIX
     if not footer_ok or not start:
         raise BagDamaged(f"{path} has no summary section: the file is truncated{rebuild}")
     if not len(_MAGIC) <= start <= footer_at:
         raise BagDamaged(f"{path}: the footer puts the summary at byte {start}, outside the file{rebuild}")
     if footer_at - start > MAX_SUMMARY_BYTES:
-        raise BagDamaged(f"{path}: the footer puts the summary at byte {start}, {footer_at - start} bytes before "
-                         f"it: more than the reader's limit of {MAX_SUMMARY_BYTES} (bench_engine.mcap_records."
-                         f"MAX_SUMMARY_BYTES){rebuild}")
+        raise BagDamaged(
+            f"{path}: the footer puts the summary at byte {start}, {footer_at - start} bytes before "
+            f"it: more than the reader's limit of {MAX_SUMMARY_BYTES} (bench_engine.mcap_records."
+            f"MAX_SUMMARY_BYTES){rebuild}"
+        )
     data = _read_at(f, size, start, footer_at - start, path, "the summary section")
-    if crc and zlib.crc32(tail[:_FOOTER.size - 4], zlib.crc32(data)) != crc:
+    if crc and zlib.crc32(tail[: _FOOTER.size - 4], zlib.crc32(data)) != crc:
         raise BagDamaged(f"{path}: the summary section's CRC does not match: it is corrupt{rebuild}")
     summary = Summary()
     for opcode, body, stop in _records(data, 0, len(data), path, "the summary section"):
         record_class = _SUMMARY_RECORDS.get(opcode)
         if record_class is None:
             continue
-        record = _parse(record_class, memoryview(data)[body:stop], path,
-                        f"the summary's {record_class.__name__} record at byte {start + body - _RECORD_PREFIX}")
+        record = _parse(
+            record_class,
+            memoryview(data)[body:stop],
+            path,
+            f"the summary's {record_class.__name__} record at byte {start + body - _RECORD_PREFIX}",
+        )
         if record_class is Schema:
             summary.schemas[record.id] = record
         elif record_class is Channel:
@@ -163,25 +191,31 @@ def _check_summary(summary: Summary, data_end: int, path: Path, rebuild: str) ->
     accepts."""
     for channel in summary.channels.values():
         if channel.schema_id and channel.schema_id not in summary.schemas:
-            raise BagDamaged(f"{path}: channel {channel.topic!r} names schema {channel.schema_id}, which the summary "
-                             f"does not hold{rebuild}")
+            raise BagDamaged(
+                f"{path}: channel {channel.topic!r} names schema {channel.schema_id}, which the summary "
+                f"does not hold{rebuild}"
+            )
     for index in summary.chunk_indexes:
         where = f"the summary's index of a chunk at byte {index.chunk_start_offset}"
         if index.chunk_start_offset < len(_MAGIC) or index.chunk_start_offset + index.chunk_length > data_end:
-            raise BagDamaged(f"{path}: {where} ({index.chunk_length} bytes) points outside the data section"
-                             f"{rebuild}")
+            raise BagDamaged(f"{path}: {where} ({index.chunk_length} bytes) points outside the data section{rebuild}")
         if index.chunk_length > MAX_RECORD_BYTES:
-            raise BagDamaged(f"{path}: {where} claims {index.chunk_length} bytes, more than the reader's limit of "
-                             f"{MAX_RECORD_BYTES} (bench_engine.mcap_records.MAX_RECORD_BYTES)")
+            raise BagDamaged(
+                f"{path}: {where} claims {index.chunk_length} bytes, more than the reader's limit of "
+                f"{MAX_RECORD_BYTES} (bench_engine.mcap_records.MAX_RECORD_BYTES)"
+            )
         if index.compression not in _COMPRESSIONS:
             raise BagDamaged(f"{path}: {where}: compression {index.compression!r} is not one MCAP defines")
         if index.uncompressed_size > MAX_CHUNK_BYTES:
-            raise BagDamaged(f"{path}: {where} claims {index.uncompressed_size} bytes uncompressed, more than the "
-                             f"reader's limit of {MAX_CHUNK_BYTES} (bench_engine.mcap_records.MAX_CHUNK_BYTES)")
+            raise BagDamaged(
+                f"{path}: {where} claims {index.uncompressed_size} bytes uncompressed, more than the "
+                f"reader's limit of {MAX_CHUNK_BYTES} (bench_engine.mcap_records.MAX_CHUNK_BYTES)"
+            )
         unknown = set(index.message_index_offsets) - set(summary.channels)
         if unknown:
-            raise BagDamaged(f"{path}: {where} lists channel(s) {sorted(unknown)}, which the summary does not hold"
-                             f"{rebuild}")
+            raise BagDamaged(
+                f"{path}: {where} lists channel(s) {sorted(unknown)}, which the summary does not hold{rebuild}"
+            )
 
 
 def _decompress(data: memoryview, compression: str, size: int, path: Path, where: str) -> bytes:
@@ -190,8 +224,10 @@ def _decompress(data: memoryview, compression: str, size: int, path: Path, where
     bytes (at once when one zstd frame claims the same size, no more than that), so what is allocated follows
     the data really there, whatever the claim or the frame header says."""
     if size > MAX_CHUNK_BYTES:
-        raise BagDamaged(f"{path}: {where} claims {size} bytes uncompressed, more than the reader's limit of "
-                         f"{MAX_CHUNK_BYTES} (bench_engine.mcap_records.MAX_CHUNK_BYTES)")
+        raise BagDamaged(
+            f"{path}: {where} claims {size} bytes uncompressed, more than the reader's limit of "
+            f"{MAX_CHUNK_BYTES} (bench_engine.mcap_records.MAX_CHUNK_BYTES)"
+        )
     if compression == "":
         if len(data) != size:
             raise BagDamaged(f"{path}: {where} holds {len(data)} bytes but claims {size}")
@@ -221,8 +257,7 @@ def _decompress(data: memoryview, compression: str, size: int, path: Path, where
     except (zstandard.ZstdError, RuntimeError, EOFError, OSError) as err:  # lz4 raises RuntimeError
         raise BagDamaged(f"{path}: {where} does not decompress ({compression}: {err})") from None
     if total != size:
-        raise BagDamaged(f"{path}: {where} decompresses to {total} bytes but claims {size}: it is cut short or "
-                         f"corrupt")
+        raise BagDamaged(f"{path}: {where} decompresses to {total} bytes but claims {size}: it is cut short or corrupt")
     return pieces[0] if len(pieces) == 1 else b"".join(pieces)
 
 
@@ -235,6 +270,7 @@ def _lz4_reader(data: memoryview) -> Any:
         if decompressor.eof:
             return b""
         return decompressor.decompress(pending.pop() if pending else b"", max_length=n)
+
     return read
 
 
@@ -248,17 +284,21 @@ def _chunk_records(body: memoryview, path: Path, where: str, index: ChunkIndex |
     _start, _end, size, crc, name_length = _CHUNK_HEADER.unpack_from(body)
     pos = _CHUNK_HEADER.size + name_length
     if pos + 8 > len(body):
-        raise BagDamaged(f"{path}: {where}: its compression name claims {name_length} bytes, the record holds "
-                         f"{len(body) - _CHUNK_HEADER.size - 8}")
-    compression = bytes(body[_CHUNK_HEADER.size:pos]).decode("latin-1")
+        raise BagDamaged(
+            f"{path}: {where}: its compression name claims {name_length} bytes, the record holds "
+            f"{len(body) - _CHUNK_HEADER.size - 8}"
+        )
+    compression = bytes(body[_CHUNK_HEADER.size : pos]).decode("latin-1")
     length = _U64.unpack_from(body, pos)[0]
     pos += 8
     if length != len(body) - pos:  # the data is the chunk's last field: a zeroed header would read as empty
         raise BagDamaged(f"{path}: {where} claims {length} compressed bytes, its record holds {len(body) - pos}")
     if index is not None and (compression, size) != (index.compression, index.uncompressed_size):
-        raise BagDamaged(f"{path}: {where} says {compression!r}, {size} bytes; its index in the summary says "
-                         f"{index.compression!r}, {index.uncompressed_size} bytes")
-    records = _decompress(body[pos:pos + length], compression, size, path, where)
+        raise BagDamaged(
+            f"{path}: {where} says {compression!r}, {size} bytes; its index in the summary says "
+            f"{index.compression!r}, {index.uncompressed_size} bytes"
+        )
+    records = _decompress(body[pos : pos + length], compression, size, path, where)
     if crc and zlib.crc32(records) != crc:
         raise BagDamaged(f"{path}: {where}: its CRC does not match: the data is corrupt")
     return records
@@ -272,13 +312,15 @@ def chunk_at(f: BinaryIO, size: int, index: ChunkIndex, path: Path) -> bytes:
     head = _read_at(f, size, index.chunk_start_offset, _RECORD_PREFIX, path, where)
     if head[0] != _OP_CHUNK or index.chunk_length < _RECORD_PREFIX:
         raise BagDamaged(f"{path}: the summary's index of {where} does not point at a chunk record")
-    body = _read_at(f, size, index.chunk_start_offset + _RECORD_PREFIX, index.chunk_length - _RECORD_PREFIX, path,
-                    where)
+    body = _read_at(
+        f, size, index.chunk_start_offset + _RECORD_PREFIX, index.chunk_length - _RECORD_PREFIX, path, where
+    )
     return _chunk_records(memoryview(body), path, where, index)
 
 
-def message_data(records: bytes, wanted: Mapping[int, list[bytes]], channels: Mapping[int, Channel],
-                  path: Path, where: str) -> None:
+def message_data(
+    records: bytes, wanted: Mapping[int, list[bytes]], channels: Mapping[int, Channel], path: Path, where: str
+) -> None:
     """Append the data of each message record of ``records`` whose channel id is in ``wanted`` (every record
     checked to fit, every message to have its header and a channel of the summary). The scorer's hot loop."""
     unpack_u64, unpack_u16, wanted_get, header = _U64.unpack_from, _U16.unpack_from, wanted.get, _MESSAGE_HEADER.size
@@ -288,26 +330,31 @@ def message_data(records: bytes, wanted: Mapping[int, list[bytes]], channels: Ma
             body = pos + _RECORD_PREFIX
             stop = body + unpack_u64(records, pos + 1)[0]  # struct.error when the header is cut short
             if stop > end:
-                raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data claims {stop - body} "
-                                 f"bytes, {end - body} are left")
+                raise BagDamaged(
+                    f"{path}: {where}: the record at byte {pos} of its data claims {stop - body} "
+                    f"bytes, {end - body} are left"
+                )
             if records[pos] == _OP_MESSAGE:
                 if stop - body < header:
-                    raise BagDamaged(f"{path}: {where}: the message at byte {pos} of its data is shorter than a "
-                                     f"message header")
+                    raise BagDamaged(
+                        f"{path}: {where}: the message at byte {pos} of its data is shorter than a message header"
+                    )
                 channel_id = unpack_u16(records, body)[0]
                 into = wanted_get(channel_id)
                 if into is not None:
-                    into.append(records[body + header:stop])
+                    into.append(records[body + header : stop])
                 elif channel_id not in channels:
-                    raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does "
-                                     f"not hold")
+                    raise BagDamaged(
+                        f"{path}: {where}: a message of channel {channel_id}, which the summary does not hold"
+                    )
             pos = stop
     except struct.error:
         raise BagDamaged(f"{path}: {where}: the record at byte {pos} of its data is cut short") from None
 
 
-def messages_in(records: bytes, channels: Mapping[int, Channel], path: Path, where: str
-                 ) -> Iterator[tuple[int, int, int, bytes]]:
+def messages_in(
+    records: bytes, channels: Mapping[int, Channel], path: Path, where: str
+) -> Iterator[tuple[int, int, int, bytes]]:
     """``(record index, channel id, log time, data)`` of each message record of ``records`` (checked as in
     :func:`message_data`); the index counts every record, as mcap's reader orders messages of equal log time."""
     for i, (opcode, body, stop) in enumerate(_records(records, 0, len(records), path, where)):
@@ -318,7 +365,7 @@ def messages_in(records: bytes, channels: Mapping[int, Channel], path: Path, whe
         channel_id, _sequence, log_time, _publish = _MESSAGE_HEADER.unpack_from(records, body)
         if channel_id not in channels:
             raise BagDamaged(f"{path}: {where}: a message of channel {channel_id}, which the summary does not hold")
-        yield i, channel_id, log_time, records[body + _MESSAGE_HEADER.size:stop]
+        yield i, channel_id, log_time, records[body + _MESSAGE_HEADER.size : stop]
 
 
 class RecordScan:
@@ -350,18 +397,23 @@ class RecordScan:
             pos = self.good = len(_MAGIC)
             while pos < size:
                 if pos + _RECORD_PREFIX > size:
-                    raise BagDamaged(f"{path}: the record at byte {pos} is cut short (the file ends "
-                                     f"{size - pos} bytes into its header)")
+                    raise BagDamaged(
+                        f"{path}: the record at byte {pos} is cut short (the file ends "
+                        f"{size - pos} bytes into its header)"
+                    )
                 head = _read_at(f, size, pos, _RECORD_PREFIX, path, "a record header")
                 opcode, length = head[0], _U64.unpack_from(head, 1)[0]
                 body = pos + _RECORD_PREFIX
                 if length > size - body:
-                    raise BagDamaged(f"{path}: the record at byte {pos} claims {length} bytes, the file holds "
-                                     f"{size - body} more")
+                    raise BagDamaged(
+                        f"{path}: the record at byte {pos} claims {length} bytes, the file holds {size - body} more"
+                    )
                 if opcode not in _DATA_SECTION:
                     zeroed = " (a zeroed block?)" if not opcode else ""
-                    raise BagDamaged(f"{path}: the record at byte {pos} has opcode {opcode:#04x}, which the data "
-                                     f"section of an MCAP file does not hold{zeroed}")
+                    raise BagDamaged(
+                        f"{path}: the record at byte {pos} has opcode {opcode:#04x}, which the data "
+                        f"section of an MCAP file does not hold{zeroed}"
+                    )
                 self._check_layout(f, size, opcode, pos, length)
                 if opcode in (_OP_DATA_END, _OP_FOOTER):
                     self.good, self.complete = body + length, True
@@ -374,6 +426,7 @@ class RecordScan:
     def _check_layout(self, f: BinaryIO, size: int, opcode: int, pos: int, length: int) -> None:
         """The fixed sizes and length prefixes inside a record the scan does not parse add up to its length (the
         footer: 20 bytes, then the file's closing magic)."""
+
         def field(at: int, unpack: struct.Struct) -> int:
             if at + unpack.size > length:
                 raise _Cut
@@ -403,8 +456,9 @@ class RecordScan:
             ok = False
         if not ok:
             name = Opcode(opcode).name.lower().replace("_", " ")
-            raise BagDamaged(f"{self.path}: the {name} record at byte {pos} is garbled (its fields do not fill its "
-                             f"{length} bytes)")
+            raise BagDamaged(
+                f"{self.path}: the {name} record at byte {pos} is garbled (its fields do not fill its {length} bytes)"
+            )
 
     def _items(self, f: BinaryIO, size: int, opcode: int, pos: int, length: int) -> list[Any]:
         """What one top-level record holds (only the records recovery needs are read at all)."""
@@ -412,15 +466,19 @@ class RecordScan:
             return []
         where = f"the {Opcode(opcode).name.lower()} record at byte {pos}"
         if length > MAX_RECORD_BYTES:
-            raise BagDamaged(f"{self.path}: {where} claims {length} bytes, more than the reader's limit of "
-                             f"{MAX_RECORD_BYTES} (bench_engine.mcap_records.MAX_RECORD_BYTES)")
+            raise BagDamaged(
+                f"{self.path}: {where} claims {length} bytes, more than the reader's limit of "
+                f"{MAX_RECORD_BYTES} (bench_engine.mcap_records.MAX_RECORD_BYTES)"
+            )
         body = memoryview(_read_at(f, size, pos + _RECORD_PREFIX, length, self.path, where))
         if opcode != _OP_CHUNK:
             return [self._record(opcode, body, where)]
         records = _chunk_records(body, self.path, f"the chunk at byte {pos}")
-        return [self._record(op, memoryview(records)[start:stop], f"{where}, its record at byte {start}")
-                for op, start, stop in _records(records, 0, len(records), self.path, where)
-                if op in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE)]
+        return [
+            self._record(op, memoryview(records)[start:stop], f"{where}, its record at byte {start}")
+            for op, start, stop in _records(records, 0, len(records), self.path, where)
+            if op in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE)
+        ]
 
     def _record(self, opcode: int, body: memoryview, where: str) -> Schema | Channel | Message:
         if opcode == _OP_SCHEMA:
@@ -430,6 +488,10 @@ class RecordScan:
         if len(body) < _MESSAGE_HEADER.size:
             raise BagDamaged(f"{self.path}: {where} is shorter than a message header")
         channel_id, sequence, log_time, publish_time = _MESSAGE_HEADER.unpack_from(body)
-        return Message(channel_id=channel_id, sequence=sequence, log_time=log_time, publish_time=publish_time,
-                       data=bytes(body[_MESSAGE_HEADER.size:]))
-
+        return Message(
+            channel_id=channel_id,
+            sequence=sequence,
+            log_time=log_time,
+            publish_time=publish_time,
+            data=bytes(body[_MESSAGE_HEADER.size :]),
+        )

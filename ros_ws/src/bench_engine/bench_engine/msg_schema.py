@@ -11,6 +11,7 @@ rosbag2's own pattern, so the text here is byte-identical to what ``ros2 bag rec
 Definitions are looked up in ``<prefix>/share/<pkg>/msg/`` for each prefix of ``AMENT_PREFIX_PATH`` and then
 the interpreter's prefix (``sys.prefix``: the venv the PyPI wheels are installed in).
 """
+
 from __future__ import annotations
 
 import importlib
@@ -26,9 +27,24 @@ SEPARATOR = "=" * 80
 _TYPE_NAME = re.compile(r"^([a-zA-Z0-9_]+)/(?:msg/)?([a-zA-Z0-9_]+)$")
 # rosbag2's MSG_FIELD_TYPE_REGEX: the first word of a line, optionally followed by an array suffix.
 _FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
-PRIMITIVE_TYPES = frozenset({
-    "bool", "byte", "char", "float32", "float64", "int8", "uint8",
-    "int16", "uint16", "int32", "uint32", "int64", "uint64", "string"})
+PRIMITIVE_TYPES = frozenset(
+    {
+        "bool",
+        "byte",
+        "char",
+        "float32",
+        "float64",
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "string",
+    }
+)
 
 
 def split_type_name(type_name: str) -> tuple[str, str]:

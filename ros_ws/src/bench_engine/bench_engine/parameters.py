@@ -15,6 +15,7 @@ list mixing integers and doubles becomes doubles.
 
 No rclpy here: the ROS shell (bench_engine.bench_node) declares and reads what these functions produce.
 """
+
 from __future__ import annotations
 
 import re
@@ -60,8 +61,10 @@ def flatten(tree: dict, prefix: str = "") -> dict[str, Any]:
     flat: dict[str, Any] = {}
     for key, value in tree.items():
         if not _is_token(key):
-            raise ScenarioError(f"'{prefix}{key}' cannot be a ROS parameter name: keys must be letters, digits "
-                                f"and underscores, starting with a letter")
+            raise ScenarioError(
+                f"'{prefix}{key}' cannot be a ROS parameter name: keys must be letters, digits "
+                f"and underscores, starting with a letter"
+            )
         name = f"{prefix}{key}"
         if isinstance(value, dict) and value and all(_is_token(k) for k in value):
             flat.update(flatten(value, name + "."))
@@ -124,7 +127,8 @@ class _ParametersDumper(yamlio.DUMPER):
 
 
 _ParametersDumper.add_representer(
-    _Quoted, lambda dumper, text: dumper.represent_scalar("tag:yaml.org,2002:str", str(text), style="'"))
+    _Quoted, lambda dumper, text: dumper.represent_scalar("tag:yaml.org,2002:str", str(text), style="'")
+)
 
 
 def _quoted(value: Any) -> Any:
@@ -142,5 +146,7 @@ def parameters_file(flat: dict[str, Any], node: str = "/**") -> str:
 def description(name: str) -> str:
     """What ``ros2 param describe`` shows for a scenario parameter."""
     key = name[: -len(YAML_SUFFIX)] + " (YAML text)" if name.endswith(YAML_SUFFIX) else name
-    return (f"scenario key {key}: read once at start-up (read-only); set it in the scenario YAML, with the "
-            f"launcher's --set, or in this node's parameters file")
+    return (
+        f"scenario key {key}: read once at start-up (read-only); set it in the scenario YAML, with the "
+        f"launcher's --set, or in this node's parameters file"
+    )

@@ -5,6 +5,7 @@ Each process of a run (launcher, node processes, batch workers) appends one JSON
 are short and the file is opened in append mode, so concurrent processes never interleave within a line.
 Events are a handful per process and run; with the variable unset ``mark`` returns at once.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,8 +37,14 @@ def mark(event: str, who: str, run: str | os.PathLike | None = None, t: float | 
     path = os.environ.get(ENV)
     if not path:
         return
-    record = {"t": time.time() if t is None else t, "event": event, "who": who,
-              "run": str(run) if run is not None else None, "pid": os.getpid(), **extra}
+    record = {
+        "t": time.time() if t is None else t,
+        "event": event,
+        "who": who,
+        "run": str(run) if run is not None else None,
+        "pid": os.getpid(),
+        **extra,
+    }
     with open(path, "a") as f:
         f.write(json.dumps(record) + "\n")
 

@@ -7,6 +7,7 @@ and noise are exactly those of the original run: any filter can be re-run on ide
 in the file. /clock follows the truth's stamps; a step without truth (a bag made from tracking data without a
 reference, bench_ccsds.ingest) takes its measurements' earliest stamp.
 """
+
 from __future__ import annotations
 
 import sys
@@ -53,7 +54,6 @@ class PlayerNode(SourceNode):
             self.publish_data(topic, data)
         if k in self.clock_ns:
             self.publish_clock(self.clock_ns[k])
-
 
 
 def main() -> int:

@@ -12,6 +12,7 @@ Entry points are read from the installed packages' metadata (``pip install -e`` 
 colcon install); any ``*.dist-info`` directory on ``sys.path`` counts, which is how the tests register a
 throw-away package.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -21,19 +22,19 @@ from importlib.metadata import entry_points
 from bench_engine.errors import ScenarioError
 
 GROUPS = {
-    "node_kinds": "tracking_bench.node_kinds",      # NodeKind (bench_engine.graph)
+    "node_kinds": "tracking_bench.node_kinds",  # NodeKind (bench_engine.graph)
     "truth_models": "tracking_bench.truth_models",  # TruthModel (orbit_sim.truth): settings class + builder
-    "sensors": "tracking_bench.sensors",            # SensorType
-    "codecs": "tracking_bench.codecs",              # message codec (encode item -> msg, decode msg -> item)
-    "estimators": "tracking_bench.estimators",      # Filter class
-    "dynamics": "tracking_bench.dynamics",          # Builder (settings, cfg) -> DynamicsModel
+    "sensors": "tracking_bench.sensors",  # SensorType
+    "codecs": "tracking_bench.codecs",  # message codec (encode item -> msg, decode msg -> item)
+    "estimators": "tracking_bench.estimators",  # Filter class
+    "dynamics": "tracking_bench.dynamics",  # Builder (settings, cfg) -> DynamicsModel
     "initialisers": "tracking_bench.initialisers",  # Builder (settings, cfg, dynamics) -> Initialiser
-    "metrics": "tracking_bench.metrics",            # Metric (bench_eval.scoring)
-    "offline": "tracking_bench.offline",            # OfflineEstimator (bench_eval.offline)
-    "bounds": "tracking_bench.bounds",              # Bound (bench_eval.bounds)
-    "studies": "tracking_bench.studies",            # Study (bench_eval.study)
-    "scenarios": "tracking_bench.scenarios",        # path of a scenario YAML file
-    "sections": "tracking_bench.sections",          # SectionReader of a top-level key (bench_engine.settings)
+    "metrics": "tracking_bench.metrics",  # Metric (bench_eval.scoring)
+    "offline": "tracking_bench.offline",  # OfflineEstimator (bench_eval.offline)
+    "bounds": "tracking_bench.bounds",  # Bound (bench_eval.bounds)
+    "studies": "tracking_bench.studies",  # Study (bench_eval.study)
+    "scenarios": "tracking_bench.scenarios",  # path of a scenario YAML file
+    "sections": "tracking_bench.sections",  # SectionReader of a top-level key (bench_engine.settings)
     "angle_labels": "tracking_bench.angle_labels",  # a label that is an angle (bench_engine.labels)
 }
 
@@ -63,8 +64,10 @@ def load(group: str, name: str) -> object:
     """The component registered as ``name`` in ``group``; ScenarioError naming the registered ones if absent."""
     found = _entry_points(group)
     if name not in found:
-        raise ScenarioError(f"no {group.replace('_', ' ')} named {name!r} is registered; "
-                            f"registered: {', '.join(sorted(found)) or 'none'} (entry-point group {GROUPS[group]})")
+        raise ScenarioError(
+            f"no {group.replace('_', ' ')} named {name!r} is registered; "
+            f"registered: {', '.join(sorted(found)) or 'none'} (entry-point group {GROUPS[group]})"
+        )
     return found[name].load()
 
 

@@ -8,6 +8,7 @@ imported but never initialised, and no Python thread is started (one BLAS thread
 before numpy loads); the only other threads are the two idle listener threads LTTng-UST starts when rclpy's
 tracing library loads, and a forked child has none of them.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -16,11 +17,28 @@ import os
 from bench_engine import plugins
 
 WARM_ENV = "TRACKING_BENCH_FORK_SERVER"
-MODULES = ("bench_engine.run", "rclpy", "bench_engine.bench_node", "bench_engine.source_node",
-           "bench_engine.stage_node", "bench_engine.recorder_node", "bench_engine.player_node")
+MODULES = (
+    "bench_engine.run",
+    "rclpy",
+    "bench_engine.bench_node",
+    "bench_engine.source_node",
+    "bench_engine.stage_node",
+    "bench_engine.recorder_node",
+    "bench_engine.player_node",
+)
 """bench_engine.run first: it sets the environment before numpy loads."""
-GROUPS = ("node_kinds", "sections", "codecs", "sensors", "estimators", "dynamics", "initialisers", "truth_models",
-          "metrics", "offline")
+GROUPS = (
+    "node_kinds",
+    "sections",
+    "codecs",
+    "sensors",
+    "estimators",
+    "dynamics",
+    "initialisers",
+    "truth_models",
+    "metrics",
+    "offline",
+)
 
 
 def warm() -> None:

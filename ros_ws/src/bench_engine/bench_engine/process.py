@@ -6,6 +6,7 @@ Objects whose own teardown may never return are handed to :func:`keep_until_exit
 run's ROS nodes, executor and domain (bench_engine.launcher.run_single_process). They stay referenced here, so
 no destructor runs while the process goes on (scoring, writing the report), and :func:`exit_now` ends the process
 with ``os._exit``, which runs none: the kernel reclaims their memory, threads and sockets."""
+
 from __future__ import annotations
 
 import os

@@ -13,6 +13,7 @@ so Foxglove, PlotJuggler, rosbags or ``ros2 bag play`` show and play the run on 
 time of the first message and the span to the last go to the metadata's ``custom_data``
 (:data:`WALL_START_KEY`, :data:`WALL_DURATION_KEY`, in ns).
 """
+
 from __future__ import annotations
 
 import sys
@@ -69,8 +70,9 @@ class RecorderNode(BenchNode):
             self.bag.add_topic(topic, type_name, DATA_QOS)
             self.sim_clock.add_topic(topic, type_name)
             self.counts[topic] = 0
-            self._subs[topic] = self.data_subscription(message_class(type_name), topic,
-                                                       partial(self._on_message, topic), raw=True)
+            self._subs[topic] = self.data_subscription(
+                message_class(type_name), topic, partial(self._on_message, topic), raw=True
+            )
         self.create_timer(STRANDED_POLL_S, self._take_stranded)
 
     def _on_message(self, topic: str, data: bytes) -> None:
@@ -131,18 +133,25 @@ class RecorderNode(BenchNode):
             return
         if self._has_everything():
             stranded = f"; {self.stranded} of them taken by the queue poll" if self.stranded else ""
-            self.get_logger().info(f"every message of the run is in ({sum(self.counts.values())}{stranded}): "
-                                   "bag closed")
+            self.get_logger().info(
+                f"every message of the run is in ({sum(self.counts.values())}{stranded}): bag closed"
+            )
             self.close()
             self.finished = True
             return
         now = time.monotonic()
         idle = now - self._last_rx
         others_gone = all(self.count_publishers(t) == 0 for t in self.counts)
-        if (idle > IDLE_AFTER_DONE_S and others_gone) or idle > 2 * IDLE_AFTER_DONE_S \
-                or now - self._drain_started > MAX_DRAIN_S:
-            missing = {t: self._totals.get(t, 0) - n for t, n in self.counts.items()
-                       if self._totals.get(t, 0) > n} if self._totals is not None else "no totals received"
+        if (
+            (idle > IDLE_AFTER_DONE_S and others_gone)
+            or idle > 2 * IDLE_AFTER_DONE_S
+            or now - self._drain_started > MAX_DRAIN_S
+        ):
+            missing = (
+                {t: self._totals.get(t, 0) - n for t, n in self.counts.items() if self._totals.get(t, 0) > n}
+                if self._totals is not None
+                else "no totals received"
+            )
             self.get_logger().warning(f"bag closed after {idle:.1f} s without messages; missing: {missing}")
             self.close()
             self.finished = True
@@ -160,8 +169,12 @@ class RecorderNode(BenchNode):
     def _keep_wall_span(self) -> None:
         """Put the wall time of the first message and the span to the last into the bag's custom data."""
         if self._wall_first_ns:
-            self.bag.set_custom_data({WALL_START_KEY: str(self._wall_first_ns),
-                                      WALL_DURATION_KEY: str(self._wall_last_ns - self._wall_first_ns)})
+            self.bag.set_custom_data(
+                {
+                    WALL_START_KEY: str(self._wall_first_ns),
+                    WALL_DURATION_KEY: str(self._wall_last_ns - self._wall_first_ns),
+                }
+            )
 
 
 def main() -> int:

@@ -21,6 +21,7 @@ Errors (bench_engine.bag_errors): :class:`BagUnrecoverable` when there is nothin
 file, not even its magic), :class:`BagUnsupported` for a topic whose type is not installed; damage past the
 magic only ends what is recovered (:attr:`Recovery.reason` says what it was).
 """
+
 from __future__ import annotations
 
 import functools
@@ -56,11 +57,16 @@ class Recovery:
     def summary(self) -> str:
         counts = ", ".join(f"{topic} {n}" for topic, n in sorted(self.kept.items()))
         kept_as = self.truncated_file.name if self.truncated_file else "-"
-        span = (f", sim time {self.log_span_ns[0] * 1e-9:.9g}–{self.log_span_ns[1] * 1e-9:.9g} s"
-                if self.log_span_ns else "")
-        return (f"{self.bag}: recovered {sum(self.kept.values())} messages ({counts}{span}); {self.lost_bytes} "
-                f"bytes after the last complete record were unreadable ({self.reason}); the damaged file is "
-                f"kept as {kept_as}")
+        span = (
+            f", sim time {self.log_span_ns[0] * 1e-9:.9g}–{self.log_span_ns[1] * 1e-9:.9g} s"
+            if self.log_span_ns
+            else ""
+        )
+        return (
+            f"{self.bag}: recovered {sum(self.kept.values())} messages ({counts}{span}); {self.lost_bytes} "
+            f"bytes after the last complete record were unreadable ({self.reason}); the damaged file is "
+            f"kept as {kept_as}"
+        )
 
 
 def needs_recovery(bag_dir: Path) -> bool:
@@ -118,8 +124,9 @@ class _Rebuild:
         else:
             topic = self.topics.get(record.channel_id)
             if topic is None:
-                raise BagDamaged(f"{self.path}: a message of channel {record.channel_id}, which no channel record "
-                                 f"before it declares")
+                raise BagDamaged(
+                    f"{self.path}: a message of channel {record.channel_id}, which no channel record before it declares"
+                )
             self.writer.write(topic, record.data, record.log_time, record.publish_time)
             self.kept[topic] = self.kept.get(topic, 0) + 1
             t = record.log_time
@@ -131,19 +138,23 @@ class _Rebuild:
             return
         schema = self.schemas.get(channel.schema_id)
         if schema is None:
-            raise BagDamaged(f"{self.path}: channel {channel.topic!r} names schema {channel.schema_id}, which no "
-                             f"schema record before it declares")
+            raise BagDamaged(
+                f"{self.path}: channel {channel.topic!r} names schema {channel.schema_id}, which no "
+                f"schema record before it declares"
+            )
         for qos in (_qos(channel), None):  # profiles the writer refuses are damage: the default instead
             try:
                 self.writer.add_topic(channel.topic, schema.name, qos)
                 break
             except (LookupError, OSError, ImportError) as err:  # the type is not installed
-                raise BagUnsupported(f"{self.path}: topic {channel.topic} has type {schema.name!r}, which is not "
-                                     f"installed: {err}") from None
+                raise BagUnsupported(
+                    f"{self.path}: topic {channel.topic} has type {schema.name!r}, which is not installed: {err}"
+                ) from None
             except (ValueError, TypeError, AttributeError) as err:
                 if qos is None:
-                    raise BagUnsupported(f"{self.path}: topic {channel.topic} of type {schema.name!r} cannot be "
-                                         f"rebuilt: {err}") from None
+                    raise BagUnsupported(
+                        f"{self.path}: topic {channel.topic} of type {schema.name!r} cannot be rebuilt: {err}"
+                    ) from None
         self.topics[channel.id] = channel.topic
 
     def settle(self) -> None:
@@ -155,7 +166,7 @@ class _Rebuild:
 
 def _without_path(err: Exception, path: Path) -> str:
     text = str(err)
-    return text[len(f"{path}: "):] if text.startswith(f"{path}: ") else text
+    return text[len(f"{path}: ") :] if text.startswith(f"{path}: ") else text
 
 
 def recover(bag_dir: Path | str) -> Recovery:
@@ -180,8 +191,9 @@ def recover(bag_dir: Path | str) -> Recovery:
                 rebuild.settle()
         except BagDamaged as err:
             if scan.good == 0:
-                raise BagUnrecoverable(f"{path}: not even the MCAP header could be read "
-                                       f"({_without_path(err, path)})") from None
+                raise BagUnrecoverable(
+                    f"{path}: not even the MCAP header could be read ({_without_path(err, path)})"
+                ) from None
             reason = _without_path(err, path)
         else:
             if not scan.complete:

@@ -10,6 +10,7 @@ Vocabulary: an *estimator* is any node that publishes estimates (``/NAME/estimat
 smoother, a star identifier. ``estimators`` selects the ones a run starts, of any kind. The ``filters`` section
 configures the filter-type estimators only (beside ``trackers``, ``star_trackers``, …).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -18,33 +19,49 @@ from bench_engine import plugins
 from bench_engine.settings import NON_NEGATIVE, Check, SectionReader, Settings, coerce, read, read_key, setting
 from bench_engine.timegrid import Time
 
-NAME = Check(lambda names: len(set(names)) == len(names) and all(n.replace("_", "").isalnum() for n in names),
-             "a list of distinct names (letters, digits and underscores)")
+NAME = Check(
+    lambda names: len(set(names)) == len(names) and all(n.replace("_", "").isalnum() for n in names),
+    "a list of distinct names (letters, digits and underscores)",
+)
 
 
 @dataclass(frozen=True, kw_only=True)
 class EngineKeys(Settings):
     """The top-level keys the engine reads itself."""
 
-    scenario: str = setting("", doc="the scenario's name, in reports and run directories",
-                            default_text="the file's name without .yaml")
+    scenario: str = setting(
+        "", doc="the scenario's name, in reports and run directories", default_text="the file's name without .yaml"
+    )
     description: str = setting("", doc="what the scenario is, for people (not read by any node)")
-    seed: int = setting(0, doc="the run's random seed: sensors, random filters and seeded truth models draw from "
-                               "it (--seed overrides it; Monte Carlo runs take seed, seed + 1, …)",
-                        check=NON_NEGATIVE)
+    seed: int = setting(
+        0,
+        doc="the run's random seed: sensors, random filters and seeded truth models draw from "
+        "it (--seed overrides it; Monte Carlo runs take seed, seed + 1, …)",
+        check=NON_NEGATIVE,
+    )
     time: Time = setting(doc="the lock-step time grid")
     estimators: list[str] | None = setting(
-        None, old=("default_filters",), check=NAME,
+        None,
+        old=("default_filters",),
+        check=NAME,
         doc="the estimators a run starts when the command line selects none (--estimators): names of any "
-            "estimator kind (a filter, a tracker, a star tracker, …; bench_engine.graph.resolve_estimators)",
-        default_text="every estimator the scenario's sections define")
-    standard_views: bool = setting(True, doc="publish and record the standard ROS views of every estimate and "
-                                             "truth (Odometry, pose, markers, diagnostics: bench_engine.views); "
-                                             "Monte Carlo batches turn them off")
-    variants: dict = setting({}, doc="named sets of overrides ({key.path: value} each) that --variant applies "
-                                     "on top of the file, in the order given")
-    sweeps: dict = setting({}, doc="named grids of runs over variants and overrides (bench_eval.sweep; "
-                                   "scripts/sweep.py --grid NAME)")
+        "estimator kind (a filter, a tracker, a star tracker, …; bench_engine.graph.resolve_estimators)",
+        default_text="every estimator the scenario's sections define",
+    )
+    standard_views: bool = setting(
+        True,
+        doc="publish and record the standard ROS views of every estimate and "
+        "truth (Odometry, pose, markers, diagnostics: bench_engine.views); "
+        "Monte Carlo batches turn them off",
+    )
+    variants: dict = setting(
+        {},
+        doc="named sets of overrides ({key.path: value} each) that --variant applies "
+        "on top of the file, in the order given",
+    )
+    sweeps: dict = setting(
+        {}, doc="named grids of runs over variants and overrides (bench_eval.sweep; scripts/sweep.py --grid NAME)"
+    )
 
 
 def section_readers() -> dict[str, object]:
@@ -76,7 +93,6 @@ def coerce_scenario(cfg: dict) -> dict:
         if key in out and isinstance(reader, SectionReader):
             out[key] = reader.coerce(out[key])
     return out
-
 
 
 def upgrade_run_config(run: dict) -> dict:

@@ -23,6 +23,7 @@ same declarations, so the reference and the validation cannot disagree.
 
 No rclpy, nothing heavy: every node kind's module reads its section through this.
 """
+
 from __future__ import annotations
 
 import copy
@@ -64,9 +65,16 @@ def between(low: float, high: float, unit: str = "", what: str = "in") -> Check:
     return Check(lambda v: low <= v <= high, f"{what} [{low:g}, {high:g}]{' ' + unit if unit else ''}")
 
 
-def setting(default: Any = REQUIRED, *, doc: str, unit: str = "", check: Check | None = None,
-            choices: Iterable[str] | Callable[[], Iterable[str]] | None = None,
-            old: tuple[str, ...] = (), default_text: str = "") -> Any:
+def setting(
+    default: Any = REQUIRED,
+    *,
+    doc: str,
+    unit: str = "",
+    check: Check | None = None,
+    choices: Iterable[str] | Callable[[], Iterable[str]] | None = None,
+    old: tuple[str, ...] = (),
+    default_text: str = "",
+) -> Any:
     """A scenario key (a dataclass field): ``default`` (REQUIRED: none), ``doc`` its meaning, ``unit`` (SI),
     ``check`` a condition on its value, ``choices`` the allowed values (or a function giving them, e.g. the
     registered names), ``old`` deprecated names still read (with a one-line notice), ``default_text`` what the
@@ -89,8 +97,14 @@ class Variant:
     inline: bool = True
 
 
-def variant(selected_by: str, names: Callable[[], Iterable[str]], load: Callable[[str], type], *,
-            inline: bool = True, doc: str = "") -> Any:
+def variant(
+    selected_by: str,
+    names: Callable[[], Iterable[str]],
+    load: Callable[[str], type],
+    *,
+    inline: bool = True,
+    doc: str = "",
+) -> Any:
     """A field holding the Settings of the option ``selected_by`` names (:class:`Variant`)."""
     return field(default=None, metadata={"variant": Variant(selected_by, names, load, inline), "doc": doc})
 
@@ -137,8 +151,15 @@ def replaced(obj: Settings, **changes: Any) -> Any:
 # --- types ------------------------------------------------------------------------------------------------
 
 SCALARS = (bool, int, float, str, datetime.datetime)
-TYPE_TEXT = {bool: "true/false", int: "integer", float: "number", str: "string", dict: "mapping", object: "any",
-             datetime.datetime: "date and time"}
+TYPE_TEXT = {
+    bool: "true/false",
+    int: "integer",
+    float: "number",
+    str: "string",
+    dict: "mapping",
+    object: "any",
+    datetime.datetime: "date and time",
+}
 
 
 @dataclass(frozen=True)
@@ -170,9 +191,13 @@ def shape(hint: Any) -> Shape:
     if origin in (typing.Union, types.UnionType):
         parts = [shape(a) for a in args if a is not type(None)]
         nested = next((p for p in parts if p.settings), None)
-        return Shape(tuple(k for p in parts for k in p.kinds), next((p.item for p in parts if p.item), None),
-                     nested.settings if nested else None, bool(nested and nested.entries),
-                     optional=type(None) in args)
+        return Shape(
+            tuple(k for p in parts for k in p.kinds),
+            next((p.item for p in parts if p.item), None),
+            nested.settings if nested else None,
+            bool(nested and nested.entries),
+            optional=type(None) in args,
+        )
     if hint is list or origin is list:
         return Shape((list,), args[0] if args and args[0] in SCALARS else None)
     if hint is dict or origin is dict:
@@ -296,7 +321,7 @@ def _read_key(sec: Section, f: dataclasses.Field, hint: Any) -> Any:
             sec = Section({**sec.data, key: sec.data[old]}, sec.path)  # a view with the new name
     if sh.settings is not None and (isinstance(sec.data.get(key), dict) or sh.kinds == (dict,)):
         return _read_nested(sec, key, sh, default)
-    if object in sh.kinds:   # any value (an annotation-less estimator parameter)
+    if object in sh.kinds:  # any value (an annotation-less estimator parameter)
         sec.mark(key)
         value = sec.data.get(key)
         if value is None and default is REQUIRED:
@@ -345,6 +370,7 @@ def _read_nested(sec: Section, key: str, sh: Shape, default: Any) -> Any:
 
 
 # --- types without checks (ROS parameters) ----------------------------------------------------------------
+
 
 def coerce(cls: type, data: Any) -> Any:
     """A copy of the mapping ``data`` whose values of keys ``cls`` declares have their declared types (a
@@ -402,6 +428,7 @@ def join(prefix: str, key: str) -> str:
 
 
 # --- registered sections ----------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class SectionReader:

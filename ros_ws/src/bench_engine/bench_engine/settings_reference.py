@@ -7,6 +7,7 @@ The keys are the engine's own (bench_engine.scenario.EngineKeys) and those of ev
 ``tracking_bench.sections`` (a bench_engine.settings.SectionReader each): the installed packages' sections,
 plugins' included. ``<name>`` stands for a name the scenario chooses (a sensor's, an estimator's).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -112,8 +113,16 @@ def declared(cls: type, prefix: str = "", when: str = "") -> Iterator[Entry]:
         path, sh, meta = join(prefix, f.name), shape(hint), f.metadata
         check, choices = meta.get("check"), choices_of(meta)
         allowed = ", ".join(choices) if choices is not None else (check.text if check else "")
-        yield Entry(path, sh.text(), describe_default(f), meta.get("unit", ""), meta.get("doc", ""), allowed, when,
-                    bool(meta.get("default_text")))
+        yield Entry(
+            path,
+            sh.text(),
+            describe_default(f),
+            meta.get("unit", ""),
+            meta.get("doc", ""),
+            allowed,
+            when,
+            bool(meta.get("default_text")),
+        )
         if sh.settings is not None:
             yield from _nested(sh, path, when)
 
@@ -164,8 +173,10 @@ def _table(rows: list[Entry]) -> list[str]:
     out = ["| key | type | default | unit | allowed | meaning |", "|---|---|---|---|---|---|"]
     for e in rows:
         default = e.default if e.computed or e.default in ("required", "") else _code(e.default)
-        out.append(f"| {_code(e.path)} | {_cell(e.type)} | {_cell(default)} | {_cell(e.unit)} | {_cell(e.allowed)} "
-                   f"| {_cell(e.doc)} |")
+        out.append(
+            f"| {_code(e.path)} | {_cell(e.type)} | {_cell(default)} | {_cell(e.unit)} | {_cell(e.allowed)} "
+            f"| {_cell(e.doc)} |"
+        )
     return out
 
 

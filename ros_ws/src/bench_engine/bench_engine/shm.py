@@ -11,6 +11,7 @@ for good (Fast DDS's ``fastdds shm clean`` removes such files later: those whose
 no other process does. Unlinking takes only the names: the mappings this process has stay valid until it exits,
 and no other process uses them (a run's domain is its own: bench_engine.domains).
 """
+
 from __future__ import annotations
 
 import os

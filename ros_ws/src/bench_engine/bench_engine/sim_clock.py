@@ -7,6 +7,7 @@ across topics (an estimate of step k may follow the truth of step k+3). MCAP all
 statistics hold each chunk's and the file's least and greatest log time, message index entries are in write
 order, and readers that return log-time order sort (mcap, rosbags).
 """
+
 from __future__ import annotations
 
 import enum
@@ -25,9 +26,9 @@ _TIME_BY_ENCAPSULATION = {b"\x00\x01": struct.Struct("<iI"), b"\x00\x00": struct
 class StampRule(enum.Enum):
     """Where a topic's log times come from (:func:`stamp_rule`)."""
 
-    CLOCK = "clock"                 # rosgraph_msgs/Clock: its own time, which also sets the latest clock
-    HEADER = "header"               # first field a std_msgs/Header: header.stamp
-    LATEST_CLOCK = "latest clock"   # anything else: the latest clock received
+    CLOCK = "clock"  # rosgraph_msgs/Clock: its own time, which also sets the latest clock
+    HEADER = "header"  # first field a std_msgs/Header: header.stamp
+    LATEST_CLOCK = "latest clock"  # anything else: the latest clock received
 
 
 def stamp_rule(type_name: str) -> StampRule:
@@ -81,4 +82,3 @@ class SimClock:
         if rule is StampRule.CLOCK:
             self.now_ns = stamp_ns
         return stamp_ns
-

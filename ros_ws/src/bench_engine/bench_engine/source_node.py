@@ -3,6 +3,7 @@
 :class:`CoreSourceNode` is the ROS shell of a registered source kind (the truth): it publishes what the kind's
 :class:`bench_engine.stage.Source` core returns for each step, encoded by the registered codecs, and /clock.
 """
+
 from __future__ import annotations
 
 import json
@@ -17,8 +18,16 @@ from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, delivered, node_main, ns_to_stamp
 from bench_engine.cdr import deserialize, lite_class, serialize
-from bench_engine.graph import (ACK_TOPIC, ACK_TYPE, CLOCK_TOPIC, CLOCK_TYPE, DONE_TOPIC, READY_TOPIC, TOTALS_TOPIC,
-                                node_kinds)
+from bench_engine.graph import (
+    ACK_TOPIC,
+    ACK_TYPE,
+    CLOCK_TOPIC,
+    CLOCK_TYPE,
+    DONE_TOPIC,
+    READY_TOPIC,
+    TOTALS_TOPIC,
+    node_kinds,
+)
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
 from bench_engine.views import item_publishers, warm
@@ -33,8 +42,9 @@ class SourceNode(BenchNode):
 
     def setup(self) -> None:
         self._created = time.monotonic()
-        self.pacer = Pacer(self.graph.paced_inputs(), window=build_time(self.cfg).pacing_window,
-                           weights=self.graph.pacing_weights())
+        self.pacer = Pacer(
+            self.graph.paced_inputs(), window=build_time(self.cfg).pacing_window, weights=self.graph.pacing_weights()
+        )
         self._waiting_for = {n.name for n in self.graph.nodes if n.name != self.get_name()}
         self._next = 0
         self._started = None
@@ -78,14 +88,14 @@ class SourceNode(BenchNode):
             self._started = time.monotonic()
             phases.mark("stepping_start", self.get_name(), self.run.get("out"))
             self._watchdog.cancel()
-            self.get_logger().info(f"all nodes ready after {self._started - self._created:.2f} s; "
-                                   f"stepping {self.steps} steps")
+            self.get_logger().info(
+                f"all nodes ready after {self._started - self._created:.2f} s; stepping {self.steps} steps"
+            )
             self._pump()
 
     def _check_start_timeout(self) -> None:
         if self._started is None and time.monotonic() > self._ready_deadline:
-            self.fail(f"nodes never became ready: {sorted(self._waiting_for)} "
-                      "(did one of them fail at start-up?)")
+            self.fail(f"nodes never became ready: {sorted(self._waiting_for)} (did one of them fail at start-up?)")
 
     def _on_ack(self, data: bytes) -> None:
         msg = deserialize(ACK_TYPE, data)
@@ -118,10 +128,14 @@ class SourceNode(BenchNode):
         if delivered([self.done_pub, self.totals_pub]):
             self.get_logger().warning(f"{DONE_TOPIC}: not every node acknowledged it in time")
         phases.mark("done_acked", self.get_name(), self.run.get("out"))
-        timing = {"startup_s": round(self._started - self._created, 3), "stepping_s": round(stepping, 3),
-                  "steps": self.steps}
-        self.get_logger().info(f"{self.steps} steps in {stepping:.2f} s "
-                               f"({self.steps / max(stepping, 1e-9):.0f} steps/s)")
+        timing = {
+            "startup_s": round(self._started - self._created, 3),
+            "stepping_s": round(stepping, 3),
+            "steps": self.steps,
+        }
+        self.get_logger().info(
+            f"{self.steps} steps in {stepping:.2f} s ({self.steps / max(stepping, 1e-9):.0f} steps/s)"
+        )
         if self.run.get("out"):
             Path(self.run["out"], "timing.json").write_text(json.dumps(timing, indent=1))
         self.flush_and_finish()
@@ -134,8 +148,9 @@ class CoreSourceNode(SourceNode):
         self.core = node_kinds()[self.spec.kind].stage(self.settings, self.get_name(), self.run)
         self.steps = self.core.steps
         super().setup()
-        self.outputs = item_publishers(self, {topic: type_name for topic, type_name in self.spec.publishes.items()
-                                              if topic != CLOCK_TOPIC})  # with the standard views (bench_engine.views)
+        self.outputs = item_publishers(
+            self, {topic: type_name for topic, type_name in self.spec.publishes.items() if topic != CLOCK_TOPIC}
+        )  # with the standard views (bench_engine.views)
 
     def publish_step(self, k: int) -> None:
         for topic, item in self.core.outputs(k):

@@ -7,6 +7,7 @@ calls the core and publishes what it returns; the in-process runner (bench_engin
 cores without ROS. Items carry the lock-step index ``step`` and the sim time ``t_ns`` of the truth sample
 they descend from, and their frame.
 """
+
 from __future__ import annotations
 
 import logging
@@ -142,8 +143,9 @@ class TruthCodec:
         return msg
 
     def decode(self, msg) -> TruthSample:
-        return TruthSample(msg.step, stamp_ns(msg), msg.header.frame_id, list(msg.labels),
-                           np.asarray(msg.state, dtype=float))
+        return TruthSample(
+            msg.step, stamp_ns(msg), msg.header.frame_id, list(msg.labels), np.asarray(msg.state, dtype=float)
+        )
 
 
 class EstimateCodec:
@@ -163,10 +165,17 @@ class EstimateCodec:
 
     def decode(self, msg) -> Estimate:
         n = len(msg.labels)
-        return Estimate(msg.step, stamp_ns(msg), msg.header.frame_id, msg.filter_name, list(msg.labels),
-                        np.asarray(msg.state, dtype=float),
-                        np.asarray(msg.covariance, dtype=float).reshape(n, n), float(msg.nis),
-                        dict(zip(msg.diagnostic_names, msg.diagnostic_values)))
+        return Estimate(
+            msg.step,
+            stamp_ns(msg),
+            msg.header.frame_id,
+            msg.filter_name,
+            list(msg.labels),
+            np.asarray(msg.state, dtype=float),
+            np.asarray(msg.covariance, dtype=float).reshape(n, n),
+            float(msg.nis),
+            dict(zip(msg.diagnostic_names, msg.diagnostic_values)),
+        )
 
 
 TRUTH_CODEC = TruthCodec()

@@ -6,6 +6,7 @@ Messages travel as CDR bytes, built and read by bench_engine.cdr (light message 
 same attributes as rclpy's classes, at a fraction of the cost). Everything the core logs goes to the node's
 ROS logger.
 """
+
 from __future__ import annotations
 
 import sys
@@ -37,8 +38,9 @@ class StageNode(BenchNode):
         self._resolved: dict[str, str] = {}
         """Graph topic -> the name it resolved to (namespace, remaps), as the node's warnings name it."""
         for topic, type_name in self.spec.subscribes.items():
-            sub = self.data_subscription(message_class(type_name), topic,
-                                         partial(self._on_input, topic, type_name, codec(type_name)), raw=True)
+            sub = self.data_subscription(
+                message_class(type_name), topic, partial(self._on_input, topic, type_name, codec(type_name)), raw=True
+            )
             self._resolved[topic] = sub.topic_name
 
     def _log(self, level: str, text: str) -> None:
@@ -49,8 +51,9 @@ class StageNode(BenchNode):
         try:
             item = _decoded(type_name, decoder, data)
         except Exception as err:  # noqa: BLE001 - whatever the bytes make the decoder raise is the message's fault
-            self.get_logger().warning(f"{self._resolved[topic]}: skipped a malformed {type_name} message "
-                                      f"({type(err).__name__}: {err})")
+            self.get_logger().warning(
+                f"{self._resolved[topic]}: skipped a malformed {type_name} message ({type(err).__name__}: {err})"
+            )
             item = None
         try:
             if item is not None:

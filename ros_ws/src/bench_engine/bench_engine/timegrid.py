@@ -6,6 +6,7 @@ elements needs (orbit_sim.tle) and which fixes the Earth's orientation at t = 0 
 Sim time counts SI seconds from it without leap seconds: a run that spans a leap second is labelled one second
 off after it (none has been inserted since 2017).
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -50,11 +51,16 @@ class Time(Settings):
     start: float = setting(unit="s", doc="sim time of step 0 (since the scenario's epoch)", check=NON_NEGATIVE)
     dt: float = setting(unit="s", doc="the lock-step period: one truth sample per step", check=POSITIVE)
     duration: float = setting(unit="s", doc="the run's length: duration / dt + 1 steps", check=POSITIVE)
-    pacing_window: int = setting(0, doc="messages the source may run ahead of its slowest consumer "
-                                        "(bench_engine.lockstep; 0: strict lock-step)", check=NON_NEGATIVE)
+    pacing_window: int = setting(
+        0,
+        doc="messages the source may run ahead of its slowest consumer (bench_engine.lockstep; 0: strict lock-step)",
+        check=NON_NEGATIVE,
+    )
     epoch: str | dt_.datetime | None = setting(
-        None, doc="the UTC date and time of t = 0, ISO 8601 (e.g. 2008-09-20T12:25:40.104192Z): what a truth from a "
-                  "real satellite's elements needs, and the Earth's orientation at t = 0 (null: no calendar date)")
+        None,
+        doc="the UTC date and time of t = 0, ISO 8601 (e.g. 2008-09-20T12:25:40.104192Z): what a truth from a "
+        "real satellite's elements needs, and the Earth's orientation at t = 0 (null: no calendar date)",
+    )
 
     @property
     def steps(self) -> int:
@@ -63,16 +69,19 @@ class Time(Settings):
     def validate(self, path: str) -> None:
         parse_epoch(self.epoch, f"{path}.epoch")
         if int(round(self.dt * 1e9)) < 1 or self.steps > MAX_STEPS:
-            raise ScenarioError(f"'{path}.duration' / '{path}.dt' = {self.duration:g} s / {self.dt:g} s gives "
-                                f"{self.steps} steps; a run may have at most {MAX_STEPS} steps of at least 1 ns: "
-                                f"shorten {path}.duration or lengthen {path}.dt")
+            raise ScenarioError(
+                f"'{path}.duration' / '{path}.dt' = {self.duration:g} s / {self.dt:g} s gives "
+                f"{self.steps} steps; a run may have at most {MAX_STEPS} steps of at least 1 ns: "
+                f"shorten {path}.duration or lengthen {path}.dt"
+            )
 
 
 def build_time(cfg: dict) -> TimeGrid:
     """The grid of the scenario's ``time`` section (:class:`Time`)."""
     t = read(Time, cfg.get("time"), "time")
-    return TimeGrid(int(round(t.start * 1e9)), int(round(t.dt * 1e9)), t.steps, t.pacing_window,
-                    parse_epoch(t.epoch, "time.epoch"))
+    return TimeGrid(
+        int(round(t.start * 1e9)), int(round(t.dt * 1e9)), t.steps, t.pacing_window, parse_epoch(t.epoch, "time.epoch")
+    )
 
 
 def parse_epoch(value: str | dt_.datetime | None, key: str) -> dt_.datetime | None:
@@ -84,12 +93,14 @@ def parse_epoch(value: str | dt_.datetime | None, key: str) -> dt_.datetime | No
         try:
             value = dt_.datetime.fromisoformat(value.strip())
         except ValueError:
-            raise ScenarioError(f"'{key}' must be a UTC date and time in ISO 8601, e.g. 2008-09-20T12:25:40.104192Z; "
-                                f"got {value!r}") from None
+            raise ScenarioError(
+                f"'{key}' must be a UTC date and time in ISO 8601, e.g. 2008-09-20T12:25:40.104192Z; got {value!r}"
+            ) from None
     if value.tzinfo is None:
         value = value.replace(tzinfo=dt_.timezone.utc)
     value = value.astimezone(dt_.timezone.utc)
     if not 1972 <= value.year <= 2200:
-        raise ScenarioError(f"'{key}' is {value.isoformat()}: the bench's UTC dates run from 1972 (integral leap "
-                            "seconds) to 2200")
+        raise ScenarioError(
+            f"'{key}' is {value.isoformat()}: the bench's UTC dates run from 1972 (integral leap seconds) to 2200"
+        )
     return value

@@ -4,6 +4,7 @@
 functions name the topics the engine and the scorer rely on (the topic contract: MEASUREMENT, ESTIMATE).
 bench_engine.graph builds the run's graph from NodeSpecs and re-exports these names, its callers' usual import.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -2,6 +2,7 @@
 the position, velocity and attitude quaternion components, selected by label (bench_engine.labels), in the
 state vector and in its covariance (an attitude state's covariance has the rotation error rx ry rz in place of
 the quaternion)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,20 +40,28 @@ def covariance_labels(labels: tuple[str, ...], n: int) -> tuple[str, ...] | None
 @lru_cache(maxsize=256)
 def layout(labels: tuple[str, ...], n_cov: int) -> Layout:
     """The :class:`Layout` of a state with ``labels`` and an ``n_cov`` × ``n_cov`` covariance (0: none)."""
+
     def find(names: tuple[str, ...], within: tuple[str, ...] | None) -> tuple[int, ...] | None:
         if within is None or not all(n in within for n in names):
             return None
         return tuple(within.index(n) for n in names)
+
     cov = covariance_labels(labels, n_cov)
-    return Layout(find(POSITION, labels), find(VELOCITY, labels), find(QUATERNION, labels),
-                  find(POSITION, cov), find(VELOCITY, cov), find(ROTATION, cov))
+    return Layout(
+        find(POSITION, labels),
+        find(VELOCITY, labels),
+        find(QUATERNION, labels),
+        find(POSITION, cov),
+        find(VELOCITY, cov),
+        find(ROTATION, cov),
+    )
 
 
 def block(P: np.ndarray, rows: tuple[int, ...], cols: tuple[int, ...]) -> np.ndarray:
     """P[rows, cols] (3 × 3), by slicing when the indices are consecutive (the usual layouts)."""
     r, c = rows[0], cols[0]
     if rows == (r, r + 1, r + 2) and cols == (c, c + 1, c + 2):
-        return P[r:r + 3, c:c + 3]
+        return P[r : r + 3, c : c + 3]
     return P[np.ix_(rows, cols)]
 
 
@@ -80,6 +89,10 @@ def state_of(item: Item) -> State:
 def attitude_matrix(q: np.ndarray) -> np.ndarray:
     """R(q) of a scalar-first unit quaternion (normalised first): the body-from-reference matrix A."""
     w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

@@ -46,6 +46,7 @@ Conventions:
   Marker rather than a MarkerArray: it opens with its header, so the recorder logs it at its sim time
   (bench_engine.sim_clock.SimClock), as every other view.
 """
+
 from __future__ import annotations
 
 import struct
@@ -83,8 +84,13 @@ POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 ATTITUDE_TYPE = "bench_msgs/msg/AttitudeEstimate"
 DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 MARKERS_TYPE = "visualization_msgs/msg/Marker"
-ESTIMATE_VIEWS = {ODOMETRY: ODOMETRY_TYPE, POSE: POSE_TYPE, ATTITUDE: ATTITUDE_TYPE, DIAGNOSTICS: DIAGNOSTICS_TYPE,
-                  MARKERS: MARKERS_TYPE}
+ESTIMATE_VIEWS = {
+    ODOMETRY: ODOMETRY_TYPE,
+    POSE: POSE_TYPE,
+    ATTITUDE: ATTITUDE_TYPE,
+    DIAGNOSTICS: DIAGNOSTICS_TYPE,
+    MARKERS: MARKERS_TYPE,
+}
 """The views of every ``/NAME/estimate`` topic."""
 TRUTH_VIEWS = {ODOMETRY: ODOMETRY_TYPE, POSE: POSE_TYPE, MARKERS: MARKERS_TYPE}
 """The views of every topic of TruthState (``/truth/state``)."""
@@ -101,8 +107,7 @@ MARKER_WIDTH = 2.0e-3
 """A trajectory line's width as a fraction of the first drawn position's distance from the frame's origin (a low
 orbit in ECI: about 13 km), at least 1 m."""
 TRUTH_COLOR = (0.1, 0.8, 0.1)
-PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.1), (0.1, 0.8, 0.8),
-           (0.55, 0.35, 0.9))
+PALETTE = ((0.9, 0.3, 0.1), (0.1, 0.5, 0.95), (0.85, 0.1, 0.75), (0.95, 0.75, 0.1), (0.1, 0.8, 0.8), (0.55, 0.35, 0.9))
 """Estimators' trajectory colours, picked by a stable hash of the node name."""
 
 
@@ -188,8 +193,9 @@ def _header(msg: Any, item: Item) -> None:
     msg.header.frame_id = item.frame_id
 
 
-_ODOMETRY_BASE = np.concatenate([np.zeros(3), [0.0, 0.0, 0.0, 1.0], _UNKNOWN_BLOCK.ravel(), np.zeros(6),
-                                 _UNKNOWN_BLOCK.ravel()])
+_ODOMETRY_BASE = np.concatenate(
+    [np.zeros(3), [0.0, 0.0, 0.0, 1.0], _UNKNOWN_BLOCK.ravel(), np.zeros(6), _UNKNOWN_BLOCK.ravel()]
+)
 """An Odometry's 85 numbers after its frame names, in wire order: position x y z, orientation x y z w (the
 identity), pose covariance (36), linear and angular velocity, twist covariance (36); here with nothing known."""
 _POSE_COV, _LINEAR, _TWIST_COV = slice(7, 43), slice(43, 46), slice(49, 85)
@@ -250,10 +256,13 @@ class OdometryEncoder:
             template = _lite(ODOMETRY_TYPE)(child_frame_id=self.child_frame_id)
             template.header.frame_id = frame_id
             data = cdr.serialize(ODOMETRY_TYPE, template)
-            prefix = data[:-self.TAIL]
+            prefix = data[: -self.TAIL]
             # the contract above, checked on the template: zero stamp first, the numbers 8-aligned at the end
-            if data[-self.TAIL:] != _ODOMETRY_BASE_DEFAULT or data[cdr.HEADER:cdr.HEADER + 8] != bytes(8) \
-                    or (len(prefix) - cdr.HEADER) % 8:
+            if (
+                data[-self.TAIL :] != _ODOMETRY_BASE_DEFAULT
+                or data[cdr.HEADER : cdr.HEADER + 8] != bytes(8)
+                or (len(prefix) - cdr.HEADER) % 8
+            ):
                 raise RuntimeError("nav_msgs/Odometry is not laid out as bench_engine.views.OdometryEncoder assumes")
             self._prefixes[frame_id] = prefix
         return prefix
@@ -264,8 +273,7 @@ class OdometryEncoder:
             return None
         prefix = self._prefix(item.frame_id)
         sec, nanosec = divmod(int(item.t_ns), 1_000_000_000)
-        return b"".join((prefix[:cdr.HEADER], _STAMP.pack(sec, nanosec), prefix[cdr.HEADER + 8:],
-                         numbers.tobytes()))
+        return b"".join((prefix[: cdr.HEADER], _STAMP.pack(sec, nanosec), prefix[cdr.HEADER + 8 :], numbers.tobytes()))
 
 
 _STAMP = struct.Struct("<iI")
@@ -319,18 +327,23 @@ def attitude(item: Item, state: State | None = None) -> Any | None:
     if lay.quaternion is None:
         return None
     stars = float(item.diagnostics.get("stars", 0.0))
-    msg = _lite(ATTITUDE_TYPE)(step=int(item.step), estimator_name=item.source,
-                               stars_used=int(stars) if 0.0 <= stars < 2.0**32 else 0)
+    msg = _lite(ATTITUDE_TYPE)(
+        step=int(item.step), estimator_name=item.source, stars_used=int(stars) if 0.0 <= stars < 2.0**32 else 0
+    )
     _header(msg, item)
     o = msg.orientation
     o.w, o.x, o.y, o.z = (float(x[i]) for i in lay.quaternion)
-    msg.covariance = (np.ascontiguousarray(block(P, lay.cov_rotation, lay.cov_rotation)).reshape(9)
-                      if lay.cov_rotation is not None else np.full(9, np.nan))
+    msg.covariance = (
+        np.ascontiguousarray(block(P, lay.cov_rotation, lay.cov_rotation)).reshape(9)
+        if lay.cov_rotation is not None
+        else np.full(9, np.nan)
+    )
     return msg
 
 
-def diagnostics(item: Item, state: State | None = None, estimates: int = 1, without_update: int | None = None
-                ) -> Any | None:
+def diagnostics(
+    item: Item, state: State | None = None, estimates: int = 1, without_update: int | None = None
+) -> Any | None:
     """diagnostic_msgs/DiagnosticArray of an estimate: its NIS and diagnostics, as the status of the ``estimates``
     estimates up to it of which ``without_update`` had no measurement update (default: this one alone); None for
     anything else."""
@@ -342,15 +355,22 @@ def diagnostics(item: Item, state: State | None = None, estimates: int = 1, with
     key_value, status_class = _lite(KEY_VALUE_TYPE), _lite(STATUS_TYPE)
     values = [key_value(key="step", value=str(int(item.step))), key_value(key="nis", value=repr(nis))]
     values += [key_value(key=str(k), value=repr(float(v))) for k, v in item.diagnostics.items()]
-    values += [key_value(key="window_estimates", value=str(int(estimates))),
-               key_value(key="window_without_update", value=str(int(without_update)))]
+    values += [
+        key_value(key="window_estimates", value=str(int(estimates))),
+        key_value(key="window_without_update", value=str(int(without_update))),
+    ]
     if not without_update:
         level, message = status_class.OK, ""
     elif estimates == 1:
         level, message = status_class.WARN, "no measurement update (NIS NaN)"
     else:
-        level, message = status_class.WARN, (f"{without_update} of the {estimates} estimates since the last status "
-                                             "had no measurement update (NIS NaN)")
+        level, message = (
+            status_class.WARN,
+            (
+                f"{without_update} of the {estimates} estimates since the last status "
+                "had no measurement update (NIS NaN)"
+            ),
+        )
     status = status_class(level=level, name=item.source, message=message, values=values)
     msg = _lite(DIAGNOSTICS_TYPE)(status=[status])
     _header(msg, item)
@@ -410,8 +430,13 @@ class TrajectoryMarkers:
         if self.last is None:
             self.width = max(1.0, MARKER_WIDTH * float(np.linalg.norm(here)))
         marker_class, point = _lite(MARKERS_TYPE), _lite(POINT_TYPE)
-        marker = marker_class(ns=self.name, id=self.count, type=marker_class.LINE_STRIP, action=marker_class.ADD,
-                              points=[point(x=a, y=b, z=c) for a, b, c in (self.last or here, here)])
+        marker = marker_class(
+            ns=self.name,
+            id=self.count,
+            type=marker_class.LINE_STRIP,
+            action=marker_class.ADD,
+            points=[point(x=a, y=b, z=c) for a, b, c in (self.last or here, here)],
+        )
         _header(marker, item)
         marker.scale.x = self.width
         c = marker.color
@@ -429,10 +454,13 @@ class StandardViews:
         self.topics = topics
         serialized = _serialized
         encoders: list[tuple[str, str, Callable[[Item, State], bytes | None]]] = []
-        for suffix, encode in ((ODOMETRY, OdometryEncoder(node)), (POSE, serialized(POSE_TYPE, pose)),
-                               (ATTITUDE, serialized(ATTITUDE_TYPE, attitude)),
-                               (DIAGNOSTICS, serialized(DIAGNOSTICS_TYPE, PeriodicDiagnostics())),
-                               (MARKERS, serialized(MARKERS_TYPE, TrajectoryMarkers(node)))):
+        for suffix, encode in (
+            (ODOMETRY, OdometryEncoder(node)),
+            (POSE, serialized(POSE_TYPE, pose)),
+            (ATTITUDE, serialized(ATTITUDE_TYPE, attitude)),
+            (DIAGNOSTICS, serialized(DIAGNOSTICS_TYPE, PeriodicDiagnostics())),
+            (MARKERS, serialized(MARKERS_TYPE, TrajectoryMarkers(node))),
+        ):
             if suffix in topics:
                 encoders.append((topics[suffix], (ESTIMATE_VIEWS | TRUTH_VIEWS)[suffix], encode))
         self.encoders = encoders
@@ -454,18 +482,24 @@ def _serialized(type_name: str, make: Callable[[Item, State], Any | None]) -> Ca
     def encode(item: Item, st: State) -> bytes | None:
         msg = make(item, st)
         return None if msg is None else serialize(type_name, msg)
+
     return encode
 
 
 # --- the shells' call -------------------------------------------------------------------------------------
+
 
 def item_publishers(node: Any, publishes: dict[str, str]) -> dict[str, Callable[[Item], None]]:
     """A node shell's publishers (bench_engine.bench_node.BenchNode: ``item_publisher``, ``data_publisher``,
     ``publish_data``), by data topic: for each topic of ``publishes`` that is not a view, the shell's item
     publisher; an item published on a topic with views in ``publishes`` then goes out on each of them, as CDR
     bytes (bench_engine.cdr). The node's name names its Odometry child frame and its markers."""
-    owner = {view: topic for topic, type_name in publishes.items()
-             for view in view_topics(topic, type_name) if view in publishes}
+    owner = {
+        view: topic
+        for topic, type_name in publishes.items()
+        for view in view_topics(topic, type_name)
+        if view in publishes
+    }
     out: dict[str, Callable[[Item], None]] = {}
     for topic, type_name in publishes.items():
         if topic in owner:
@@ -475,14 +509,22 @@ def item_publishers(node: Any, publishes: dict[str, str]) -> dict[str, Callable[
         if mine:
             for view in mine.values():
                 node.data_publisher(message_class(publishes[view]), view)
-            publish = _with_views(publish, StandardViews(node.get_name(), mine), node.publish_data,
-                                  lambda text: node.get_logger().warning(text))
+            publish = _with_views(
+                publish,
+                StandardViews(node.get_name(), mine),
+                node.publish_data,
+                lambda text: node.get_logger().warning(text),
+            )
         out[topic] = publish
     return out
 
 
-def _with_views(publish: Callable[[Item], None], views: StandardViews, publish_data: Callable[[str, bytes], None],
-                warn: Callable[[str], None]) -> Callable[[Item], None]:
+def _with_views(
+    publish: Callable[[Item], None],
+    views: StandardViews,
+    publish_data: Callable[[str, bytes], None],
+    warn: Callable[[str], None],
+) -> Callable[[Item], None]:
     """``publish``, then the item's views; a view that fails is logged (once) and skipped: it never stops the
     node or holds back its estimates."""
     warned = []
@@ -495,6 +537,9 @@ def _with_views(publish: Callable[[Item], None], views: StandardViews, publish_d
         except Exception as err:  # noqa: BLE001 - a view is a by-product: report it, keep the node running
             if not warned:
                 warned.append(err)
-                warn(f"standard views of step {item.step} not published ({type(err).__name__}: {err}); "
-                     "later failures are not logged")
+                warn(
+                    f"standard views of step {item.step} not published ({type(err).__name__}: {err}); "
+                    "later failures are not logged"
+                )
+
     return publish_with_views

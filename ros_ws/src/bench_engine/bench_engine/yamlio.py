@@ -5,6 +5,7 @@ recovered reads a metadata.yaml, every run its configuration. Both loaders are P
 only, and the same ``yaml.YAMLError``s with their marks on bad text. libyaml's emitter, too, is the faster one
 for a run's configuration and its nodes' parameter files, and writes the same text for them (checked on every
 scenario's files), except that it ends a lone scalar without YAML's document end marker (``...``)."""
+
 from __future__ import annotations
 
 from typing import IO, Any

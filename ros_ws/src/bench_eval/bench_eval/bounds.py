@@ -31,6 +31,7 @@ over time would be the first steps', where a prior of metres meets errors of cen
 Registered bounds: ``pcrb`` (posterior CRB along the truth: tracker_filters.pcrb) here; others where their
 models are (e.g. ``wahba``, a star camera's per-frame attitude bound: bench_studies.star_tracker.bounds).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -82,13 +83,19 @@ class Bound:
 class BoundRun(Settings):
     """One entry of ``scoring.bounds``: the registered ``bound``, its ``params``, the summaries' start."""
 
-    bound: str = setting(doc="a registered bound (entry-point group tracking_bench.bounds)",
-                         choices=lambda: plugins.names("bounds"))
-    params: Settings = variant("bound", lambda: plugins.names("bounds"),
-                               lambda name: plugins.load("bounds", name).params, inline=False,
-                               doc="the bound's parameters")
-    from_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the summaries (efficiency) start this long "
-                                                                   "after the first truth sample")
+    bound: str = setting(
+        doc="a registered bound (entry-point group tracking_bench.bounds)", choices=lambda: plugins.names("bounds")
+    )
+    params: Settings = variant(
+        "bound",
+        lambda: plugins.names("bounds"),
+        lambda name: plugins.load("bounds", name).params,
+        inline=False,
+        doc="the bound's parameters",
+    )
+    from_s: float = setting(
+        0.0, unit="s", check=NON_NEGATIVE, doc="the summaries (efficiency) start this long after the first truth sample"
+    )
 
 
 def _bound_at(series: BoundSeries, t: np.ndarray, labels: list[str], tol: float = metrics.DEFAULT_TOL_S) -> np.ndarray:
@@ -107,8 +114,13 @@ def _summary(rmse: np.ndarray, root_bound: np.ndarray, keep: np.ndarray) -> dict
     r, b = float(np.sqrt(np.mean(rmse[ok] ** 2))), float(np.sqrt(np.mean(root_bound[ok] ** 2)))
     ratio = float(np.mean((rmse[ok] / root_bound[ok]) ** 2))
     last = np.flatnonzero(ok)[-1]
-    return {"rmse": r, "sqrt_bound": b, "efficiency": 1.0 / np.sqrt(ratio) if ratio > 0 else None,
-            "final_rmse": float(rmse[last]), "final_sqrt_bound": float(root_bound[last])}
+    return {
+        "rmse": r,
+        "sqrt_bound": b,
+        "efficiency": 1.0 / np.sqrt(ratio) if ratio > 0 else None,
+        "final_rmse": float(rmse[last]),
+        "final_sqrt_bound": float(root_bound[last]),
+    }
 
 
 def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: float, t0: float) -> tuple[dict, dict]:
@@ -130,8 +142,9 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
         trace = np.trace(P_grid[:, :, i][:, :, :, i], axis1=2, axis2=3)  # (runs, steps), NaN: no bound
         count = np.sum(np.isfinite(trace), axis=0)
         root = np.sqrt(np.where(count > 0, np.nansum(trace, axis=0) / np.maximum(count, 1), np.nan))
-        target_scores, target_series = (scores, series) if group in GROUPS else (
-            scores.setdefault("axes", {}), series.setdefault("axes", {}))
+        target_scores, target_series = (
+            (scores, series) if group in GROUPS else (scores.setdefault("axes", {}), series.setdefault("axes", {}))
+        )
         target_scores[group] = _summary(rmse, root, keep)
         target_series[group] = root
     return scores, series
@@ -146,8 +159,9 @@ def compute_bounds(runs: list[Run], bounds: Mapping[str, BoundRun]) -> None:
                 data.bounds[name] = plugins.load("bounds", b.bound).run(data, b.params)
 
 
-def score_bounds(tracks: Mapping[str, list[metrics.Track]], runs: list[Run],
-                 bounds: Mapping[str, BoundRun]) -> tuple[dict, dict]:
+def score_bounds(
+    tracks: Mapping[str, list[metrics.Track]], runs: list[Run], bounds: Mapping[str, BoundRun]
+) -> tuple[dict, dict]:
     """({estimator: {bound: scores}}, {estimator: {bound: series}}) for every scored estimator whose tracks
     share components with the bound (module docstring), from the runs' bounds (:func:`compute_bounds`)."""
     if not bounds or not tracks:
@@ -180,11 +194,14 @@ class PcrbParameters(Settings):
 
     dynamics: str | DynamicsSettings = setting(
         doc="truth: the truth model's own deterministic dynamics (bench_models.truth_dynamics); or a dynamics "
-            "section as a filter's (a registered model and its process noise)")
-    prior: str | None = setting(None, doc="the filter whose initialiser gives J_0",
-                                default_text="the first of the scenario's estimators")
-    sensors: list[str] | None = setting(None, doc="the measurements whose information it adds",
-                                        default_text="the prior filter's")
+        "section as a filter's (a registered model and its process noise)"
+    )
+    prior: str | None = setting(
+        None, doc="the filter whose initialiser gives J_0", default_text="the first of the scenario's estimators"
+    )
+    sensors: list[str] | None = setting(
+        None, doc="the measurements whose information it adds", default_text="the prior filter's"
+    )
 
     def validate(self, path: str) -> None:
         if isinstance(self.dynamics, str) and self.dynamics != "truth":
@@ -233,8 +250,7 @@ def _pcrb_run(data: Run, params: PcrbParameters) -> BoundSeries:
     index = [data.truth_labels.index(lab) for lab in labels]
     t = np.array([data.truth[int(k)][0] for k in steps])
     x = np.array([data.truth[int(k)][1][index] for k in steps])
-    scans = [[(sources[n].model, sources[n].R) for n in names if int(k) in data.measurements.get(n, {})]
-             for k in steps]
+    scans = [[(sources[n].model, sources[n].R) for n in names if int(k) in data.measurements.get(n, {})] for k in steps]
     first = next(n for n in names if int(steps[0]) in data.measurements.get(n, {}))
     stack = build_filter_stack(cfg, prior)
     model = sources[first].model

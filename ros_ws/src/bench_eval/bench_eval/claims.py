@@ -33,6 +33,7 @@ d)^2. Runs needed (fraction): the smallest N at which the observed rate's interv
 A filter whose NEES is astronomically large (> 1e6 per degree of freedom) is reported as diverged, and fails
 its claims.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -107,11 +108,19 @@ def read_claims(data: Any, path: str = "claims") -> list[Claim]:
         level = sec.positive("level", 0.05)
         if level >= 0.5:
             raise ScenarioError(f"'{path}[{i}].level' must be below 0.5, got {level!r}")
-        claim = Claim(cid, sec.get("claim", str), str(sec.get("paper", (str, int, float))), rule,
-                      sec.get("metric", str, ... if needs_metric else None),
-                      sec.get("runs", str, ... if rule == "fraction_of_runs" else None),
-                      sec.get("unit", str, ""), {str(k): float(v) for k, v in values.items()}, order,
-                      sec.positive("tolerance", 0.1), level)
+        claim = Claim(
+            cid,
+            sec.get("claim", str),
+            str(sec.get("paper", (str, int, float))),
+            rule,
+            sec.get("metric", str, ... if needs_metric else None),
+            sec.get("runs", str, ... if rule == "fraction_of_runs" else None),
+            sec.get("unit", str, ""),
+            {str(k): float(v) for k, v in values.items()},
+            order,
+            sec.positive("tolerance", 0.1),
+            level,
+        )
         sec.finish()
         claims.append(claim)
     return claims
@@ -246,8 +255,13 @@ def decide_fraction(flags: Sequence[bool], fraction: float, level: float) -> Dec
         return Decision("fails", n)
     rate = k / n
     if rate == fraction:
-        return Decision("undecided", n, why="a rate of 100 % is never shown by finitely many runs"
-                        if fraction == 1.0 else "the observed rate equals the fraction")
+        return Decision(
+            "undecided",
+            n,
+            why="a rate of 100 % is never shown by finitely many runs"
+            if fraction == 1.0
+            else "the observed rate equals the fraction",
+        )
     ns = np.arange(n + 1, MAX_RUNS + 1)
     low, high = interval(np.round(rate * ns), ns)
     decided = (low >= fraction) | (high < fraction)
@@ -265,13 +279,16 @@ def _count(runs: int) -> str:
 def decided_by(spec: Claim) -> str:
     """The test and level that decide a claim, as its verdict states them."""
     ci = f"{_pct(1.0 - spec.level)} CI"
-    return {"close_to": f"{ci} vs ±{_pct(spec.tolerance)}", "at_most": f"{ci} vs the bound",
-            "ordering": f"paired t-test, {_pct(spec.level)}",
-            "fraction_of_runs": f"{_pct(1.0 - spec.level)} Clopper–Pearson"}[spec.rule]
+    return {
+        "close_to": f"{ci} vs ±{_pct(spec.tolerance)}",
+        "at_most": f"{ci} vs the bound",
+        "ordering": f"paired t-test, {_pct(spec.level)}",
+        "fraction_of_runs": f"{_pct(1.0 - spec.level)} Clopper–Pearson",
+    }[spec.rule]
 
 
 def _undecided_note(decisions: Sequence[Decision], spec: Claim) -> str:
-    """"n runs; ~N needed: TEST, 80 % power" (the largest need), or "n runs; the reason" (the first reason). The
+    """ "n runs; ~N needed: TEST, 80 % power" (the largest need), or "n runs; the reason" (the first reason). The
     fraction rule's need is at the observed rate, not at a power."""
     head = _count(max(d.runs for d in decisions))
     reasons = [d.why for d in decisions if d.needed is None]
@@ -300,8 +317,9 @@ def verdict_text(results: Sequence[tuple[str, Decision]], spec: Claim) -> str:
     note = _undecided_note([d for _, d in open_], spec)
     if not held and not failed:
         return f"undecided ({note})"
-    parts = ([f"holds for {', '.join(held)}"] if held else []) + \
-            ([f"does not hold for {', '.join(failed)}"] if failed else [])
+    parts = ([f"holds for {', '.join(held)}"] if held else []) + (
+        [f"does not hold for {', '.join(failed)}"] if failed else []
+    )
     return f"{'; '.join(parts)}; undecided for {', '.join(n for n, _ in open_)} ({note})"
 
 
@@ -319,8 +337,9 @@ def _band(spec: Claim, target: float) -> tuple[float, float]:
     return -np.inf, target  # at_most
 
 
-def _each_filter(scored: Mapping, spec: Claim, decide: Callable[[Mapping, float], tuple[str, Decision]]
-                 ) -> tuple[str, str]:
+def _each_filter(
+    scored: Mapping, spec: Claim, decide: Callable[[Mapping, float], tuple[str, Decision]]
+) -> tuple[str, str]:
     """(bench text, verdict) of a claim decided filter by filter: a filter not run is named, one that diverged
     fails (no per-run figure of a filter that lost its target means anything), and ``decide(block, target)``
     gives each other one's text and decision."""
@@ -350,6 +369,7 @@ def _per_filter(scored: Mapping, spec: Claim) -> tuple[str, str]:
         if per_run is None:
             return text, Decision("undecided", runs, why="no per-run values: no standard error")
         return text, decide_interval(value, per_run, *_band(spec, target), spec.level)
+
     return _each_filter(scored, spec, decide)
 
 
@@ -373,16 +393,20 @@ def _ordering(scored: Mapping, spec: Claim) -> tuple[str, str]:
         lost = diverged(scored[better]), diverged(scored[worse])
         pair = _paired_runs(lookup(scored[better], spec.runs), lookup(scored[worse], spec.runs))
         if any(lost):  # a filter that lost its target is worse than one that did not
-            decision = Decision("undecided", runs, why="both diverged") if all(lost) else \
-                Decision("fails" if lost[0] else "holds", runs)
+            decision = (
+                Decision("undecided", runs, why="both diverged")
+                if all(lost)
+                else Decision("fails" if lost[0] else "holds", runs)
+            )
         elif pair is None:
             decision = Decision("undecided", runs, why="no paired per-run values")
         else:
             decision = decide_paired(*pair, spec.level)
         steps.append((step, decision))
     if any(d.state == "fails" for _, d in steps):
-        against = ", ".join(f"{worse} < {better}" for (better, worse), (_, d) in zip(zip(order, order[1:]), steps)
-                            if d.state == "fails")
+        against = ", ".join(
+            f"{worse} < {better}" for (better, worse), (_, d) in zip(zip(order, order[1:]), steps) if d.state == "fails"
+        )
         return text, f"does not hold ({decided_by(spec)}, {_count(max(d.runs for _, d in steps))}: {against})"
     if all(d.state == "holds" for _, d in steps):
         return text, verdict_text(steps, spec)
@@ -393,6 +417,7 @@ def _fraction(scored: Mapping, spec: Claim) -> tuple[str, str]:
     def decide(block: Mapping, target: float) -> tuple[str, Decision]:
         flags = lookup(block, spec.runs) or []
         return f"{sum(bool(f) for f in flags)}/{len(flags)} runs", decide_fraction(flags, target, spec.level)
+
     return _each_filter(scored, spec, decide)
 
 

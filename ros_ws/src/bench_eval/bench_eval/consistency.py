@@ -12,6 +12,7 @@ Per estimator, pooled over the runs (``innovations`` block of its scores):
   RMSE's convergence uses (bench_eval.metrics.summarise: the first time it stays below 1.5 times its level over
   the last half of the run), with its peak and converged level [m].
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,10 +28,14 @@ POSITION = ("x", "y", "z")
 def innovation_scores(runs: list) -> dict[str, dict]:
     """{estimator: {"innovations": {...}}} for every run filter with estimates in ``runs`` (loaded bags:
     bench_eval.scoring.BagData, which imports this module where it needs it)."""
-    names = [n for n in dict.fromkeys(n for d in runs for n in d.run.get("estimators", [])) if
-             any(n in d.estimates for d in runs)]
-    return {name: {"innovations": json_ready(_scores(name, [d for d in runs if name in d.estimates]))}
-            for name in names}
+    names = [
+        n
+        for n in dict.fromkeys(n for d in runs for n in d.run.get("estimators", []))
+        if any(n in d.estimates for d in runs)
+    ]
+    return {
+        name: {"innovations": json_ready(_scores(name, [d for d in runs if name in d.estimates]))} for name in names
+    }
 
 
 def _scores(name: str, runs: list) -> dict:
@@ -63,22 +68,30 @@ def _scores(name: str, runs: list) -> dict:
         values, dof = np.array(nis), np.array(dofs)
         n, k = len(values), int(np.round(np.mean(dof)))
         inside = (values >= chdtri(dof, 1.0 - 0.5 * LEVEL)) & (values <= chdtri(dof, 0.5 * LEVEL))
-        out.update(nis_mean=float(np.mean(values)), nis_dof=float(np.mean(dof)),
-                   nis_band=[chdtri(n * k, 1.0 - 0.5 * LEVEL) / n, chdtri(n * k, 0.5 * LEVEL) / n],
-                   nis_fraction_inside=float(np.mean(inside)))
+        out.update(
+            nis_mean=float(np.mean(values)),
+            nis_dof=float(np.mean(dof)),
+            nis_band=[chdtri(n * k, 1.0 - 0.5 * LEVEL) / n, chdtri(n * k, 0.5 * LEVEL) / n],
+            nis_fraction_inside=float(np.mean(inside)),
+        )
     out["residuals"] = {}
     for s, parts in residuals.items():
         r = np.vstack([p[0] for p in parts])
         sd = parts[0][1]
         labels = parts[0][2]
-        out["residuals"][s] = {"count": len(r),
-                               "rms": dict(zip(labels, np.sqrt(np.mean(r**2, axis=0)))),
-                               "rms_normalised": dict(zip(labels, np.sqrt(np.mean((r / sd) ** 2, axis=0))))}
+        out["residuals"][s] = {
+            "count": len(r),
+            "rms": dict(zip(labels, np.sqrt(np.mean(r**2, axis=0)))),
+            "rms_normalised": dict(zip(labels, np.sqrt(np.mean((r / sd) ** 2, axis=0)))),
+        }
     if sigmas:
         t = np.concatenate([s[0] for s in sigmas])
         sd = np.concatenate([s[1] for s in sigmas])
         order = np.argsort(t, kind="stable")
         summary = summarise(t[order], sd[order], t0=t0)
-        out["sigma_position"] = {"peak_m": summary["peak"], "convergence_time_s": summary["convergence_time_s"],
-                                 "converged_m": summary["converged"]}
+        out["sigma_position"] = {
+            "peak_m": summary["peak"],
+            "convergence_time_s": summary["convergence_time_s"],
+            "converged_m": summary["converged"],
+        }
     return out

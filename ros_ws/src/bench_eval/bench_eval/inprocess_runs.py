@@ -1,5 +1,6 @@
 """An in-process run (bench_engine.inprocess) as the scorer's BagData, so that tests and scripts score runs with
 the bench's own metric code (bench_eval.scoring, the studies' metric families) without ROS or a bag on disk."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -33,7 +34,11 @@ def estimates(items: list[Estimate]) -> Estimates:
     """One estimator's Estimate items as the scorer's columns (in step order)."""
     items = sorted(items, key=lambda e: e.step)
     names = sorted(set().union(*(e.diagnostics for e in items)))
-    return Estimates(np.array([e.step for e in items], dtype=np.int64), np.array([e.t for e in items]),
-                     np.array([e.x for e in items], dtype=float), np.array([e.P for e in items], dtype=float),
-                     list(items[0].labels),
-                     {k: np.array([e.diagnostics.get(k, np.nan) for e in items], dtype=float) for k in names})
+    return Estimates(
+        np.array([e.step for e in items], dtype=np.int64),
+        np.array([e.t for e in items]),
+        np.array([e.x for e in items], dtype=float),
+        np.array([e.P for e in items], dtype=float),
+        list(items[0].labels),
+        {k: np.array([e.diagnostics.get(k, np.nan) for e in items], dtype=float) for k in names},
+    )

@@ -8,6 +8,7 @@ time series its plots need.
   fraction inside +-3 sigma, NEES; options ``skip_s``, ``position_threshold`` [m], ``velocity_threshold`` [m/s]
   and ``hold_after_s`` (per run: do the thresholds hold from then on).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -59,20 +60,30 @@ class ErrorOptions(Settings):
     """The ``errors`` family's keys of the ``scoring`` section."""
 
     skip_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="the start of each run not scored")
-    position_threshold: float = setting(0.5, unit="m", check=POSITIVE,
-                                        doc="settled: every position error component below it")
-    velocity_threshold: float = setting(0.02, unit="m/s", check=POSITIVE,
-                                        doc="settled: every velocity error component below it")
-    hold_after_s: float | None = setting(None, unit="s", check=NON_NEGATIVE,
-                                         doc="per run: do the thresholds hold from then on (null: not scored)")
+    position_threshold: float = setting(
+        0.5, unit="m", check=POSITIVE, doc="settled: every position error component below it"
+    )
+    velocity_threshold: float = setting(
+        0.02, unit="m/s", check=POSITIVE, doc="settled: every velocity error component below it"
+    )
+    hold_after_s: float | None = setting(
+        None, unit="s", check=NON_NEGATIVE, doc="per run: do the thresholds hold from then on (null: not scored)"
+    )
 
 
 def _score_errors(tracks: Tracks, runs: list[BagData], o: ErrorOptions) -> dict:
-    return metrics.score_errors(tracks, skip_s=o.skip_s, position_threshold=o.position_threshold,
-                                velocity_threshold=o.velocity_threshold, hold_after_s=o.hold_after_s)
+    return metrics.score_errors(
+        tracks,
+        skip_s=o.skip_s,
+        position_threshold=o.position_threshold,
+        velocity_threshold=o.velocity_threshold,
+        hold_after_s=o.hold_after_s,
+    )
 
 
-CONVERGENCE = Metric(options=NoKeys,
-                     score=lambda tracks, runs, options: metrics.score_convergence(tracks),
-                     series=lambda tracks, runs, options: metrics.convergence_series(tracks))
+CONVERGENCE = Metric(
+    options=NoKeys,
+    score=lambda tracks, runs, options: metrics.score_convergence(tracks),
+    series=lambda tracks, runs, options: metrics.convergence_series(tracks),
+)
 ERRORS = Metric(options=ErrorOptions, score=_score_errors, series=error_series)

@@ -17,6 +17,7 @@ being the same step. A run that misses a step (e.g. a missed detection) simply d
 Every ``score_*`` function returns plain Python containers (floats, lists, ``None`` for undefined values),
 ready for ``json.dump(..., allow_nan=False)``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -54,8 +55,10 @@ class Track:
         self.labels = list(self.labels)
         k, n, m = len(self.t), len(self.labels), len(error_labels(self.labels))
         if self.x_est.shape != (k, n) or self.x_true.shape != (k, n) or self.P.shape != (k, m, m):
-            raise ValueError(f"Track shapes disagree: t {self.t.shape}, x_est {self.x_est.shape}, "
-                             f"x_true {self.x_true.shape}, P {self.P.shape}, {n} labels")
+            raise ValueError(
+                f"Track shapes disagree: t {self.t.shape}, x_est {self.x_est.shape}, "
+                f"x_true {self.x_true.shape}, P {self.P.shape}, {n} labels"
+            )
         if k > 1 and np.any(np.diff(self.t) <= 0.0):
             raise ValueError("Track stamps must be strictly increasing")
 
@@ -91,8 +94,9 @@ def time_grid(stamps: Sequence[np.ndarray], tol: float = DEFAULT_TOL_S) -> tuple
     return starts, index
 
 
-def on_grid(tracks: Sequence[Track], values: Sequence[np.ndarray],
-            tol: float = DEFAULT_TOL_S) -> tuple[np.ndarray, np.ndarray]:
+def on_grid(
+    tracks: Sequence[Track], values: Sequence[np.ndarray], tol: float = DEFAULT_TOL_S
+) -> tuple[np.ndarray, np.ndarray]:
     """Place per-track arrays (K_i, ...) on the common grid: (t_grid (G,), stacked (N, G, ...) NaN-filled)."""
     grid, index = time_grid([tr.t for tr in tracks], tol)
     tail = np.shape(values[0])[1:]
@@ -102,8 +106,9 @@ def on_grid(tracks: Sequence[Track], values: Sequence[np.ndarray],
     return grid, stacked
 
 
-def rmse_over_runs(tracks: Sequence[Track], components: Components = POSITION,
-                   tol: float = DEFAULT_TOL_S) -> tuple[np.ndarray, np.ndarray]:
+def rmse_over_runs(
+    tracks: Sequence[Track], components: Components = POSITION, tol: float = DEFAULT_TOL_S
+) -> tuple[np.ndarray, np.ndarray]:
     """RMSE per time step over the Monte Carlo runs (paper 000 eq. 35).
 
     rmse_k = sqrt( (1/N_k) sum_i |e_k^i|^2 ) over the selected components, N_k being the number of runs that
@@ -128,9 +133,17 @@ def first_settled_index(exceeds: np.ndarray) -> int:
     return 0 if bad.size == 0 else int(bad[-1]) + 1
 
 
-def summarise(t: np.ndarray, rmse: np.ndarray, *, t0: float | None = None, tail_fraction: float = 0.5,
-              threshold_factor: float = 1.5, threshold: float | None = None,
-              band_percentiles: tuple[float, float] = (5.0, 95.0), smooth_s: float = 0.0) -> dict:
+def summarise(
+    t: np.ndarray,
+    rmse: np.ndarray,
+    *,
+    t0: float | None = None,
+    tail_fraction: float = 0.5,
+    threshold_factor: float = 1.5,
+    threshold: float | None = None,
+    band_percentiles: tuple[float, float] = (5.0, 95.0),
+    smooth_s: float = 0.0,
+) -> dict:
     """Peak, convergence time, band and converged level of an RMSE curve (paper 000 Table 2).
 
     Operational definitions (the paper reads these off its Fig. 6 without defining them):
@@ -155,13 +168,21 @@ def summarise(t: np.ndarray, rmse: np.ndarray, *, t0: float | None = None, tail_
     thr = threshold_factor * level if threshold is None else threshold
     k = first_settled_index(tested > thr)
     ipeak = int(np.argmax(rmse))
-    out = {"peak": float(rmse[ipeak]), "peak_time_s": float(t[ipeak] - t0), "threshold": float(thr),
-           "convergence_time_s": np.nan, "band": [np.nan, np.nan], "converged": np.nan}
+    out = {
+        "peak": float(rmse[ipeak]),
+        "peak_time_s": float(t[ipeak] - t0),
+        "threshold": float(thr),
+        "convergence_time_s": np.nan,
+        "band": [np.nan, np.nan],
+        "converged": np.nan,
+    }
     if k < len(t):
         after = rmse[k:]
-        out.update(convergence_time_s=float(t[k] - t0),
-                   band=[float(b) for b in np.percentile(after, band_percentiles)],
-                   converged=float(np.mean(after)))
+        out.update(
+            convergence_time_s=float(t[k] - t0),
+            band=[float(b) for b in np.percentile(after, band_percentiles)],
+            converged=float(np.mean(after)),
+        )
     return out
 
 
@@ -202,15 +223,16 @@ def effective_samples(runs: Sequence[np.ndarray]) -> float:
     if var_plus <= 0.0:
         return float(total)
     rho = 1.0 - (within - acov.mean(axis=0)) / var_plus
-    pairs = rho[:n - n % 2].reshape(-1, 2).sum(axis=1)
+    pairs = rho[: n - n % 2].reshape(-1, 2).sum(axis=1)
     ends = np.flatnonzero(pairs <= 0.0)
-    pairs = np.minimum.accumulate(pairs[:ends[0] if len(ends) else len(pairs)])
+    pairs = np.minimum.accumulate(pairs[: ends[0] if len(ends) else len(pairs)])
     tau = -1.0 + 2.0 * float(np.sum(pairs))
     return total / max(tau, 1.0)
 
 
-def nees_series(tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05,
-                tol: float = DEFAULT_TOL_S) -> dict:
+def nees_series(
+    tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05, tol: float = DEFAULT_TOL_S
+) -> dict:
     """Average NEES over runs per grid step and its two-sided (1 - alpha) chi-square bounds.
 
     For N_k runs at step k and n components, N_k * ANEES_k ~ chi2(N_k n) when the filter is consistent, so
@@ -220,12 +242,23 @@ def nees_series(tracks: Sequence[Track], components: Components | None = None, a
     grid, v = on_grid(tracks, [nees(tr, components) for tr in tracks], tol)
     runs = np.sum(~np.isnan(v), axis=0)
     n = len(tracks[0].indices(components))
-    return {"t": grid, "mean": np.nanmean(v, axis=0), "runs": runs, "dof": n,
-            "lo": chdtri(runs * n, 1.0 - 0.5 * alpha) / runs, "hi": chdtri(runs * n, 0.5 * alpha) / runs}
+    return {
+        "t": grid,
+        "mean": np.nanmean(v, axis=0),
+        "runs": runs,
+        "dof": n,
+        "lo": chdtri(runs * n, 1.0 - 0.5 * alpha) / runs,
+        "hi": chdtri(runs * n, 0.5 * alpha) / runs,
+    }
 
 
-def nees_summary(tracks: Sequence[Track], components: Components | None = None, alpha: float = 0.05,
-                 skip_s: float = 0.0, tol: float = DEFAULT_TOL_S) -> dict:
+def nees_summary(
+    tracks: Sequence[Track],
+    components: Components | None = None,
+    alpha: float = 0.05,
+    skip_s: float = 0.0,
+    tol: float = DEFAULT_TOL_S,
+) -> dict:
     """Time-averaged ANEES, the chi-square bounds for all N runs, and the fraction of steps inside their bounds.
 
     Steps earlier than ``skip_s`` after the first stamp are left out (initial transient). The fraction
@@ -236,14 +269,18 @@ def nees_summary(tracks: Sequence[Track], components: Components | None = None, 
     keep = s["t"] - s["t"][0] >= skip_s
     m, lo, hi = s["mean"][keep], s["lo"][keep], s["hi"][keep]
     n, runs = s["dof"], len(tracks)
-    return {"mean": float(np.mean(m)), "dof": n, "runs": runs,
-            "bounds": [float(chdtri(runs * n, 1.0 - 0.5 * alpha) / runs),
-                       float(chdtri(runs * n, 0.5 * alpha) / runs)],
-            "fraction_inside": float(np.mean((m >= lo) & (m <= hi)))}
+    return {
+        "mean": float(np.mean(m)),
+        "dof": n,
+        "runs": runs,
+        "bounds": [float(chdtri(runs * n, 1.0 - 0.5 * alpha) / runs), float(chdtri(runs * n, 0.5 * alpha) / runs)],
+        "fraction_inside": float(np.mean((m >= lo) & (m <= hi))),
+    }
 
 
-def mean_absolute_error(tracks: Sequence[Track], components: Components | None = None,
-                        skip_s: float = 0.0) -> dict[str, float]:
+def mean_absolute_error(
+    tracks: Sequence[Track], components: Components | None = None, skip_s: float = 0.0
+) -> dict[str, float]:
     """Mean |error| per component over all runs and steps (paper 004 Tables 1-2).
 
     Steps earlier than ``skip_s`` after each run's first stamp are left out.
@@ -254,8 +291,7 @@ def mean_absolute_error(tracks: Sequence[Track], components: Components | None =
     return {lab: float(v) for lab, v in zip(labels, mae)}
 
 
-def mae_per_run(tracks: Sequence[Track], components: Components | None = None,
-                skip_s: float = 0.0) -> np.ndarray:
+def mae_per_run(tracks: Sequence[Track], components: Components | None = None, skip_s: float = 0.0) -> np.ndarray:
     """Mean |x_est - x_true| per component of each run separately, shape (N, c) (paper 004 Tables 1-2).
 
     For runs of equal length the mean over runs equals :func:`mean_absolute_error`; the spread over runs
@@ -264,8 +300,7 @@ def mae_per_run(tracks: Sequence[Track], components: Components | None = None,
     return np.array([np.mean(np.abs(tr.error(components))[tr.t - tr.t[0] >= skip_s], axis=0) for tr in tracks])
 
 
-def settling_time(t: np.ndarray, abs_err: np.ndarray, thresholds: Sequence[float],
-                  t0: float | None = None) -> float:
+def settling_time(t: np.ndarray, abs_err: np.ndarray, thresholds: Sequence[float], t0: float | None = None) -> float:
     """First time (from ``t0``, default the first stamp) after which every column of ``abs_err`` (G, c)
     stays at or below its threshold to the end; NaN if the last step is still above."""
     k = first_settled_index(np.any(abs_err > np.asarray(thresholds, dtype=float), axis=1))
@@ -273,9 +308,14 @@ def settling_time(t: np.ndarray, abs_err: np.ndarray, thresholds: Sequence[float
     return float(t[k] - t0) if k < len(t) else float("nan")
 
 
-def axes_settling_time(tracks: Sequence[Track], position_threshold: float = 0.5,
-                            velocity_threshold: float = 0.02, position: Components = POSITION,
-                            velocity: Components = VELOCITY, tol: float = DEFAULT_TOL_S) -> float:
+def axes_settling_time(
+    tracks: Sequence[Track],
+    position_threshold: float = 0.5,
+    velocity_threshold: float = 0.02,
+    position: Components = POSITION,
+    velocity: Components = VELOCITY,
+    tol: float = DEFAULT_TOL_S,
+) -> float:
     """Time after which every position axis error stays below ``position_threshold`` [m] and every velocity
     axis below ``velocity_threshold`` [m/s] (paper 001: 0.5 m and 0.02 m/s after 80 s).
 
@@ -287,8 +327,9 @@ def axes_settling_time(tracks: Sequence[Track], position_threshold: float = 0.5,
     return settling_time(curves[0][0], np.column_stack([c[1] for c in curves]), thresholds)
 
 
-def fraction_within_sigma(tracks: Sequence[Track], components: Components | None = None,
-                          k: float = 3.0) -> dict[str, float]:
+def fraction_within_sigma(
+    tracks: Sequence[Track], components: Components | None = None, k: float = 3.0
+) -> dict[str, float]:
     """Fraction of steps (all runs) with |error_i| <= k sqrt(P_ii), per component (paper 004's 3-sigma check)."""
     idx = tracks[0].indices(components)
     inside = np.concatenate([np.abs(tr.error(idx)) <= k * np.sqrt(tr.P[:, idx, idx]) for tr in tracks])
@@ -313,13 +354,26 @@ def json_ready(obj):
 def _curve_block(t: np.ndarray, rmse: np.ndarray, summary_kwargs: Mapping) -> dict:
     """Table 2 row for one RMSE curve, keys in metres and seconds."""
     s = summarise(t, rmse, **summary_kwargs)
-    return {"rmse_converged_m": s["converged"], "rmse_peak_m": s["peak"], "peak_time_s": s["peak_time_s"],
-            "convergence_time_s": s["convergence_time_s"], "band_m": s["band"], "threshold_m": s["threshold"]}
+    return {
+        "rmse_converged_m": s["converged"],
+        "rmse_peak_m": s["peak"],
+        "peak_time_s": s["peak_time_s"],
+        "convergence_time_s": s["convergence_time_s"],
+        "band_m": s["band"],
+        "threshold_m": s["threshold"],
+    }
 
 
-def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]], *, position: Components = POSITION,
-                      nees_skip_s: float = 0.0, alpha: float = 0.05, tol: float = DEFAULT_TOL_S,
-                      smooth_s: float = 1.0, **summary_kwargs) -> dict:
+def score_convergence(
+    tracks_by_filter: Mapping[str, Sequence[Track]],
+    *,
+    position: Components = POSITION,
+    nees_skip_s: float = 0.0,
+    alpha: float = 0.05,
+    tol: float = DEFAULT_TOL_S,
+    smooth_s: float = 1.0,
+    **summary_kwargs,
+) -> dict:
     """JSON-ready convergence scores per filter (paper 000 Tables 2 and 3 are of this form).
 
     Per filter: runs, rmse_converged_m, rmse_peak_m, peak_time_s, convergence_time_s, band_m [low, high],
@@ -336,17 +390,21 @@ def score_convergence(tracks_by_filter: Mapping[str, Sequence[Track]], *, positi
         block = {"runs": len(tracks), **_curve_block(*rmse_over_runs(tracks, position, tol), summary_kwargs)}
         block["rmse_converged_m_runs"] = converged_rms_per_run(tracks, block["convergence_time_s"], position)
         block["convergence_time_s_runs"] = convergence_time_per_run(tracks, position, tol, summary_kwargs)
-        block["axes"] = {str(c): _curve_block(*rmse_over_runs(tracks, [c], tol), summary_kwargs)
-                         for c in position}
+        block["axes"] = {str(c): _curve_block(*rmse_over_runs(tracks, [c], tol), summary_kwargs) for c in position}
         ns = nees_summary(tracks, None, alpha, nees_skip_s, tol)
-        block.update(nees_mean=ns["mean"], nees_dof=ns["dof"], nees_bounds=ns["bounds"],
-                     nees_fraction_inside=ns["fraction_inside"])
+        block.update(
+            nees_mean=ns["mean"],
+            nees_dof=ns["dof"],
+            nees_bounds=ns["bounds"],
+            nees_fraction_inside=ns["fraction_inside"],
+        )
         scored[name] = block
     return json_ready(scored)
 
 
-def converged_rms_per_run(tracks: Sequence[Track], convergence_time_s: float,
-                          position: Components = POSITION) -> list[float]:
+def converged_rms_per_run(
+    tracks: Sequence[Track], convergence_time_s: float, position: Components = POSITION
+) -> list[float]:
     """Each run's RMS position error after the convergence time (measured from the earliest stamp of all
     runs): the spread of the converged RMSE over runs, for its Monte Carlo standard error."""
     if not np.isfinite(convergence_time_s):
@@ -360,18 +418,28 @@ def converged_rms_per_run(tracks: Sequence[Track], convergence_time_s: float,
     return out
 
 
-def convergence_time_per_run(tracks: Sequence[Track], position: Components = POSITION,
-                             tol: float = DEFAULT_TOL_S, summary_kwargs: Mapping | None = None) -> list[float]:
+def convergence_time_per_run(
+    tracks: Sequence[Track],
+    position: Components = POSITION,
+    tol: float = DEFAULT_TOL_S,
+    summary_kwargs: Mapping | None = None,
+) -> list[float]:
     """Each run's own convergence time (:func:`summarise` of its position error, measured from the earliest
     stamp of all runs; NaN where it never settles): the spread over runs, for the Monte Carlo standard error
     of the convergence time."""
     t0 = min(float(tr.t[0]) for tr in tracks)
-    return [summarise(*rmse_over_runs([tr], position, tol), t0=t0,
-                      **(summary_kwargs or {}))["convergence_time_s"] for tr in tracks]
+    return [
+        summarise(*rmse_over_runs([tr], position, tol), t0=t0, **(summary_kwargs or {}))["convergence_time_s"]
+        for tr in tracks
+    ]
 
 
-def convergence_series(tracks_by_filter: Mapping[str, Sequence[Track]], position: Components = POSITION,
-               alpha: float = 0.05, tol: float = DEFAULT_TOL_S) -> dict:
+def convergence_series(
+    tracks_by_filter: Mapping[str, Sequence[Track]],
+    position: Components = POSITION,
+    alpha: float = 0.05,
+    tol: float = DEFAULT_TOL_S,
+) -> dict:
     """Time series for the convergence plots, per filter: t (s from the earliest stamp of all filters),
     rmse (position), axes {x, y, z: rmse}, nees {t, mean, lo, hi, dof}."""
     t0 = min(float(tr.t[0]) for tracks in tracks_by_filter.values() for tr in tracks)
@@ -379,16 +447,23 @@ def convergence_series(tracks_by_filter: Mapping[str, Sequence[Track]], position
     for name, tracks in tracks_by_filter.items():
         t, r = rmse_over_runs(tracks, position, tol)
         ns = nees_series(tracks, None, alpha, tol)
-        series[name] = {"t": t - t0, "rmse": r,
-                        "axes": {str(c): rmse_over_runs(tracks, [c], tol)[1] for c in position},
-                        "nees": {"t": ns["t"] - t0, "mean": ns["mean"], "lo": ns["lo"], "hi": ns["hi"],
-                                 "dof": ns["dof"]}}
+        series[name] = {
+            "t": t - t0,
+            "rmse": r,
+            "axes": {str(c): rmse_over_runs(tracks, [c], tol)[1] for c in position},
+            "nees": {"t": ns["t"] - t0, "mean": ns["mean"], "lo": ns["lo"], "hi": ns["hi"], "dof": ns["dof"]},
+        }
     return series
 
 
-def below_after_per_run(tracks: Sequence[Track], after_s: float, position_threshold: float,
-                        velocity_threshold: float, position: Components = POSITION,
-                        velocity: Components = VELOCITY) -> list[bool]:
+def below_after_per_run(
+    tracks: Sequence[Track],
+    after_s: float,
+    position_threshold: float,
+    velocity_threshold: float,
+    position: Components = POSITION,
+    velocity: Components = VELOCITY,
+) -> list[bool]:
     """Per run: does every position axis stay within ``position_threshold`` and every velocity axis within
     ``velocity_threshold`` from ``after_s`` after its first stamp on (paper 001's "after 80 s")?"""
     thresholds = np.array([position_threshold] * len(position) + [velocity_threshold] * len(velocity))
@@ -396,10 +471,17 @@ def below_after_per_run(tracks: Sequence[Track], after_s: float, position_thresh
     return [bool(np.all(np.abs(tr.error(comps))[tr.t - tr.t[0] >= after_s] <= thresholds)) for tr in tracks]
 
 
-def score_errors(tracks_by_filter: Mapping[str, Sequence[Track]], *, skip_s: float = 0.0,
-                 position_threshold: float = 0.5, velocity_threshold: float = 0.02,
-                 hold_after_s: float | None = None, position: Components = POSITION,
-                 velocity: Components = VELOCITY, tol: float = DEFAULT_TOL_S) -> dict:
+def score_errors(
+    tracks_by_filter: Mapping[str, Sequence[Track]],
+    *,
+    skip_s: float = 0.0,
+    position_threshold: float = 0.5,
+    velocity_threshold: float = 0.02,
+    hold_after_s: float | None = None,
+    position: Components = POSITION,
+    velocity: Components = VELOCITY,
+    tol: float = DEFAULT_TOL_S,
+) -> dict:
     """JSON-ready error statistics per filter (the form of papers 001 and 004's results), SI units.
 
     Per filter: runs, mae {component: m or m/s}, mae_runs {component: [each run's MAE]} (the Monte Carlo
@@ -415,14 +497,17 @@ def score_errors(tracks_by_filter: Mapping[str, Sequence[Track]], *, skip_s: flo
             "runs": len(tracks),
             "mae": mean_absolute_error(tracks, comps, skip_s),
             "mae_runs": dict(zip(map(str, comps), mae_per_run(tracks, comps, skip_s).T)),
-            "settling_time_s": axes_settling_time(tracks, position_threshold, velocity_threshold,
-                                                       position, velocity, tol),
+            "settling_time_s": axes_settling_time(
+                tracks, position_threshold, velocity_threshold, position, velocity, tol
+            ),
             "within_3sigma": fraction_within_sigma(tracks, comps),
-            "nees_mean": ns["mean"], "nees_dof": ns["dof"], "nees_bounds": ns["bounds"],
+            "nees_mean": ns["mean"],
+            "nees_dof": ns["dof"],
+            "nees_bounds": ns["bounds"],
             "nees_fraction_inside": ns["fraction_inside"],
         }
         if hold_after_s is not None:
-            scored[name]["below_after_runs"] = below_after_per_run(tracks, hold_after_s, position_threshold,
-                                                                   velocity_threshold, position, velocity)
+            scored[name]["below_after_runs"] = below_after_per_run(
+                tracks, hold_after_s, position_threshold, velocity_threshold, position, velocity
+            )
     return json_ready(scored)
-

@@ -14,6 +14,7 @@ position fixes) in the same group.
 
 The scorer runs each over every bag and scores its output like another filter's (bench_eval.scoring).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -104,8 +105,10 @@ def _differentiated(data: BagData, source: str, params: Differentiation, derivat
     steps, t, z = measurement_series(data, source)
     x = np.hstack([z, derivative(t, z)])
     if x.shape[1] != len(params.labels):
-        raise ScenarioError(f"'scoring.offline': {len(params.labels)} labels for {x.shape[1]} components "
-                            f"(positions of '{source}' and their derivatives)")
+        raise ScenarioError(
+            f"'scoring.offline': {len(params.labels)} labels for {x.shape[1]} components "
+            f"(positions of '{source}' and their derivatives)"
+        )
     P = np.full((len(t), x.shape[1], x.shape[1]), np.nan)
     return Estimates(steps, t, x, P, list(params.labels), {})
 
@@ -125,6 +128,7 @@ def _savgol_run(data: BagData, source: str, params: SavgolParameters) -> Estimat
         spacing = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
         window = savgol_window_length(params.window_s, spacing, params.polyorder)
         return savgol_derivative(t, z, window, params.polyorder, params.max_gap)
+
     return _differentiated(data, source, params, derivative)
 
 

@@ -23,6 +23,7 @@ result is computed again and replaces the file). Files are written atomically (a
 rename), so a killed scorer leaves the previous file or none. A bag directory that cannot be written (read-only,
 full) is scored without a cache, with a warning.
 """
+
 from __future__ import annotations
 
 import ast
@@ -46,8 +47,10 @@ from bench_engine.settings import Settings
 
 DIRECTORY = "offline_cache"
 """The cache's directory inside a bag directory."""
-MEMBERS = {"offline": ("steps", "t", "x", "P", "labels", "diagnostic_names", "diagnostic_values"),
-           "bounds": ("steps", "t", "P", "labels")}
+MEMBERS = {
+    "offline": ("steps", "t", "x", "P", "labels", "diagnostic_names", "diagnostic_values"),
+    "bounds": ("steps", "t", "P", "labels"),
+}
 """The arrays of a cache file, by group: an Estimates, a BoundSeries."""
 MAX_BYTES = 1 << 32
 """The largest uncompressed size a cache file may declare (4 GiB: a day of an 18-state estimate at 5 s holds
@@ -59,6 +62,7 @@ class CacheWarning(UserWarning):
 
 
 # --- the key ---------------------------------------------------------------------------------------------------
+
 
 def _own_packages() -> set[str]:
     """The top-level packages of every registered component (the bench's and any plugin's)."""
@@ -81,7 +85,7 @@ def _imported(source: bytes, module: str, is_package: bool) -> set[str]:
             base = node.module or ""
             if node.level:
                 parts = package.split(".")
-                parent = ".".join(parts[:len(parts) - node.level + 1])
+                parent = ".".join(parts[: len(parts) - node.level + 1])
                 base = f"{parent}.{base}" if base else parent
             names.add(base)
             names.update(f"{base}.{alias.name}" for alias in node.names)
@@ -152,17 +156,27 @@ def bag_digest(bag: Path) -> str:
     return _bag_digest(bag, stamp)
 
 
-def key(bag: Path, group: str, name: str, component: str, params: Settings | dict,
-        source: str | None = None) -> str:
+def key(bag: Path, group: str, name: str, component: str, params: Settings | dict, source: str | None = None) -> str:
     """The cache key of computation ``name`` of a bag: the registered ``component`` of entry-point group
     ``group`` (``offline``, ``bounds``) with ``params`` (its typed settings: bench_engine.settings; and an offline
     estimator's ``source``); module docstring."""
     origin = plugins.origin(group, component)
     if dataclasses.is_dataclass(params):
         params = dataclasses.asdict(params)
-    text = json.dumps({"bag": bag_digest(bag), "group": group, "name": name, "component": component,
-                       "origin": origin, "source": source, "params": params,
-                       "code": code_version(origin.split(":")[0])}, sort_keys=True, default=repr)
+    text = json.dumps(
+        {
+            "bag": bag_digest(bag),
+            "group": group,
+            "name": name,
+            "component": component,
+            "origin": origin,
+            "source": source,
+            "params": params,
+            "code": code_version(origin.split(":")[0]),
+        },
+        sort_keys=True,
+        default=repr,
+    )
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -172,6 +186,7 @@ def path(bag: Path, group: str, name: str, cache_key: str) -> Path:
 
 
 # --- reading and writing ---------------------------------------------------------------------------------------
+
 
 def _warn(text: str) -> None:
     warnings.warn(text, CacheWarning, stacklevel=3)
@@ -208,15 +223,20 @@ def _checks(a: dict[str, np.ndarray]) -> list[tuple[bool, str]]:
     """(passes, what) of every consistency check of a file's arrays."""
     steps, t, P, labels = a["steps"], a["t"], a["P"], a["labels"]
     k, n = len(steps), len(labels)
-    checks = [(steps.ndim == 1 and steps.dtype.kind == "i", "steps"), (t.shape == (k,) and t.dtype.kind == "f", "t"),
-              (labels.ndim == 1 and labels.dtype.kind == "U", "labels")]
+    checks = [
+        (steps.ndim == 1 and steps.dtype.kind == "i", "steps"),
+        (t.shape == (k,) and t.dtype.kind == "f", "t"),
+        (labels.ndim == 1 and labels.dtype.kind == "U", "labels"),
+    ]
     if "x" not in a:  # a bound: its covariance over its labels
         return checks + [(P.shape == (k, n, n) and P.dtype.kind == "f", "P")]
     x, names, values = a["x"], a["diagnostic_names"], a["diagnostic_values"]
-    return checks + [(x.shape == (k, n) and x.dtype.kind == "f", "x"),
-                     (P.ndim == 3 and len(P) == k and P.shape[1] == P.shape[2] and P.dtype.kind == "f", "P"),
-                     (names.ndim == 1 and names.dtype.kind == "U", "diagnostic_names"),
-                     (values.shape == (len(names), k) and values.dtype.kind == "f", "diagnostic_values")]
+    return checks + [
+        (x.shape == (k, n) and x.dtype.kind == "f", "x"),
+        (P.ndim == 3 and len(P) == k and P.shape[1] == P.shape[2] and P.dtype.kind == "f", "P"),
+        (names.ndim == 1 and names.dtype.kind == "U", "diagnostic_names"),
+        (values.shape == (len(names), k) and values.dtype.kind == "f", "diagnostic_values"),
+    ]
 
 
 def _check_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
@@ -238,14 +258,21 @@ def store(file: Path, result) -> None:
     """Write ``result`` (a bench_eval.scoring.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
     and an Estimates' x and diagnostics) to ``file`` atomically; a warning when the directory cannot be
     written."""
-    arrays = {"steps": np.asarray(result.steps, dtype=np.int64), "t": np.asarray(result.t, dtype=float),
-              "P": np.asarray(result.P, dtype=float),
-              "labels": np.array([str(s) for s in result.labels], dtype=str).reshape(-1)}
+    arrays = {
+        "steps": np.asarray(result.steps, dtype=np.int64),
+        "t": np.asarray(result.t, dtype=float),
+        "P": np.asarray(result.P, dtype=float),
+        "labels": np.array([str(s) for s in result.labels], dtype=str).reshape(-1),
+    }
     if hasattr(result, "x"):
         names = sorted(result.diagnostics)
-        arrays.update(x=np.asarray(result.x, dtype=float), diagnostic_names=np.array(names, dtype=str).reshape(-1),
-                      diagnostic_values=np.array([result.diagnostics[n] for n in names], dtype=float).reshape(
-                          len(names), len(result.steps)))
+        arrays.update(
+            x=np.asarray(result.x, dtype=float),
+            diagnostic_names=np.array(names, dtype=str).reshape(-1),
+            diagnostic_values=np.array([result.diagnostics[n] for n in names], dtype=float).reshape(
+                len(names), len(result.steps)
+            ),
+        )
     tmp = None
     try:
         file.parent.mkdir(exist_ok=True)

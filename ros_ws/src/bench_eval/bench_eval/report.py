@@ -6,6 +6,7 @@ written from any thread or a headless CI run. A study's sections come from its r
 (bench_eval.study); a scenario without one gets a generic table of its scalar scores. Nothing here knows a
 study by name.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -29,8 +30,7 @@ class Table:
     rows: list[list[str]]
 
     def markdown(self) -> str:
-        lines = [f"**{self.title}**", "", "| " + " | ".join(self.header) + " |",
-                 "|" + "---|" * len(self.header)]
+        lines = [f"**{self.title}**", "", "| " + " | ".join(self.header) + " |", "|" + "---|" * len(self.header)]
         lines += ["| " + " | ".join(row) + " |" for row in self.rows]
         return "\n".join(lines)
 
@@ -112,8 +112,9 @@ def draw_bounds(ax, series: Mapping, key: str, factor: float = 1.0) -> None:
         ax.semilogy(t[k], factor * values[k], label=f"√{name.upper()}", **BOUND_STYLE)
 
 
-def bounds_table(scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("position", "m", 1.0),
-                                                                            ("velocity", "m/s", 1.0))) -> Table | None:
+def bounds_table(
+    scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("position", "m", 1.0), ("velocity", "m/s", 1.0))
+) -> Table | None:
     """Every estimator's RMSE next to each bound's square root and its efficiency (bench_eval.bounds: 1 = reaches
     the bound), per group (key, display unit, factor from SI): RMS over the summarised steps and at the last step
     (bench_eval.bounds); None when no estimator was scored against a bound."""
@@ -124,21 +125,36 @@ def bounds_table(scored: Mapping, groups: Sequence[tuple[str, str, float]] = (("
                 g = b.get(key, (b.get("axes") or {}).get(key))
                 if not g or g.get("rmse") is None:
                     continue
-                rows.append([est, bound, f"{key} [{unit}]", fmt(factor * g["rmse"]), fmt(factor * g["sqrt_bound"]),
-                             fmt(g["efficiency"]), fmt(factor * g["final_rmse"]), fmt(factor * g["final_sqrt_bound"])])
+                rows.append(
+                    [
+                        est,
+                        bound,
+                        f"{key} [{unit}]",
+                        fmt(factor * g["rmse"]),
+                        fmt(factor * g["sqrt_bound"]),
+                        fmt(g["efficiency"]),
+                        fmt(factor * g["final_rmse"]),
+                        fmt(factor * g["final_sqrt_bound"]),
+                    ]
+                )
     if not rows:
         return None
-    return Table("Distance to the bound: RMSE over runs next to √bound (RMS over the summarised steps), efficiency "
-                 "(mean over those steps of RMSE² / bound)^-½ (1 = the best the data allow), both at the last step",
-                 ["estimator", "bound", "quantity", "RMSE", "√bound", "efficiency", "last RMSE", "last √bound"], rows)
+    return Table(
+        "Distance to the bound: RMSE over runs next to √bound (RMS over the summarised steps), efficiency "
+        "(mean over those steps of RMSE² / bound)^-½ (1 = the best the data allow), both at the last step",
+        ["estimator", "bound", "quantity", "RMSE", "√bound", "efficiency", "last RMSE", "last √bound"],
+        rows,
+    )
 
 
-def draw_errors_vs_sigma(series: Mapping, title: str,
-                         components: Sequence[tuple[str, str, str, float]]) -> Callable[[Figure], None]:
+def draw_errors_vs_sigma(
+    series: Mapping, title: str, components: Sequence[tuple[str, str, str, float]]
+) -> Callable[[Figure], None]:
     """A figure of the ``errors`` family's series (bench_eval.metric_families.error_series): per component
     (score key, symbol, display unit, factor from SI to it), the error RMSE over runs (solid) and the filter's
     mean 3 sigma (dashed), one colour per filter, and each bound's √bound (black dashed: :func:`draw_bounds`), on
     log axes, in a grid of 3 columns."""
+
     def draw(fig: Figure) -> None:
         rows = max(1, -(-len(components) // 3))
         axs = np.atleast_2d(fig.subplots(rows, 3, sharex=True, squeeze=False))
@@ -147,9 +163,15 @@ def draw_errors_vs_sigma(series: Mapping, title: str,
                 if key not in s["rmse"]:
                     continue
                 k = thin(s["t"])
-                line, = ax.semilogy(s["t"][k], factor * np.asarray(s["rmse"][key])[k], lw=0.8, label=f"{name} RMSE")
-                ax.semilogy(s["t"][k], 3.0 * factor * np.asarray(s["sigma"][key])[k], lw=0.8, ls="--",
-                            color=line.get_color(), label=f"{name} 3σ")
+                (line,) = ax.semilogy(s["t"][k], factor * np.asarray(s["rmse"][key])[k], lw=0.8, label=f"{name} RMSE")
+                ax.semilogy(
+                    s["t"][k],
+                    3.0 * factor * np.asarray(s["sigma"][key])[k],
+                    lw=0.8,
+                    ls="--",
+                    color=line.get_color(),
+                    label=f"{name} 3σ",
+                )
             draw_bounds(ax, series, key, factor)
             ax.set_title(f"{symbol} [{unit}]", fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
@@ -157,6 +179,7 @@ def draw_errors_vs_sigma(series: Mapping, title: str,
             ax.set_xlabel("time [s]")
         axs[0, 0].legend(fontsize=7)
         fig.suptitle(title, fontsize=10)
+
     return draw
 
 
@@ -170,8 +193,9 @@ def save_plot(out_dir: Path, plot: Plot) -> Path:
     return path
 
 
-def render(out_dir: Path, sections: Sequence[Section], title: str = "Tracking bench report",
-           filename: str = "report.md") -> Path:
+def render(
+    out_dir: Path, sections: Sequence[Section], title: str = "Tracking bench report", filename: str = "report.md"
+) -> Path:
     """Write ``filename`` (Markdown) and every section's PNGs into ``out_dir``; returns the Markdown path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -211,14 +235,21 @@ def generic_sections(scenario: str, scored: Mapping, series: Mapping | None, pap
 
 def claims_section(rows: Sequence) -> Section:
     """The report's opening table: every paper claim, the bench's figure and the verdict (bench_eval.claims)."""
-    table = Table("Paper claims tested by the bench (bench figures: mean ± Monte Carlo standard error where the "
-                  "runs give one)", ["study", "claim", "paper", "bench", "verdict"],
-                  [[f"[{r.study}](#{r.section})", r.claim, r.paper, r.bench, f"**{r.verdict}**"] for r in rows])
+    table = Table(
+        "Paper claims tested by the bench (bench figures: mean ± Monte Carlo standard error where the runs give one)",
+        ["study", "claim", "paper", "bench", "verdict"],
+        [[f"[{r.study}](#{r.section})", r.claim, r.paper, r.bench, f"**{r.verdict}**"] for r in rows],
+    )
     return Section("Claims", "", [table])
 
 
-def write_report(out_dir: Path | str, scored: Mapping, series: Mapping, paper_table: Mapping | None = None,
-                 extra_sections: Sequence[Section] = ()) -> Path:
+def write_report(
+    out_dir: Path | str,
+    scored: Mapping,
+    series: Mapping,
+    paper_table: Mapping | None = None,
+    extra_sections: Sequence[Section] = (),
+) -> Path:
     """Write ``report.md`` and its PNGs into ``out_dir``; returns the Markdown path.
 
     ``scored``: {scenario: {filter: score block}}; ``series``: {scenario: {filter: time series}} (may lack

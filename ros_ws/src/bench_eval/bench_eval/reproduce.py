@@ -13,6 +13,7 @@ wall time and its Markdown; a table whose entry is complete for the same commit 
 ``--resume``. A documentation page (Markdown) shows a table in a generated block, ``<!-- results: TABLE -->``
 … ``<!-- /results -->``, which ``fill_page`` rewrites from the record.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -35,6 +36,7 @@ STDOUT = "stdout"
 @dataclass(frozen=True)
 class Table:
     """One generated table of the documentation and the command that produces it."""
+
     name: str
     """Unique over all studies: ``STUDY.TABLE``."""
     title: str
@@ -76,16 +78,24 @@ def read_tables(path: Path, study: str) -> tuple[Table, ...]:
         for i, raw in enumerate(top.get("tables", list, [])):
             s = Section(raw, f"tables[{i}]")
             mini = s.section("mini")
-            tables.append(Table(
-                name=f"{study}.{s.get('name', str)}", title=s.get("title", str), script=s.get("script", str),
-                args=tuple(str(a) for a in s.get("args", list, [])), markdown=s.get("markdown", str, STDOUT),
-                text=s.get("text", bool, False),
-                out_flag=s.get("out_flag", str, None), scheduler=s.get("scheduler", bool, False),
-                resume=s.get("resume", bool, False), scenario=s.get("scenario", str, None),
-                mini_args={str(k): str(v) for k, v in mini.get("args", dict, {}).items()},
-                mini_set=tuple(str(o) for o in mini.get("set", list, [])),
-                captions=tuple(str(c) for c in s.get("captions", list, [])),
-                figures=tuple(str(f) for f in s.get("figures", list, []))))
+            tables.append(
+                Table(
+                    name=f"{study}.{s.get('name', str)}",
+                    title=s.get("title", str),
+                    script=s.get("script", str),
+                    args=tuple(str(a) for a in s.get("args", list, [])),
+                    markdown=s.get("markdown", str, STDOUT),
+                    text=s.get("text", bool, False),
+                    out_flag=s.get("out_flag", str, None),
+                    scheduler=s.get("scheduler", bool, False),
+                    resume=s.get("resume", bool, False),
+                    scenario=s.get("scenario", str, None),
+                    mini_args={str(k): str(v) for k, v in mini.get("args", dict, {}).items()},
+                    mini_set=tuple(str(o) for o in mini.get("set", list, [])),
+                    captions=tuple(str(c) for c in s.get("captions", list, [])),
+                    figures=tuple(str(f) for f in s.get("figures", list, [])),
+                )
+            )
             mini.finish()
             s.finish()
         top.finish()
@@ -108,8 +118,15 @@ def arguments(table: Table, mini: bool) -> list[str]:
     return args
 
 
-def command(table: Table, python: str, root: Path, out: Path, mini: bool = False, scheduler: str | None = None,
-            resume: bool = False) -> list[str]:
+def command(
+    table: Table,
+    python: str,
+    root: Path,
+    out: Path,
+    mini: bool = False,
+    scheduler: str | None = None,
+    resume: bool = False,
+) -> list[str]:
     """The full command line of a table: its script under root/scripts, output directory, cluster, resume."""
     cmd = [python, str(root / "scripts" / table.script), *arguments(table, mini)]
     if table.out_flag:
@@ -150,8 +167,10 @@ def commit(root: Path) -> str:
     """HEAD's hash, with ``+dirty-`` and a hash of ``git diff HEAD`` when tracked files other than the record
     (results/: what this command writes, which an earlier --only run has already changed) differ from it (the
     results are then not HEAD's, and a different edit gives a different identity)."""
+
     def git(*a: str) -> str:
         return subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True).stdout
+
     head = git("rev-parse", "HEAD").strip() or "unknown"
     diff = git("diff", "HEAD", "--", ".", f":(exclude){RESULTS_DIR}")
     return head + (f"+dirty-{hashlib.sha1(diff.encode()).hexdigest()[:12]}" if diff else "")
@@ -172,9 +191,13 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    return {"cpus": os.cpu_count(), "cpu_model": model, "load_average": load_average(),
-            "system": platform.platform(),
-            "python": platform.python_version()}
+    return {
+        "cpus": os.cpu_count(),
+        "cpu_model": model,
+        "load_average": load_average(),
+        "system": platform.platform(),
+        "python": platform.python_version(),
+    }
 
 
 def read_results(path: Path) -> dict:
@@ -188,8 +211,9 @@ def read_results(path: Path) -> dict:
 def is_complete(entry: Mapping | None, head: str, ident: list[str]) -> bool:
     """A recorded table that need not run again: finished, same commit (and uncommitted edits), same script
     and arguments."""
-    return bool(entry) and entry.get("status") == "ok" and entry.get("commit") == head \
-        and entry.get("identity") == ident
+    return (
+        bool(entry) and entry.get("status") == "ok" and entry.get("commit") == head and entry.get("identity") == ident
+    )
 
 
 def demote(markdown: str) -> str:
@@ -206,27 +230,42 @@ def render(record: Mapping, order: list[str]) -> str:
     """RESULTS.md: the commit and machine, then every table (in the studies' order) with its command, wall
     time and the load average at its start."""
     m = record.get("machine", {})
-    lines = ["# Results", "", "Generated by `scripts/reproduce.py`" + (" --mini" if record.get("mini") else "")
-             + "; do not edit by hand.", "",
-             f"- commit of the last invocation: `{record.get('commit')}`; the tables': "
-             + ", ".join(f"`{c[:12]}` ({n} table{'s' * (n > 1)})"
-                         for c, n in Counter(e.get("commit", "?") for e in record["tables"].values()).most_common()),
-             f"- machine: {m.get('cpus')} CPUs, {m.get('cpu_model')}, load average {m.get('load_average')} "
-             f"at the start; {m.get('system')}, Python {m.get('python')}",
-             f"- wall time: {sum(e['wall_s'] for e in record['tables'].values()):.0f} s over the tables "
-             f"({record.get('wall_s', 0):.0f} s in the last invocation; resumed tables keep their own)", ""]
+    lines = [
+        "# Results",
+        "",
+        "Generated by `scripts/reproduce.py`" + (" --mini" if record.get("mini") else "") + "; do not edit by hand.",
+        "",
+        f"- commit of the last invocation: `{record.get('commit')}`; the tables': "
+        + ", ".join(
+            f"`{c[:12]}` ({n} table{'s' * (n > 1)})"
+            for c, n in Counter(e.get("commit", "?") for e in record["tables"].values()).most_common()
+        ),
+        f"- machine: {m.get('cpus')} CPUs, {m.get('cpu_model')}, load average {m.get('load_average')} "
+        f"at the start; {m.get('system')}, Python {m.get('python')}",
+        f"- wall time: {sum(e['wall_s'] for e in record['tables'].values()):.0f} s over the tables "
+        f"({record.get('wall_s', 0):.0f} s in the last invocation; resumed tables keep their own)",
+        "",
+    ]
     if record.get("mini"):
-        lines += ["The miniature (one run per cell, shortened runs): it proves every table has a working "
-                  "generator; its figures are not the documentation's.", ""]
+        lines += [
+            "The miniature (one run per cell, shortened runs): it proves every table has a working "
+            "generator; its figures are not the documentation's.",
+            "",
+        ]
     for name in order:
         entry = record["tables"].get(name)
         if not entry:
             continue
         load = entry.get("load_average")
-        lines += [f"## {entry['title']}", "", f"`{name}`: `{' '.join(entry['identity'])}`, "
-                  f"{entry['status']}, {entry['wall_s']:.0f} s" + (f" (load average {load} at its start)"
-                                                                   if load else "")
-                  + f", commit `{entry['commit'][:12]}`", ""]
+        lines += [
+            f"## {entry['title']}",
+            "",
+            f"`{name}`: `{' '.join(entry['identity'])}`, "
+            f"{entry['status']}, {entry['wall_s']:.0f} s"
+            + (f" (load average {load} at its start)" if load else "")
+            + f", commit `{entry['commit'][:12]}`",
+            "",
+        ]
         lines += [demote(entry.get("markdown", "")).rstrip(), ""]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -251,7 +290,7 @@ def excerpt(markdown: str, captions: tuple[str, ...]) -> str:
             i += 1
         if i < len(lines) and lines[i].startswith("```"):
             end = next((j for j in range(i + 1, len(lines)) if lines[j].startswith("```")), len(lines) - 1)
-            part += lines[i:end + 1]
+            part += lines[i : end + 1]
         else:
             while i < len(lines) and lines[i].startswith("|"):
                 part.append(lines[i])
@@ -283,10 +322,13 @@ def page_block(table: Table, entry: Mapping, to_root: str = "") -> str:
     for figure in table.figures:
         body += f"\n\n![{table.name}: {Path(figure).name}]({to_root}{figure_path(table, figure)})"
     load, machine = entry.get("load_average"), entry.get("machine")
-    source = (f"*Generated by `scripts/reproduce.py --docs` from `results/results.json` ({table.name}): "
-              f"`{' '.join(entry['identity'])}`, commit `{entry['commit'][:12]}`, {entry['wall_s']:.0f} s"
-              + (f", load average {load[0]} at its start" if load else "")
-              + (f", {machine['cpus']} CPUs ({machine['cpu_model']})" if machine else "") + ".*")
+    source = (
+        f"*Generated by `scripts/reproduce.py --docs` from `results/results.json` ({table.name}): "
+        f"`{' '.join(entry['identity'])}`, commit `{entry['commit'][:12]}`, {entry['wall_s']:.0f} s"
+        + (f", load average {load[0]} at its start" if load else "")
+        + (f", {machine['cpus']} CPUs ({machine['cpu_model']})" if machine else "")
+        + ".*"
+    )
     return f"{body}\n\n{source}\n"
 
 
@@ -298,6 +340,7 @@ def block_names(text: str) -> list[str]:
 def fill_page(text: str, record: Mapping, tables: Mapping[str, Table], to_root: str = "") -> str:
     """A page with every generated block rewritten from the record (``to_root`` as in ``page_block``). Raises
     ExcerptError for a block naming an undeclared table or one the record does not hold complete."""
+
     def body(m: re.Match) -> str:
         name = m.group("name")
         if name not in tables:
@@ -309,6 +352,7 @@ def fill_page(text: str, record: Mapping, tables: Mapping[str, Table], to_root: 
             return m.group(1) + page_block(tables[name], entry, to_root) + m.group(4)
         except ExcerptError as err:
             raise ExcerptError(f"block {name}: {err}") from err
+
     return BLOCK.sub(body, text)
 
 

@@ -4,6 +4,7 @@ A bag directory written by the recorder carries the run config (``run_config.yam
 so the scorer rebuilds the same sensor models the run used (a metric maps estimates into a sensor's coordinates).
 Estimates are matched to truth and measurements by lock-step index (``step``), never by arrival order.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,34 +37,44 @@ from bench_eval.window import EDGES, ScoringWindow, check_window
 from bench_models.states import error_labels
 
 
-
 @dataclass(frozen=True, kw_only=True)
 class OfflineRun(Settings):
     """One entry of ``scoring.offline``: the offline ``estimator`` (registered in tracking_bench.offline) run over
     the recorded estimates or measurements of ``source`` with its ``params``; scored under its own name."""
 
-    estimator: str = setting(doc="a registered offline estimator (entry-point group tracking_bench.offline)",
-                             choices=lambda: plugins.names("offline"))
+    estimator: str = setting(
+        doc="a registered offline estimator (entry-point group tracking_bench.offline)",
+        choices=lambda: plugins.names("offline"),
+    )
     source: str = setting(doc="the estimator or measurement of the run it runs over")
-    params: Settings = variant("estimator", lambda: plugins.names("offline"),
-                               lambda name: plugins.load("offline", name).params, inline=False,
-                               doc="the offline estimator's parameters")
+    params: Settings = variant(
+        "estimator",
+        lambda: plugins.names("offline"),
+        lambda name: plugins.load("offline", name).params,
+        inline=False,
+        doc="the offline estimator's parameters",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
 class ScoringOptions(Settings):
     """The scenario's ``scoring`` section: the metric family with its options, offline estimators and bounds."""
 
-    metric: str = setting(doc="a registered metric family (entry-point group tracking_bench.metrics)",
-                          choices=lambda: plugins.names("metrics"))
-    offline: dict[str, OfflineRun] = setting({}, doc="offline estimators run over every bag and scored under "
-                                                     "their names (bench_eval.offline)")
+    metric: str = setting(
+        doc="a registered metric family (entry-point group tracking_bench.metrics)",
+        choices=lambda: plugins.names("metrics"),
+    )
+    offline: dict[str, OfflineRun] = setting(
+        {}, doc="offline estimators run over every bag and scored under their names (bench_eval.offline)"
+    )
     bounds: dict[str, BoundRun] = setting({}, doc="lower bounds to score the estimators against (bench_eval.bounds)")
-    window: ScoringWindow | None = setting(None, doc="the part of each run every estimator is scored over "
-                                                     "(bench_eval.window; null: each over all of its steps)")
-    options: Settings = variant("metric", lambda: plugins.names("metrics"),
-                                lambda name: plugins.load("metrics", name).options)
-
+    window: ScoringWindow | None = setting(
+        None,
+        doc="the part of each run every estimator is scored over (bench_eval.window; null: each over all of its steps)",
+    )
+    options: Settings = variant(
+        "metric", lambda: plugins.names("metrics"), lambda name: plugins.load("metrics", name).options
+    )
 
 
 def scoring_options(cfg: dict) -> ScoringOptions:
@@ -82,8 +93,13 @@ TRUTHLESS = "innovations (no truth)"
 """The ``metric`` of a score without truth (_score_without_truth): no registered family, bench_eval.consistency's
 scores instead."""
 
-SCORING = SectionReader("scoring", ScoringOptions, "how the bags are scored: the metric family, offline "
-                        "estimators, bounds and the scoring window (bench_eval.scoring)", scoring_options)
+SCORING = SectionReader(
+    "scoring",
+    ScoringOptions,
+    "how the bags are scored: the metric family, offline "
+    "estimators, bounds and the scoring window (bench_eval.scoring)",
+    scoring_options,
+)
 
 
 @dataclass
@@ -106,11 +122,19 @@ class Estimates:
         n = len(error_labels(labels))  # a quaternion's covariance is of its 3-component error
         names = [tab["diagnostic_names"][i] for i in rows]
         values = [tab["diagnostic_values"][i] for i in rows]
-        diag = {k: np.array([v[list(m).index(k)] if k in m else np.nan for m, v in zip(names, values)])
-                for k in sorted(set().union(*names))}
-        return cls(tab["step"][rows].astype(np.int64), tab.seconds()[rows], _stack(tab["state"], rows),
-                   _stack(tab["covariance"], rows).reshape(len(rows), n, n), labels, diag,
-                   np.asarray(tab["nis"], dtype=float)[rows])
+        diag = {
+            k: np.array([v[list(m).index(k)] if k in m else np.nan for m, v in zip(names, values)])
+            for k in sorted(set().union(*names))
+        }
+        return cls(
+            tab["step"][rows].astype(np.int64),
+            tab.seconds()[rows],
+            _stack(tab["state"], rows),
+            _stack(tab["covariance"], rows).reshape(len(rows), n, n),
+            labels,
+            diag,
+            np.asarray(tab["nis"], dtype=float)[rows],
+        )
 
 
 def _stack(column, rows: np.ndarray) -> np.ndarray:
@@ -138,7 +162,7 @@ class BagData:
     """The offline estimators whose estimates joined ``estimates`` (run_offline)."""
 
     def __post_init__(self) -> None:
-        self.run = upgrade_run_config(self.run)   # a bag recorded before 'estimators' says 'filters'
+        self.run = upgrade_run_config(self.run)  # a bag recorded before 'estimators' says 'filters'
 
     @property
     def scenario(self) -> dict:
@@ -159,8 +183,13 @@ def load_bag(bag_dir: Path | str) -> BagData:
     reader = BagReader(bag_dir)
     types = reader.topics()
     sensors = {t: topic_owner(t, MEASUREMENT) for t in types}
-    wanted = [t for t in types if t == TRUTH_TOPIC or sensors[t] is not None
-              or (topic_owner(t, ESTIMATE) is not None and types[t] == ESTIMATE_TYPE)]
+    wanted = [
+        t
+        for t in types
+        if t == TRUTH_TOPIC
+        or sensors[t] is not None
+        or (topic_owner(t, ESTIMATE) is not None and types[t] == ESTIMATE_TYPE)
+    ]
     for topic, tab in reader.tables(wanted).items():
         steps = tab["step"].tolist()
         if topic == TRUTH_TOPIC:
@@ -170,8 +199,10 @@ def load_bag(bag_dir: Path | str) -> BagData:
             reader = codec(types[topic])
             vectors = reader.measurement_vectors(tab) if hasattr(reader, "measurement_vectors") else None
             data.measurements.setdefault(sensors[topic], {}).update(
-                zip(steps, vectors) if vectors is not None
-                else ((step, reader.decode(tab.row(i)).z) for i, step in enumerate(steps)))
+                zip(steps, vectors)
+                if vectors is not None
+                else ((step, reader.decode(tab.row(i)).z) for i, step in enumerate(steps))
+            )
         else:
             owners = np.array(tab["filter_name"], dtype=object)
             for name in dict.fromkeys(owners):
@@ -200,8 +231,16 @@ def prepared(run: Path | str | BagData, cache: bool = True) -> BagData:
     data.offline = run_offline(data, opts, cache)
     for name, b in opts.bounds.items() if data.truth else ():  # a run without truth: no bound (score_bags)
         if name not in data.bounds:
-            data.bounds[name] = _cached(data, cache, "bounds", name, b.bound, b.params, None,
-                                        lambda b=b: plugins.load("bounds", b.bound).run(data, b.params))
+            data.bounds[name] = _cached(
+                data,
+                cache,
+                "bounds",
+                name,
+                b.bound,
+                b.params,
+                None,
+                lambda b=b: plugins.load("bounds", b.bound).run(data, b.params),
+            )
     return data
 
 
@@ -221,8 +260,9 @@ def _prepared_in_worker(run: Path | str | BagData, cache: bool = True) -> BagDat
     return prepared(run, cache)
 
 
-def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None,
-                 cache: bool = True) -> list[BagData]:
+def prepare_runs(
+    runs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None, cache: bool = True
+) -> list[BagData]:
     """:func:`prepared` of every run, in order: ``jobs`` at a time in worker processes (default: every CPU this
     process may use), or on the Dask cluster at ``scheduler`` (an address, or ``"local"``:
     bench_engine.executors), with a progress bar; in this process when there is one run or one job. ``cache``:
@@ -231,6 +271,7 @@ def prepare_runs(runs: list[Path | str | BagData], jobs: int | None = None, sche
     task = partial(_prepared_in_worker, cache=cache)
     if scheduler is not None:
         from bench_engine.executors import map_dask  # dask: imported only when a cluster scores
+
         return map_dask(task, runs, scheduler, jobs, desc="scoring")
     if jobs == 1 or len(runs) == 1:
         return [prepared(r, cache) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
@@ -247,9 +288,15 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     est = data.estimates[filter_name]
     covered = np.array([int(k) in data.truth for k in est.steps], dtype=bool)
     if not covered.all():
-        est = Estimates(est.steps[covered], est.t[covered], est.x[covered], est.P[covered], est.labels,
-                        {k: v[covered] for k, v in est.diagnostics.items()},
-                        None if est.nis is None else est.nis[covered])
+        est = Estimates(
+            est.steps[covered],
+            est.t[covered],
+            est.x[covered],
+            est.P[covered],
+            est.labels,
+            {k: v[covered] for k, v in est.diagnostics.items()},
+            None if est.nis is None else est.nis[covered],
+        )
     for labels, whose in ((est.labels, f"estimator '{filter_name}'"), (data.truth_labels, "the truth")):
         if len(set(labels)) != len(labels):
             raise ValueError(f"{whose} repeats state labels {labels}: components are matched by label")
@@ -268,8 +315,10 @@ def _scenario_name(runs: list[BagData]) -> str:
 
 def _one_scenario(names: set) -> str:
     if len(names) != 1:
-        raise ScenarioError(f"bags of different scenarios cannot be scored together: {sorted(map(str, names))}; "
-                            "score each scenario's bags separately")
+        raise ScenarioError(
+            f"bags of different scenarios cannot be scored together: {sorted(map(str, names))}; "
+            "score each scenario's bags separately"
+        )
     return names.pop()
 
 
@@ -291,21 +340,30 @@ def run_offline(data: BagData, opts: ScoringOptions, cache: bool = True) -> list
     ran = []
     for name, job in opts.offline.items():
         if job.source in data.estimates or job.source in data.measurements:
-            data.estimates[name] = _cached(data, cache, "offline", name, job.estimator, job.params, job.source,
-                                           lambda job=job: plugins.load("offline", job.estimator).run(
-                                               data, job.source, job.params))
+            data.estimates[name] = _cached(
+                data,
+                cache,
+                "offline",
+                name,
+                job.estimator,
+                job.params,
+                job.source,
+                lambda job=job: plugins.load("offline", job.estimator).run(data, job.source, job.params),
+            )
             ran.append(name)
     return ran
 
 
-def _cached(data: BagData, cache: bool, group: str, name: str, component: str, params: dict, source: str | None,
-            compute):
+def _cached(
+    data: BagData, cache: bool, group: str, name: str, component: str, params: dict, source: str | None, compute
+):
     """``compute()``, or its result kept beside the run's bag (bench_eval.offline_cache), which it then keeps;
     computed without a cache for a run made in process or with ``cache`` off."""
     if not cache or data.path is None:
         return compute()
-    file = offline_cache.path(data.path, group, name,
-                              offline_cache.key(data.path, group, name, component, params, source))
+    file = offline_cache.path(
+        data.path, group, name, offline_cache.key(data.path, group, name, component, params, source)
+    )
     arrays = offline_cache.load(file, group)
     if arrays is not None:
         return _from_arrays(group, arrays)
@@ -319,8 +377,14 @@ def _from_arrays(group: str, a: dict[str, np.ndarray]):
     steps, t, P, labels = a["steps"].astype(np.int64), a["t"].astype(float), a["P"].astype(float), a["labels"]
     if group == "bounds":
         return BoundSeries(steps, t, [str(s) for s in labels], P)
-    return Estimates(steps, t, a["x"].astype(float), P, [str(s) for s in labels],
-                     {str(n): v.astype(float) for n, v in zip(a["diagnostic_names"], a["diagnostic_values"])})
+    return Estimates(
+        steps,
+        t,
+        a["x"].astype(float),
+        P,
+        [str(s) for s in labels],
+        {str(n): v.astype(float) for n, v in zip(a["diagnostic_names"], a["diagnostic_values"])},
+    )
 
 
 def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
@@ -328,12 +392,14 @@ def scored_estimators(data: BagData, offline: list[str]) -> list[str]:
     then any other estimator of the bag (a tracker, a smoother, a pipeline stage) that estimates truth
     components (e.g. a 9-state kinematic smoother whose positions and velocities are in the truth)."""
     names = [n for n in data.run["estimators"] + offline if n in data.estimates]
-    return names + sorted(n for n, e in data.estimates.items()
-                          if n not in names and e.labels and set(e.labels) & set(data.truth_labels))
+    return names + sorted(
+        n for n, e in data.estimates.items() if n not in names and e.labels and set(e.labels) & set(data.truth_labels)
+    )
 
 
-def collect(bag_dirs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None,
-            cache: bool = True) -> tuple[str, ScoringOptions, list[BagData], list[list[str]]]:
+def collect(
+    bag_dirs: list[Path | str | BagData], jobs: int | None = None, scheduler: str | None = None, cache: bool = True
+) -> tuple[str, ScoringOptions, list[BagData], list[list[str]]]:
     """Load the bags and run the offline estimators over each whole run, and the bounds (:func:`prepare_runs`: in
     parallel, offline results cached beside the bags): (scenario, scoring options, runs, the scored estimators of
     each run)."""
@@ -354,8 +420,9 @@ def _tracks(runs: list[BagData], scored: list[list[str]]) -> dict[str, list[metr
     return tracks
 
 
-def _part(runs: list[BagData], scored: list[list[str]], window: ScoringWindow | None,
-          part: str = "window") -> tuple[list[BagData], list[list[str]]]:
+def _part(
+    runs: list[BagData], scored: list[list[str]], window: ScoringWindow | None, part: str = "window"
+) -> tuple[list[BagData], list[list[str]]]:
     """The runs cut to ``part`` of the scoring window (bench_eval.window), with the estimators scored there."""
     if window is None:
         return runs, scored
@@ -375,8 +442,13 @@ def _score_edges(blocks: dict, family, runs: list[BagData], scored: list[list[st
                     blocks[name].setdefault("edges", {})[edge] = block
 
 
-def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, jobs: int | None = None,
-               scheduler: str | None = None, cache: bool = True):
+def score_bags(
+    bag_dirs: list[Path | str | BagData],
+    with_series: bool = False,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    cache: bool = True,
+):
     """Score one or more bags of the same scenario (several bags = Monte Carlo runs, paper 000 eq. 35) with
     the metric family the scenario's ``scoring.metric`` names, over the scenario's scoring window
     (bench_eval.window: every estimator over the same steps; with ``edges``, the head and tail apart); the runs are
@@ -393,12 +465,18 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, 
     tracks = _tracks(runs, scored)
     if not tracks:
         found = [b.run.get("bag_dir", "a loaded bag") if isinstance(b, BagData) else str(b) for b in bag_dirs]
-        raise NothingToScore(f"no estimates in {', '.join(found)}"
-                             f"{' (in the scoring window)' if opts.window else ''}: the run's filters published "
-                             "nothing (did the sensors ever see the target?)")
+        raise NothingToScore(
+            f"no estimates in {', '.join(found)}"
+            f"{' (in the scoring window)' if opts.window else ''}: the run's filters published "
+            "nothing (did the sensors ever see the target?)"
+        )
     family = plugins.load("metrics", opts.metric)
-    result = {"scenario": scenario, "runs": len(runs), "metric": opts.metric,
-              "estimators": family.score(tracks, runs, opts.options)}
+    result = {
+        "scenario": scenario,
+        "runs": len(runs),
+        "metric": opts.metric,
+        "estimators": family.score(tracks, runs, opts.options),
+    }
     bound_scores, bound_series = score_bounds(tracks, runs, opts.bounds)
     for name, block in bound_scores.items():
         result["estimators"].setdefault(name, {})["bounds"] = block
@@ -406,9 +484,11 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, 
         for name, block in innovation_scores(runs).items():
             result["estimators"].setdefault(name, {}).update(block)
     if opts.window is not None:
-        result["window"] = {"head_s": opts.window.head_s, "tail_s": opts.window.tail_s,
-                            "steps": [len(data.estimates[names[0]].steps) if names else 0
-                                      for data, names in zip(runs, scored)]}
+        result["window"] = {
+            "head_s": opts.window.head_s,
+            "tail_s": opts.window.tail_s,
+            "steps": [len(data.estimates[names[0]].steps) if names else 0 for data, names in zip(runs, scored)],
+        }
         if opts.window.edges:
             _score_edges(result["estimators"], family, whole, everyone, opts)
     if not with_series:
@@ -423,8 +503,7 @@ def score_bags(bag_dirs: list[Path | str | BagData], with_series: bool = False, 
 def _score_without_truth(scenario: str, runs: list[BagData], with_series: bool):
     """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
     innovations, post-fit residuals and the estimators' own convergence (bench_eval.consistency)."""
-    result = {"scenario": scenario, "runs": len(runs), "metric": TRUTHLESS,
-              "estimators": innovation_scores(runs)}
+    result = {"scenario": scenario, "runs": len(runs), "metric": TRUTHLESS, "estimators": innovation_scores(runs)}
     return (result, {}) if with_series else result
 
 
@@ -445,8 +524,12 @@ def print_summary(scored: dict) -> str:
             lines.append(f"  {name}: diverged (the filter lost the target: NEES beyond any chi-square band)")
             continue
         parts = []
-        for key, unit in (("rmse_converged_m", "m"), ("rmse_peak_m", "m"), ("convergence_time_s", "s"),
-                          ("nees_mean", "")):
+        for key, unit in (
+            ("rmse_converged_m", "m"),
+            ("rmse_peak_m", "m"),
+            ("convergence_time_s", "s"),
+            ("nees_mean", ""),
+        ):
             if key in block:
                 v = block[key]
                 parts.append(f"{key}={'n/a' if v is None else f'{v:.4g}'}{unit}")
@@ -475,16 +558,23 @@ def _innovations_line(block: dict) -> str:
     parts = []
     if block.get("nis_mean") is not None:
         lo, hi = block["nis_band"]
-        parts.append(f"NIS {block['nis_mean']:.3g} ({block['nis_dof']:g} dof, 95 % band [{lo:.3g}, {hi:.3g}], "
-                     f"{block['updates']} updates)")
+        parts.append(
+            f"NIS {block['nis_mean']:.3g} ({block['nis_dof']:g} dof, 95 % band [{lo:.3g}, {hi:.3g}], "
+            f"{block['updates']} updates)"
+        )
     for sensor, res in block.get("residuals", {}).items():
-        parts.append(f"post-fit residual RMS/sigma {sensor}: "
-                     + ", ".join(f"{k} {v:.3g}" for k, v in res["rms_normalised"].items() if v is not None))
+        parts.append(
+            f"post-fit residual RMS/sigma {sensor}: "
+            + ", ".join(f"{k} {v:.3g}" for k, v in res["rms_normalised"].items() if v is not None)
+        )
     sigma = block.get("sigma_position")
     if sigma:
         when = sigma["convergence_time_s"]
-        parts.append(f"position sigma {sigma['converged_m']:.4g} m after {when:.0f} s" if when is not None
-                     else "position sigma never settled")
+        parts.append(
+            f"position sigma {sigma['converged_m']:.4g} m after {when:.0f} s"
+            if when is not None
+            else "position sigma never settled"
+        )
     return "; ".join(parts)
 
 

@@ -6,6 +6,7 @@ paper's numbers and claims as data (``paper.yaml``: ``paper`` and ``claims``, be
 section and, optionally, its sweep report, the lookup of the paper's case for a sweep cell and the result
 tables of its documentation page with their commands (``tables.yaml``, scripts/reproduce.py).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -27,6 +27,7 @@ Run i of every cell uses seed SEED0 + i (the same noise realisations in every ce
 OUT/CELL/run_NNN/bag. The study's hooks (bench_eval.study) give the paper's case of a cell, the sweep report
 and extra rows (e.g. a model-error table); without them a generic table is written.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -38,8 +39,15 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
-from bench_engine.config import (ScenarioError, Section, apply_overrides, load_scenario, lookup, override_strings,
-                                 select_variant)
+from bench_engine.config import (
+    ScenarioError,
+    Section,
+    apply_overrides,
+    load_scenario,
+    lookup,
+    override_strings,
+    select_variant,
+)
 from bench_engine.graph import resolve_estimators
 from bench_engine.launcher import prepare_run
 from tracker_filters.filter_settings import filter_config, filter_key
@@ -113,13 +121,13 @@ def _numeric_axis(name: str, spec: dict, path: str) -> Axis:
     sec = Section(spec, path)
     values, sets, scales = sec.get("values", list, None), sec.get("set", list, []), sec.get("scale", list, [])
     sec.finish()
-    if not values or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         raise ScenarioError(f"'{path}.values' must be a non-empty list of numbers, got {values!r}")
     if not (sets or scales):
         raise ScenarioError(f"'{path}' needs a list of keys in 'set' and/or 'scale'")
-    levels = {f"{v:g}": Level(sets={k: v for k in sets}, scales={k: float(v) for k in scales}, value=float(v))
-              for v in values}
+    levels = {
+        f"{v:g}": Level(sets={k: v for k in sets}, scales={k: float(v) for k in scales}, value=float(v)) for v in values
+    }
     return Axis(name, levels, numeric=True)
 
 
@@ -131,8 +139,9 @@ def _axis(name: str, spec: Any, path: str) -> Axis:
     return Axis(name, {str(label): _level(level, f"{path}.{label}") for label, level in spec.items()})
 
 
-def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli: list[str],
-          common: Mapping[str, Any]) -> Cell:
+def _cell(
+    base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli: list[str], common: Mapping[str, Any]
+) -> Cell:
     """Resolve one cell: placeholders, variants (validated), the grid's and its levels' set and scale overrides,
     command-line overrides."""
     by_axis = {a.name: lab for a, lab in zip(axes, labels)}
@@ -143,12 +152,14 @@ def _cell(base: dict, path: str, axes: list[Axis], labels: tuple[str, ...], cli:
         for v in level.variants:
             unknown = [p for p in PLACEHOLDER.findall(v) if p not in by_axis]
             if unknown:
-                raise ScenarioError(f"'{where}': variant '{v}' names unknown axis {{{unknown[0]}}}; "
-                                    f"axes: {', '.join(by_axis)}")
+                raise ScenarioError(
+                    f"'{where}': variant '{v}' names unknown axis {{{unknown[0]}}}; axes: {', '.join(by_axis)}"
+                )
             name = v.format_map(by_axis)
             if name not in (base.get("variants") or {}):
-                raise ScenarioError(f"'{where}': unknown variant '{name}'; "
-                                    f"allowed: {', '.join(sorted(base.get('variants') or {}))}")
+                raise ScenarioError(
+                    f"'{where}': unknown variant '{name}'; allowed: {', '.join(sorted(base.get('variants') or {}))}"
+                )
             variants.append(name)
         sets.update(level.sets)
         scales.update(level.scales)
@@ -167,8 +178,10 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
     base = load_scenario(scenario)
     sweeps = base.get("sweeps") or {}
     if name not in sweeps:
-        raise ScenarioError(f"unknown grid '{name}' in scenario '{base['scenario']}'; "
-                            f"available: {', '.join(sweeps) or 'none (no sweeps section)'}")
+        raise ScenarioError(
+            f"unknown grid '{name}' in scenario '{base['scenario']}'; "
+            f"available: {', '.join(sweeps) or 'none (no sweeps section)'}"
+        )
     path = f"sweeps.{name}"
     sec = Section(sweeps[name], path)
     axes_spec = sec.get("axes", dict, {})
@@ -181,8 +194,10 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
     axes = [_axis(str(a), s, f"{path}.axes.{a}") for a, s in axes_spec.items()]
     if columns is not None and columns not in axes_spec:
         raise ScenarioError(f"'{path}.columns' must name an axis ({', '.join(axes_spec)}), got {columns!r}")
-    cells = [_cell(base, path, axes, labels, list(cli_overrides), common)
-             for labels in itertools.product(*[list(a.levels) for a in axes])]
+    cells = [
+        _cell(base, path, axes, labels, list(cli_overrides), common)
+        for labels in itertools.product(*[list(a.levels) for a in axes])
+    ]
     scaled_keys = {k for a in axes for lev in a.levels.values() for k in lev.scales}
     for key in sorted(scaled_keys):
         if all(lookup(c.cfg, key) is None for c in cells):
@@ -192,13 +207,17 @@ def load_grid(scenario: str, name: str, cli_overrides: list[str] = ()) -> Grid:
 
 def distinct_truths(grid: Grid) -> list[tuple[str, dict]]:
     """(label, config) of each distinct truth (chief, deputy) of the grid, labelled by the axes that change it."""
+
     def truth(cell: Cell) -> str:
         return json.dumps(cell.cfg.get("truth"), sort_keys=True, default=str)
 
     def changes_truth(axis: Axis) -> bool:
         """Cells differing from the first cell in this axis only have different truths."""
-        line = [c for c in grid.cells if all(c.labels[b.name] == grid.cells[0].labels[b.name]
-                                             for b in grid.axes if b is not axis)]
+        line = [
+            c
+            for c in grid.cells
+            if all(c.labels[b.name] == grid.cells[0].labels[b.name] for b in grid.axes if b is not axis)
+        ]
         return len({truth(c) for c in line}) > 1
 
     varying = [a.name for a in grid.axes if changes_truth(a)]
@@ -228,12 +247,21 @@ def cell_record(grid: Grid, cell: Cell) -> dict:
     estimators = {}
     for name in resolve_estimators(cell.cfg, None):
         dyn = filter_key(cell.cfg, name, "dynamics") if "dynamics" in filter_config(cell.cfg, name) else None
-        estimators[name] = {"model": dyn.model if dyn else None,
-                            "sigma_accel": getattr(dyn.options, "sigma_accel", None) if dyn else None}
+        estimators[name] = {
+            "model": dyn.model if dyn else None,
+            "sigma_accel": getattr(dyn.options, "sigma_accel", None) if dyn else None,
+        }
     found = study(grid.scenario)
     paper = found.sweep_case(cell.cfg) if found and found.sweep_case else None
-    return {"id": cell.id, "labels": cell.labels, "values": cell.values, "variants": cell.variants,
-            "overrides": cell.overrides, "estimators": estimators, "paper": paper}
+    return {
+        "id": cell.id,
+        "labels": cell.labels,
+        "values": cell.values,
+        "variants": cell.variants,
+        "overrides": cell.overrides,
+        "estimators": estimators,
+        "paper": paper,
+    }
 
 
 def reusable(out: Path, grid: Grid, runs: int, seed0: int, resume: bool) -> set[tuple[str, int]]:
@@ -268,15 +296,25 @@ class SweepRun:
     reruns: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self.specs = {(c.id, i): RunSpec(self.grid.source, run_dir(self.out, c, i), self.seed0 + i,
-                                         variant=",".join(c.variants) or None, overrides=list(c.overrides))
-                      for c in self.grid.cells for i in range(self.runs) if (c.id, i) not in self.done}
+        self.specs = {
+            (c.id, i): RunSpec(
+                self.grid.source,
+                run_dir(self.out, c, i),
+                self.seed0 + i,
+                variant=",".join(c.variants) or None,
+                overrides=list(c.overrides),
+            )
+            for c in self.grid.cells
+            for i in range(self.runs)
+            if (c.id, i) not in self.done
+        }
         self.remaining = {c.id: sum(1 for cid, _ in self.specs if cid == c.id) for c in self.grid.cells}
         self.records = {c.id: cell_record(self.grid, c) for c in self.grid.cells}
 
     def score(self, cell: Cell) -> None:
-        bags = [b for b in (run_dir(self.out, cell, i) / "bag" for i in range(self.runs))
-                if (b / "metadata.yaml").is_file()]
+        bags = [
+            b for b in (run_dir(self.out, cell, i) / "bag" for i in range(self.runs)) if (b / "metadata.yaml").is_file()
+        ]
         if not bags:
             self.failures.append(f"cell {cell.id}: no run produced a bag")
             return
@@ -298,16 +336,22 @@ class SweepRun:
         if self.remaining[cell_id] == 0:
             self.score(next(c for c in self.grid.cells if c.id == cell_id))
 
-    def run(self, jobs: int, domains: list[int] | None = None, scheduler: str | None = None,
-            retries: int = 2) -> None:
+    def run(self, jobs: int, domains: list[int] | None = None, scheduler: str | None = None, retries: int = 2) -> None:
         """Run the remaining runs with the local executor, or on a Dask cluster (``scheduler``: an address or
         ``"local"``; bench_engine.executors)."""
         for cell in self.grid.cells:
             if self.remaining[cell.id] == 0:
                 self.score(cell)
         if self.specs:
-            run_batch(list(self.specs.values()), jobs, domains, f"{self.grid.scenario}/{self.grid.name}",
-                      on_done=self._finished, scheduler=scheduler, retries=retries)
+            run_batch(
+                list(self.specs.values()),
+                jobs,
+                domains,
+                f"{self.grid.scenario}/{self.grid.name}",
+                on_done=self._finished,
+                scheduler=scheduler,
+                retries=retries,
+            )
 
 
 def write_outputs(sweep_run: SweepRun, header: dict) -> dict:
@@ -315,13 +359,21 @@ def write_outputs(sweep_run: SweepRun, header: dict) -> dict:
     ``header`` holds the run's settings (runs_per_cell, seed0, jobs, wall_s, runs_reused, command)."""
     grid = sweep_run.grid
     found = study(grid.scenario)
-    extra_rows, extra_md = (found.sweep_extra(distinct_truths(grid)) if found and found.sweep_extra
-                            else ([], ""))
-    sweep = json_ready({
-        "scenario": grid.scenario, "grid": grid.name, "description": grid.description, "columns": grid.columns,
-        **header, "axes": {a.name: {"labels": list(a.levels), "numeric": a.numeric} for a in grid.axes},
-        "cells": [sweep_run.records[c.id] for c in grid.cells], "failures": sweep_run.failures,
-        "crosstalk_reruns": sweep_run.reruns, "extra": extra_rows})
+    extra_rows, extra_md = found.sweep_extra(distinct_truths(grid)) if found and found.sweep_extra else ([], "")
+    sweep = json_ready(
+        {
+            "scenario": grid.scenario,
+            "grid": grid.name,
+            "description": grid.description,
+            "columns": grid.columns,
+            **header,
+            "axes": {a.name: {"labels": list(a.levels), "numeric": a.numeric} for a in grid.axes},
+            "cells": [sweep_run.records[c.id] for c in grid.cells],
+            "failures": sweep_run.failures,
+            "crosstalk_reruns": sweep_run.reruns,
+            "extra": extra_rows,
+        }
+    )
     (sweep_run.out / "sweep.json").write_text(json.dumps(sweep, indent=1, allow_nan=False))
     if found and found.sweep_report:
         found.sweep_report(sweep_run.out, sweep, sweep_run.series, extra_md)
@@ -334,9 +386,11 @@ def sweep_intro(sweep: Mapping, each_run: str = "") -> str:
     """The opening text of a study's sweep report: description, grid size, seeds, wall time, command and any
     failures (``each_run``, e.g. ", one day each", is added after the seeds)."""
     seeds = f"{sweep['seed0']}..{sweep['seed0'] + sweep['runs_per_cell'] - 1}"
-    text = (f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
-            f"{sweep['runs_per_cell']} runs (seeds {seeds}, the same in every cell){each_run}; wall time "
-            f"{sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\nCommand: `{sweep['command']}`")
+    text = (
+        f"{sweep.get('description', '')}\n\nGrid '{sweep['grid']}': {len(sweep['cells'])} cells x "
+        f"{sweep['runs_per_cell']} runs (seeds {seeds}, the same in every cell){each_run}; wall time "
+        f"{sweep['wall_s']:.0f} s with {sweep['jobs']} jobs.\n\nCommand: `{sweep['command']}`"
+    )
     if sweep.get("failures"):
         text += "\n\nFailures:\n\n" + "\n".join(f"- {f}" for f in sweep["failures"])
     return text

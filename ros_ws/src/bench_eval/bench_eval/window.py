@@ -22,6 +22,7 @@ where a smoother has data on one side only and a causal filter starts up.
 
 Without the key every estimator is scored over all of its own steps.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -49,8 +50,7 @@ class ScoringWindow(Settings):
 
     head_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="left out of the scores at the run's start")
     tail_s: float = setting(0.0, unit="s", check=NON_NEGATIVE, doc="left out of the scores at the run's end")
-    edges: bool = setting(False, doc="also score the head and the tail, each apart, into each score block's "
-                                     "'edges'")
+    edges: bool = setting(False, doc="also score the head and the tail, each apart, into each score block's 'edges'")
 
     def inside(self, t: np.ndarray, t0: float, t1: float, part: str = "window") -> np.ndarray:
         """Which of the times ``t`` lie in ``part`` (``window``, ``head`` or ``tail``) of an arc [t0, t1]."""
@@ -71,8 +71,11 @@ class ScoringWindow(Settings):
         having = [n for n in scored if n in estimates and np.any(_finite(estimates[n]))]
         if part == "window":
             for name in sorted(set(scored) - set(having)):
-                print(f"[score] '{name}' has no estimate in the scoring window [{t0 + self.head_s:g}, "
-                      f"{t1 - self.tail_s:g}] s of {data.run.get('bag_dir', 'a run')}: not scored", file=sys.stderr)
+                print(
+                    f"[score] '{name}' has no estimate in the scoring window [{t0 + self.head_s:g}, "
+                    f"{t1 - self.tail_s:g}] s of {data.run.get('bag_dir', 'a run')}: not scored",
+                    file=sys.stderr,
+                )
             common = _common_steps([estimates[n] for n in having])
             for name in having:
                 estimates[name] = _rows(estimates[name], np.isin(estimates[name].steps, common))
@@ -94,10 +97,12 @@ def check_window(window: ScoringWindow | None, cfg: dict) -> None:
         return
     duration = read(Time, cfg.get("time"), "time").duration
     if window.head_s + window.tail_s >= duration:
-        raise ScenarioError(f"'{window.where('head_s')}' + '{window.where('tail_s')}' = "
-                            f"{window.head_s + window.tail_s:g} s leaves nothing of the run's {duration:g} s "
-                            "(time.duration): shorten them, e.g. --set scoring.window.head_s=0 --set "
-                            "scoring.window.tail_s=0")
+        raise ScenarioError(
+            f"'{window.where('head_s')}' + '{window.where('tail_s')}' = "
+            f"{window.head_s + window.tail_s:g} s leaves nothing of the run's {duration:g} s "
+            "(time.duration): shorten them, e.g. --set scoring.window.head_s=0 --set "
+            "scoring.window.tail_s=0"
+        )
 
 
 def _finite(est: Estimates) -> np.ndarray:
@@ -114,9 +119,15 @@ def _common_steps(estimates: list[Estimates]) -> np.ndarray:
 
 
 def _rows(est: Estimates, keep: np.ndarray) -> Estimates:
-    return dataclasses.replace(est, steps=est.steps[keep], t=est.t[keep], x=est.x[keep], P=est.P[keep],
-                               diagnostics={k: v[keep] for k, v in est.diagnostics.items()},
-                               nis=None if est.nis is None else est.nis[keep])
+    return dataclasses.replace(
+        est,
+        steps=est.steps[keep],
+        t=est.t[keep],
+        x=est.x[keep],
+        P=est.P[keep],
+        diagnostics={k: v[keep] for k, v in est.diagnostics.items()},
+        nis=None if est.nis is None else est.nis[keep],
+    )
 
 
 def _bound_rows(series, keep: np.ndarray):

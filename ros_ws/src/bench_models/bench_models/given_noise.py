@@ -4,6 +4,7 @@ Paper 001 (formation_pf) states its Q directly as a per-step diagonal; wrapping 
 its transition and replaces only Q, scaled linearly with the step length (``per_step`` = Q at dt = 1 s
 when ``reference_dt`` is 1).
 """
+
 from __future__ import annotations
 
 from typing import Sequence

@@ -4,6 +4,7 @@ The state is any relative state whose first three components are the internal-LV
 [x radial, y along-track, z orbit normal] (``orbit_sim.relative``): the 6-state and the 9-state (bias)
 filters use the same models. Extra components (velocity, bias) do not enter h, their Jacobian columns are 0.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -64,11 +65,13 @@ class RangeAzElModel:
         rho = np.sqrt(rho2)
         h2 = q[0] ** 2 + q[1] ** 2
         h = np.sqrt(h2)
-        dq = np.array([
-            q / rho,
-            [-q[1] / h2, q[0] / h2, 0.0],
-            [-q[0] * q[2] / (rho2 * h), -q[1] * q[2] / (rho2 * h), h / rho2],
-        ])
+        dq = np.array(
+            [
+                q / rho,
+                [-q[1] / h2, q[0] / h2, 0.0],
+                [-q[0] * q[2] / (rho2 * h), -q[1] * q[2] / (rho2 * h), h / rho2],
+            ]
+        )
         H = np.zeros((3, x.shape[-1]))
         H[:, 0:3] = dq @ self._M
         return H
@@ -81,10 +84,14 @@ class RangeAzElModel:
         rho, h2 = np.sqrt(rho2), q[:, 0] ** 2 + q[:, 1] ** 2
         h = np.sqrt(h2)
         zero = np.zeros_like(h)
-        dq = np.stack([q / rho[:, None],
-                       np.stack([-q[:, 1] / h2, q[:, 0] / h2, zero], axis=1),
-                       np.stack([-q[:, 0] * q[:, 2] / (rho2 * h), -q[:, 1] * q[:, 2] / (rho2 * h), h / rho2], axis=1)],
-                      axis=1)
+        dq = np.stack(
+            [
+                q / rho[:, None],
+                np.stack([-q[:, 1] / h2, q[:, 0] / h2, zero], axis=1),
+                np.stack([-q[:, 0] * q[:, 2] / (rho2 * h), -q[:, 1] * q[:, 2] / (rho2 * h), h / rho2], axis=1),
+            ],
+            axis=1,
+        )
         H = np.zeros((len(x), 3, x.shape[-1]))
         H[:, :, 0:3] = dq @ self._M
         return H

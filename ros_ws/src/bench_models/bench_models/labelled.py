@@ -6,6 +6,7 @@ that study may estimate 9 (position, velocity and acceleration of the baseline).
 components it reads (``x1``, ``bvx``, ...) and is *bound* to a layout with ``for_state(labels)``: the sensor
 binds it to the truth's labels, each filter to its own. An unbound model raises on use.
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -20,8 +21,9 @@ class UnboundModel(RuntimeError):
 def _indices(wanted: Sequence[str], labels: Sequence[str], what: str) -> list[int]:
     missing = [w for w in wanted if w not in labels]
     if missing:
-        raise ValueError(f"{what} reads state components {missing}, which a state labelled {list(labels)} "
-                         "does not have")
+        raise ValueError(
+            f"{what} reads state components {missing}, which a state labelled {list(labels)} does not have"
+        )
     return [list(labels).index(w) for w in wanted]
 
 
@@ -62,16 +64,26 @@ class RangeRateModel:
 
     angle_indices: Sequence[int] = ()
 
-    def __init__(self, position: Sequence[str], velocity: Sequence[str],
-                 components: Sequence[str] = ("range", "range_rate"),
-                 state_labels: Sequence[str] | None = None) -> None:
+    def __init__(
+        self,
+        position: Sequence[str],
+        velocity: Sequence[str],
+        components: Sequence[str] = ("range", "range_rate"),
+        state_labels: Sequence[str] | None = None,
+    ) -> None:
         bad = [c for c in components if c not in ("range", "range_rate")]
         if bad or not components:
             raise ValueError(f"range/range-rate components must be 'range' and/or 'range_rate', got {components}")
         self.position, self.velocity, self.labels = tuple(position), tuple(velocity), tuple(components)
         self.state_labels = None if state_labels is None else tuple(state_labels)
-        self._idx = None if state_labels is None else (
-            _indices(self.position, state_labels, "the range"), _indices(self.velocity, state_labels, "the range"))
+        self._idx = (
+            None
+            if state_labels is None
+            else (
+                _indices(self.position, state_labels, "the range"),
+                _indices(self.velocity, state_labels, "the range"),
+            )
+        )
 
     def for_state(self, labels: Sequence[str]) -> "RangeRateModel":
         return RangeRateModel(self.position, self.velocity, self.labels, labels)

@@ -1,4 +1,5 @@
 """Linear models: constant-velocity dynamics and a position measurement (KF, UKF = KF and NEES tests)."""
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -9,13 +10,12 @@ from bench_engine.labels import POSITION, VELOCITY
 from orbit_sim.angles import wrapped_residual
 
 
-
 def white_acceleration_q(q: float, dt: float, ndim: int) -> np.ndarray:
     """Discrete Q of continuous white acceleration (PSD q per axis) for states [pos (ndim), vel (ndim)]."""
     a = abs(dt)
     eye = np.eye(ndim)
     Q = np.empty((2 * ndim, 2 * ndim))
-    Q[:ndim, :ndim] = eye * (q * a ** 3 / 3.0)
+    Q[:ndim, :ndim] = eye * (q * a**3 / 3.0)
     Q[:ndim, ndim:] = Q[ndim:, :ndim] = eye * (q * a * a / 2.0)
     Q[ndim:, ndim:] = eye * (q * a)
     return Q
@@ -44,7 +44,7 @@ class ConstantVelocity:
     def transition_matrix(self, x: np.ndarray, dt: float) -> np.ndarray:
         """F(dt), shape (2 ndim, 2 ndim); independent of x."""
         F = np.eye(2 * self.ndim)
-        F[0:self.ndim, self.ndim:] = dt * np.eye(self.ndim)
+        F[0 : self.ndim, self.ndim :] = dt * np.eye(self.ndim)
         return F
 
     def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
@@ -53,7 +53,7 @@ class ConstantVelocity:
 
     def process_noise(self, x: np.ndarray, dt: float) -> np.ndarray:
         """Discrete white-acceleration Q(dt)."""
-        return white_acceleration_q(self.sigma_accel ** 2, dt, self.ndim)
+        return white_acceleration_q(self.sigma_accel**2, dt, self.ndim)
 
 
 class PositionMeasurement:
@@ -67,7 +67,7 @@ class PositionMeasurement:
 
     def h(self, x: np.ndarray, t: float) -> np.ndarray:
         """Positions of one state (n,) -> (ndim,) or a batch (m, n) -> (m, ndim)."""
-        return np.array(np.asarray(x, dtype=float)[..., 0:self.ndim])
+        return np.array(np.asarray(x, dtype=float)[..., 0 : self.ndim])
 
     def jacobian(self, x: np.ndarray, t: float) -> np.ndarray:
         """H = [I 0], shape (ndim, n) for a state x of length n."""

@@ -12,6 +12,7 @@ Optional methods, used when a model has them (looked up with ``getattr``/``hasat
   measurement ``h_series`` / ``jacobian_series(X, times)`` scans at different times, vectorised
   dynamics ``trajectory(x0, t0, times)`` -> (states, Phis)  (relinearisation.PassBatch fast path)
 """
+
 from __future__ import annotations
 
 from typing import Protocol, Sequence, runtime_checkable
@@ -30,9 +31,11 @@ def angle_components(labels: Sequence[str]) -> tuple[int, ...]:
 def check_angles(model: "MeasurementModel") -> None:
     """Raise ValueError if a measurement model's ``angle_indices`` are not the angles its labels name."""
     if tuple(model.angle_indices) != angle_components(model.labels):
-        raise ValueError(f"{type(model).__name__} wraps components {tuple(model.angle_indices)} of "
-                         f"{tuple(model.labels)}, but the angles among them (bench_engine.labels) "
-                         f"are {angle_components(model.labels)}")
+        raise ValueError(
+            f"{type(model).__name__} wraps components {tuple(model.angle_indices)} of "
+            f"{tuple(model.labels)}, but the angles among them (bench_engine.labels) "
+            f"are {angle_components(model.labels)}"
+        )
 
 
 @runtime_checkable

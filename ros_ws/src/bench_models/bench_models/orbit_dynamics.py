@@ -31,6 +31,7 @@ acceleration noise on each of the three axes, discretised exactly:
     Q_axis = q [[dt^3/3, dt^2/2], [dt^2/2, dt]],   q = sigma_accel^2  [m^2/s^3],
 i.e. ``sigma_accel`` is the square root of the acceleration noise's power spectral density, in m/s^(3/2).
 """
+
 from __future__ import annotations
 
 import math
@@ -54,8 +55,14 @@ class OrbitJ2Dynamics:
     labels = ORBIT
     frame = "eci"
 
-    def __init__(self, sigma_accel: float, mu: float = MU_EARTH, j2: float = J2_EARTH,
-                 re: float = R_EARTH, max_step: float = 10.0) -> None:
+    def __init__(
+        self,
+        sigma_accel: float,
+        mu: float = MU_EARTH,
+        j2: float = J2_EARTH,
+        re: float = R_EARTH,
+        max_step: float = 10.0,
+    ) -> None:
         if not sigma_accel >= 0.0:
             raise ValueError(f"sigma_accel must be >= 0, got {sigma_accel}")
         if not max_step > 0.0:
@@ -110,8 +117,9 @@ class OrbitJ2Dynamics:
         y0 = np.concatenate((np.asarray(x0, dtype=float), np.eye(6).ravel()))
         unique, inverse = np.unique(times, return_inverse=True)
         after = unique >= t0
-        rows = np.concatenate((self._variational(y0, t0, unique[~after][::-1])[::-1],
-                               self._variational(y0, t0, unique[after])))[inverse.ravel()]
+        rows = np.concatenate(
+            (self._variational(y0, t0, unique[~after][::-1])[::-1], self._variational(y0, t0, unique[after]))
+        )[inverse.ravel()]
         return rows[:, 0:6], rows[:, 6:].reshape(-1, 6, 6)
 
     def _variational(self, y0: np.ndarray, t0: float, times: np.ndarray) -> np.ndarray:
@@ -119,8 +127,16 @@ class OrbitJ2Dynamics:
         if times.size == 0 or times[-1] == t0:
             return np.tile(y0, (times.size, 1))
         from scipy.integrate import solve_ivp  # scipy.integrate: only a filter node that re-solves its pass
-        sol = solve_ivp(self._variational_derivative, (t0, times[-1]), y0, method="DOP853", t_eval=times,
-                        rtol=VARIATIONAL_RTOL, atol=VARIATIONAL_ATOL)
+
+        sol = solve_ivp(
+            self._variational_derivative,
+            (t0, times[-1]),
+            y0,
+            method="DOP853",
+            t_eval=times,
+            rtol=VARIATIONAL_RTOL,
+            atol=VARIATIONAL_ATOL,
+        )
         if not sol.success:
             raise RuntimeError(f"variational equations failed: {sol.message}")
         return sol.y.T
@@ -148,7 +164,7 @@ class OrbitJ2Dynamics:
         key = (dt, self.sigma_accel)
         (cached_dt, cached_sigma), _ = self._q_cache
         if not (abs(dt - cached_dt) <= 1e-9 * abs(dt) and cached_sigma == self.sigma_accel):
-            Q = white_acceleration_q(self.sigma_accel ** 2, dt, 3)
+            Q = white_acceleration_q(self.sigma_accel**2, dt, 3)
             Q.flags.writeable = False
             self._q_cache = (key, Q)
         return self._q_cache[1]

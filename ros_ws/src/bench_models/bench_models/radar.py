@@ -27,6 +27,7 @@ for rho = |u|, n_u = u / rho, q = u_E^2 + u_N^2 and g = d range_rate / d u = (w 
     elevation   see ``_elevation_hessian``
     range_rate  uu: -(n_u g^T + g n_u^T) / rho - range_rate (I - n_u n_u^T) / rho^2,  uw: (I - n_u n_u^T) / rho
 """
+
 from __future__ import annotations
 
 import math
@@ -40,9 +41,7 @@ from orbit_sim.constants import OMEGA_EARTH
 from orbit_sim.frames import earth_rotation_angle, enu_rotation, geodetic_to_ecef
 
 _TWO_PI = 2.0 * np.pi
-_OMEGA_SKEW = np.array([[0.0, -OMEGA_EARTH, 0.0],
-                        [OMEGA_EARTH, 0.0, 0.0],
-                        [0.0, 0.0, 0.0]])
+_OMEGA_SKEW = np.array([[0.0, -OMEGA_EARTH, 0.0], [OMEGA_EARTH, 0.0, 0.0], [0.0, 0.0, 0.0]])
 """[omega x] for the Earth rotation vector omega = OMEGA_EARTH e_z."""
 
 
@@ -52,8 +51,9 @@ class GroundRadarModel:
     Extra state components beyond the first six are ignored (their Jacobian columns are zero).
     """
 
-    def __init__(self, lat_rad: float, lon_rad: float, h_m: float, theta0: float = 0.0,
-                 with_range_rate: bool = False) -> None:
+    def __init__(
+        self, lat_rad: float, lon_rad: float, h_m: float, theta0: float = 0.0, with_range_rate: bool = False
+    ) -> None:
         self.lat_rad = float(lat_rad)
         self.lon_rad = float(lon_rad)
         self.h_m = float(h_m)
@@ -168,9 +168,9 @@ class GroundRadarModel:
         """d position_from_measurement / d [range, azimuth, elevation], shape (3, 3)."""
         rng, az, el = (float(v) for v in np.asarray(z, dtype=float)[0:3])
         ca, sa, ce, se = np.cos(az), np.sin(az), np.cos(el), np.sin(el)
-        d_u = np.array([[ce * sa, rng * ce * ca, -rng * se * sa],
-                        [ce * ca, -rng * ce * sa, -rng * se * ca],
-                        [se, 0.0, rng * ce]])
+        d_u = np.array(
+            [[ce * sa, rng * ce * ca, -rng * se * sa], [ce * ca, -rng * ce * sa, -rng * se * ca], [se, 0.0, rng * ce]]
+        )
         return self.eci_to_enu_rotation(t).T @ d_u
 
     # Scans at different times (batch re-solves, tracker_filters/relinearisation.py): one state per time,
@@ -243,9 +243,17 @@ def _elevation_hessian(e: float, n: float, up: float, q: float, rng2: float) -> 
     c = up / (rng2 * h)
     k = up * (2.0 / (rng2 * rng2 * h) + 1.0 / (rng2 * q * h))
     m = (q - up * up) / (rng2 * rng2 * h)
-    return [k * e * e - c, k * e * n, -e * m,
-            k * e * n, k * n * n - c, -n * m,
-            -e * m, -n * m, -2.0 * up * h / (rng2 * rng2)]
+    return [
+        k * e * e - c,
+        k * e * n,
+        -e * m,
+        k * e * n,
+        k * n * n - c,
+        -n * m,
+        -e * m,
+        -n * m,
+        -2.0 * up * h / (rng2 * rng2),
+    ]
 
 
 def _values(u: np.ndarray, w: np.ndarray | None) -> list[float]:
@@ -283,9 +291,9 @@ def _jacobian(T: np.ndarray, u: np.ndarray, w: np.ndarray | None, size: int) -> 
     rng2 = horiz2 + up * up
     rng = math.sqrt(rng2)
     c = up / (rng2 * horiz)
-    d_polar = np.array([e / rng, n / rng, up / rng,
-                        n / horiz2, -e / horiz2, 0.0,
-                        -e * c, -n * c, horiz / rng2]).reshape(3, 3)  # a flat list converts faster than nested ones
+    d_polar = np.array(
+        [e / rng, n / rng, up / rng, n / horiz2, -e / horiz2, 0.0, -e * c, -n * c, horiz / rng2]
+    ).reshape(3, 3)  # a flat list converts faster than nested ones
     H = np.zeros((3 if w is None else 4, size))
     H[0:3, 0:3] = d_polar.dot(T)
     if w is not None:
@@ -319,8 +327,7 @@ def _hessians(T: np.ndarray, u: np.ndarray, w: np.ndarray | None) -> np.ndarray:
     return Hs
 
 
-def _range_rate_hessian(T: np.ndarray, u: np.ndarray, w: np.ndarray, rng: float,
-                        shell: np.ndarray) -> np.ndarray:
+def _range_rate_hessian(T: np.ndarray, u: np.ndarray, w: np.ndarray, rng: float, shell: np.ndarray) -> np.ndarray:
     """d^2 range_rate / d [r, v]^2 (6, 6) = J^T (d^2 range_rate / d (u, w)^2) J (module docstring)."""
     nu = u / rng
     rdot = float(nu @ w)

@@ -10,6 +10,7 @@ discretised per axis as sigma^2 [[T^3/3, T^2/2], [T^2/2, T]] (paper 004 eq. 38 p
 position-velocity entries: a typo, the integral gives T^2/2). This block neglects the CW coupling
 inside the step (relative error O(n T) ~ 1e-3 at T = 1 s); the bias model uses the exact Van Loan integral.
 """
+
 from __future__ import annotations
 
 from typing import Callable, Sequence
@@ -57,8 +58,9 @@ class LinearRelativeDynamics:
 
     frame = "lvlh"
 
-    def __init__(self, A: np.ndarray, labels: Sequence[str], sigma_accel: float | Sequence[float],
-                 discretisation: str = "exact") -> None:
+    def __init__(
+        self, A: np.ndarray, labels: Sequence[str], sigma_accel: float | Sequence[float], discretisation: str = "exact"
+    ) -> None:
         if discretisation not in ("exact", "euler"):
             raise ValueError(f"discretisation must be 'exact' or 'euler', got {discretisation!r}")
         self.A = np.array(A, dtype=float)
@@ -125,33 +127,39 @@ class CWBiasDynamics(LinearRelativeDynamics):
     [bx by bz]; with sigma_bias = 0 its position-velocity block equals ``wna_block`` to O(n T).
     """
 
-    def __init__(self, n: float, sigma_accel: float | Sequence[float],
-                 sigma_bias: float | Sequence[float]) -> None:
+    def __init__(self, n: float, sigma_accel: float | Sequence[float], sigma_bias: float | Sequence[float]) -> None:
         A = np.zeros((9, 9))
         A[0:6, 0:6] = cw_matrix(n)
         A[3:6, 6:9] = np.eye(3)
         super().__init__(A, ORBIT + BIAS, sigma_accel)
         self.n = float(n)
         self.sigma_bias = sigma_bias
-        self._Qc = np.diag(np.concatenate((np.zeros(3),
-                                           np.broadcast_to(np.asarray(sigma_accel, dtype=float) ** 2, (3,)),
-                                           np.broadcast_to(np.asarray(sigma_bias, dtype=float) ** 2, (3,)))))
+        self._Qc = np.diag(
+            np.concatenate(
+                (
+                    np.zeros(3),
+                    np.broadcast_to(np.asarray(sigma_accel, dtype=float) ** 2, (3,)),
+                    np.broadcast_to(np.asarray(sigma_bias, dtype=float) ** 2, (3,)),
+                )
+            )
+        )
 
     def _make_q(self, dt: float) -> np.ndarray:
         return van_loan(self.A, self._Qc, dt)[1]
 
 
-def ss_coefficients(a: float, inclination: float, mu: float = MU_EARTH, j2: float = J2_EARTH,
-                    re: float = R_EARTH) -> dict[str, float]:
+def ss_coefficients(
+    a: float, inclination: float, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH
+) -> dict[str, float]:
     """Schweighart-Sedwick constants for a reference orbit of radius a [m] and inclination [rad].
 
     Returns n = sqrt(mu / a^3), s = 3 J2 Re^2 / (8 a^2) (1 + 3 cos 2i), c = sqrt(1 + s) and
     q = k = n c + 3 n J2 Re^2 / (2 a^2) cos^2 i (see ``SchweighartSedwickDynamics``).
     """
-    n = np.sqrt(mu / a ** 3)
-    s = 3.0 * j2 * re ** 2 / (8.0 * a ** 2) * (1.0 + 3.0 * np.cos(2.0 * inclination))
+    n = np.sqrt(mu / a**3)
+    s = 3.0 * j2 * re**2 / (8.0 * a**2) * (1.0 + 3.0 * np.cos(2.0 * inclination))
     c = np.sqrt(1.0 + s)
-    q = n * c + 1.5 * n * j2 * re ** 2 / a ** 2 * np.cos(inclination) ** 2
+    q = n * c + 1.5 * n * j2 * re**2 / a**2 * np.cos(inclination) ** 2
     return {"n": float(n), "s": float(s), "c": float(c), "q": float(q)}
 
 
@@ -192,8 +200,15 @@ class SchweighartSedwickDynamics(LinearRelativeDynamics):
     against two-body + J2 truth in tests/test_relative_dynamics.py.
     """
 
-    def __init__(self, a: float, inclination: float, sigma_accel: float | Sequence[float],
-                 mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH) -> None:
+    def __init__(
+        self,
+        a: float,
+        inclination: float,
+        sigma_accel: float | Sequence[float],
+        mu: float = MU_EARTH,
+        j2: float = J2_EARTH,
+        re: float = R_EARTH,
+    ) -> None:
         k = ss_coefficients(a, inclination, mu, j2, re)
         n, c, q = k["n"], k["c"], k["q"]
         A = np.zeros((6, 6))

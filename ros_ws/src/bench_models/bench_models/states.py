@@ -11,6 +11,7 @@ An estimate and the truth are compared component block by component block, each 
 :func:`state_error` returns the error vector with its labels (a quaternion block becomes ``rx ry rz``), which
 the metrics use for RMSE, NEES (against the estimate's covariance of the same error labels) and the like.
 """
+
 from __future__ import annotations
 
 from typing import Sequence

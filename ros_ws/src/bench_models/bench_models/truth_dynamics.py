@@ -19,6 +19,7 @@ The truth models fly without process noise, so every model here has Q = 0.
   C the ECI->LVLH rotation and Omega the cross-product matrix of the frame's angular velocity (both of the
   chief at that time: orbit_sim.relative.lvlh_to_eci is affine in the relative state).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -60,7 +61,7 @@ class RelativeOrbitDynamics:
         """F_k (K-1, 6, 6) from times[k] to times[k+1] along the relative states (K, 6) at ``times`` (K,)."""
         times, states = np.asarray(times, dtype=float), np.asarray(states, dtype=float)
         grid = np.concatenate(([0.0], times)) if times[0] != 0.0 else times
-        chief = cowell.propagate(self.chief0, grid, self.mu, self.j2, self.re)[len(grid) - len(times):]
+        chief = cowell.propagate(self.chief0, grid, self.mu, self.j2, self.re)[len(grid) - len(times) :]
         accel = gravity.acceleration(chief[0, :3], self.mu, self.j2, self.re)
         deputy0 = relative.lvlh_to_eci(chief[0], states[0], accel)
         _, Phi = OrbitJ2Dynamics(0.0, self.mu, self.j2, self.re).trajectory(deputy0, times[0], times)

@@ -12,6 +12,7 @@ The three axes are independent and identical, so with the state ordered (positio
 accelerations) the 9-state matrices are Kronecker products with I_3. The model is purely kinematic: it
 knows nothing of gravity, which is what paper 002 wants (a model-free velocity from GNSS positions).
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -31,9 +32,9 @@ def axis_transition(dt: float) -> np.ndarray:
 def axis_noise(q: float, dt: float) -> np.ndarray:
     """Q(dt) for one axis (3, 3): the white-jerk integral in closed form (|dt| is used)."""
     h = abs(dt)
-    return q * np.array([[h**5 / 20.0, h**4 / 8.0, h**3 / 6.0],
-                         [h**4 / 8.0, h**3 / 3.0, h**2 / 2.0],
-                         [h**3 / 6.0, h**2 / 2.0, h]])
+    return q * np.array(
+        [[h**5 / 20.0, h**4 / 8.0, h**3 / 6.0], [h**4 / 8.0, h**3 / 3.0, h**2 / 2.0], [h**3 / 6.0, h**2 / 2.0, h]]
+    )
 
 
 class WhiteJerkDynamics:
@@ -48,8 +49,10 @@ class WhiteJerkDynamics:
         if not np.isfinite(q) or q < 0.0:
             raise ValueError(f"white-jerk spectral density q must be finite and >= 0, got {q}")
         if len(labels) % 3 or not labels:
-            raise ValueError(f"white-jerk labels come in three equal blocks (positions, velocities, "
-                             f"accelerations), got {list(labels)}")
+            raise ValueError(
+                f"white-jerk labels come in three equal blocks (positions, velocities, "
+                f"accelerations), got {list(labels)}"
+            )
         self.q = float(q)
         self.labels = tuple(labels)
         self.frame = frame

@@ -1,4 +1,5 @@
 """Angle wrapping for measurement residuals: every model that differences angles uses these two functions."""
+
 from __future__ import annotations
 
 from typing import Sequence

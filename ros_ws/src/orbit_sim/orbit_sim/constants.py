@@ -3,6 +3,7 @@
 Values follow paper 000 (leo_radar, section 2) and WGS84. The paper prints
 Re = 6378.173 km; that is a transposition typo for the WGS84 equatorial radius 6378.137 km used here.
 """
+
 MU_EARTH: float = 3.986004418e14
 """Earth's gravitational parameter mu [m^3/s^2] (paper: 398600.4418 km^3/s^2)."""
 

@@ -3,6 +3,7 @@
 ``propagate`` is the truth integrator (scipy's DOP853, tight tolerances). ``rk4`` is the filters'
 fixed-step predictor.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,15 @@ Num = float | np.ndarray
 """A scalar (one state) or an array (one entry per state in a batch)."""
 
 
-def propagate(state0: np.ndarray, times: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
-              re: float = R_EARTH, rtol: float = 1e-12, atol: float = 1e-9) -> np.ndarray:
+def propagate(
+    state0: np.ndarray,
+    times: np.ndarray,
+    mu: float = MU_EARTH,
+    j2: float = J2_EARTH,
+    re: float = R_EARTH,
+    rtol: float = 1e-12,
+    atol: float = 1e-9,
+) -> np.ndarray:
     """Integrate state0 (6,), given at times[0], and return the states at ``times`` (K,), shape (K, 6).
 
     ``times`` must be monotonic (increasing or decreasing). atol applies to metres and m/s alike:
@@ -28,8 +36,16 @@ def propagate(state0: np.ndarray, times: np.ndarray, mu: float = MU_EARTH, j2: f
     state0 = np.asarray(state0, dtype=float)
     if times.size == 1 or times[-1] == times[0]:
         return np.tile(state0, (times.size, 1))
-    sol = solve_ivp(state_derivative, (times[0], times[-1]), state0, method="DOP853",
-                    t_eval=times, rtol=rtol, atol=atol, args=(mu, j2, re))
+    sol = solve_ivp(
+        state_derivative,
+        (times[0], times[-1]),
+        state0,
+        method="DOP853",
+        t_eval=times,
+        rtol=rtol,
+        atol=atol,
+        args=(mu, j2, re),
+    )
     if not sol.success:
         raise RuntimeError(f"Cowell propagation failed: {sol.message}")
     return sol.y.T
@@ -42,7 +58,7 @@ def state_rate(x: Num, y: Num, z: Num, vx: Num, vy: Num, vz: Num, mu: float, k: 
     """
     r2 = x * x + y * y + z * z
     inv_r2 = 1.0 / r2
-    inv_r3 = inv_r2 / r2 ** 0.5
+    inv_r3 = inv_r2 / r2**0.5
     inv_r5 = inv_r3 * inv_r2
     zz = 15.0 * z * z * inv_r5 * inv_r2
     g = k * (zz - 3.0 * inv_r5) - mu * inv_r3
@@ -61,8 +77,9 @@ def _rk4_steps(s: tuple, h: float, n: int, mu: float, k: float) -> tuple:
     return s
 
 
-def rk4(x: np.ndarray, dt: float, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH,
-        max_step: float = 10.0) -> np.ndarray:
+def rk4(
+    x: np.ndarray, dt: float, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH, max_step: float = 10.0
+) -> np.ndarray:
     """Fixed-step RK4 propagation of one state (6,) or a batch (m, 6) by dt seconds (dt may be < 0).
 
     The interval is split into ceil(|dt| / max_step) equal sub-steps. Speed matters here: the filters

@@ -23,6 +23,7 @@ row. The time ``t`` may be a scalar or an array (m,) giving one epoch per row.
 The ENU frame follows paper 000 eqs. 8-10, except that the station is placed on the WGS84 ellipsoid
 (geodetic latitude) instead of the paper's sphere of radius Re + h.
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -57,8 +58,13 @@ def gmst82(jd_ut1: float, fraction: float = 0.0) -> float:
     the fraction itself (a single double's date would resolve only ~80 ns: 6e-12 rad)."""
     whole = np.floor(jd_ut1 - JD_J2000)
     t = ((jd_ut1 - JD_J2000) + fraction) / 36525.0
-    seconds = (67310.54841 + 8640184.812866 * t + 0.093104 * t * t - 6.2e-6 * t ** 3
-               + 86400.0 * (((jd_ut1 - JD_J2000) - whole) + fraction))
+    seconds = (
+        67310.54841
+        + 8640184.812866 * t
+        + 0.093104 * t * t
+        - 6.2e-6 * t**3
+        + 86400.0 * (((jd_ut1 - JD_J2000) - whole) + fraction)
+    )
     return float(np.mod(seconds / 240.0, 360.0) * np.pi / 180.0)
 
 
@@ -115,8 +121,7 @@ def geodetic_to_ecef(lat_rad: float, lon_rad: float, h_m: float) -> np.ndarray:
     sin_lat = np.sin(lat_rad)
     n = R_EARTH / np.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
     rho = (n + h_m) * np.cos(lat_rad)
-    return np.array([rho * np.cos(lon_rad), rho * np.sin(lon_rad),
-                     (n * (1.0 - WGS84_E2) + h_m) * sin_lat])
+    return np.array([rho * np.cos(lon_rad), rho * np.sin(lon_rad), (n * (1.0 - WGS84_E2) + h_m) * sin_lat])
 
 
 def ecef_to_geodetic(r_ecef: np.ndarray, iterations: int = 4) -> tuple[float, float, float]:
@@ -146,6 +151,4 @@ def enu_rotation(lat_rad: float, lon_rad: float) -> np.ndarray:
     """
     sl, cl = np.sin(lat_rad), np.cos(lat_rad)
     so, co = np.sin(lon_rad), np.cos(lon_rad)
-    return np.array([[-so, co, 0.0],
-                     [-sl * co, -sl * so, cl],
-                     [cl * co, cl * so, sl]])
+    return np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])

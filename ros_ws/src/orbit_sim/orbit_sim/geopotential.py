@@ -13,6 +13,7 @@ Drag: a = -1/2 B rho(h) |v_rel| v_rel, v_rel = v - omega_E x r (a co-rotating at
 rho(h) is the piecewise-exponential CIRA-72 fit of Vallado's Table 8-4 above the geodetic height h
 (h from the WGS84 ellipsoid's radius at the geocentric latitude: the flattening alone moves h by 21 km).
 """
+
 from __future__ import annotations
 
 import math
@@ -22,16 +23,27 @@ import numpy as np
 
 from .constants import OMEGA_EARTH, R_EARTH, WGS84_F
 
-ZONALS = {2: 1.08262668355e-3, 3: -2.53265648533e-6, 4: -1.61962159137e-6, 5: -2.27296082869e-7,
-          6: 5.40681239107e-7}
+ZONALS = {2: 1.08262668355e-3, 3: -2.53265648533e-6, 4: -1.61962159137e-6, 5: -2.27296082869e-7, 6: 5.40681239107e-7}
 """Unnormalised zonal coefficients J_2 .. J_6 of EGM96 (J_n = -sqrt(2n + 1) C_n0 normalised)."""
 
-_ATMOSPHERE = np.array([  # base height [km], base density [kg/m^3], scale height [km] (Vallado Table 8-4)
-    [150.0, 2.070e-9, 22.523], [180.0, 5.464e-10, 29.740], [200.0, 2.789e-10, 37.105],
-    [250.0, 7.248e-11, 45.546], [300.0, 2.418e-11, 53.628], [350.0, 9.518e-12, 53.298],
-    [400.0, 3.725e-12, 58.515], [450.0, 1.585e-12, 60.828], [500.0, 6.967e-13, 63.822],
-    [600.0, 1.454e-13, 71.835], [700.0, 3.614e-14, 88.667], [800.0, 1.170e-14, 124.64],
-    [900.0, 5.245e-15, 181.05], [1000.0, 3.019e-15, 268.00]])
+_ATMOSPHERE = np.array(
+    [  # base height [km], base density [kg/m^3], scale height [km] (Vallado Table 8-4)
+        [150.0, 2.070e-9, 22.523],
+        [180.0, 5.464e-10, 29.740],
+        [200.0, 2.789e-10, 37.105],
+        [250.0, 7.248e-11, 45.546],
+        [300.0, 2.418e-11, 53.628],
+        [350.0, 9.518e-12, 53.298],
+        [400.0, 3.725e-12, 58.515],
+        [450.0, 1.585e-12, 60.828],
+        [500.0, 6.967e-13, 63.822],
+        [600.0, 1.454e-13, 71.835],
+        [700.0, 3.614e-14, 88.667],
+        [800.0, 1.170e-14, 124.64],
+        [900.0, 5.245e-15, 181.05],
+        [1000.0, 3.019e-15, 268.00],
+    ]
+)
 
 
 def legendre(u: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
@@ -81,8 +93,9 @@ def density(h: np.ndarray) -> np.ndarray:
     return rho0 * np.exp(-(h_km - h0) / scale)
 
 
-def drag_acceleration(r: np.ndarray, v: np.ndarray, ballistic: float,
-                      rotation_rate: float = OMEGA_EARTH, re: float = R_EARTH) -> np.ndarray:
+def drag_acceleration(
+    r: np.ndarray, v: np.ndarray, ballistic: float, rotation_rate: float = OMEGA_EARTH, re: float = R_EARTH
+) -> np.ndarray:
     """-1/2 B rho |v_rel| v_rel [m/s^2], B = C_d A / m [m^2/kg], for one state (3,) or a batch (m, 3)."""
     r, v = np.asarray(r, dtype=float), np.asarray(v, dtype=float)
     omega = np.array([0.0, 0.0, rotation_rate])
@@ -101,8 +114,9 @@ _BAND_KM = _ATMOSPHERE[:, 0].tolist()
 _BANDS = [tuple(row) for row in _ATMOSPHERE.tolist()]
 
 
-def zonal_acceleration_xyz(x: float, y: float, z: float, mu: float, re: float,
-                           zonals: dict[int, float]) -> tuple[float, float, float]:
+def zonal_acceleration_xyz(
+    x: float, y: float, z: float, mu: float, re: float, zonals: dict[int, float]
+) -> tuple[float, float, float]:
     """:func:`zonal_acceleration` at one position (x, y, z) [m], in Python floats."""
     rn = math.sqrt(x * x + y * y + z * z)
     hx, hy, u = x / rn, y / rn, z / rn
@@ -123,11 +137,20 @@ def zonal_acceleration_xyz(x: float, y: float, z: float, mu: float, re: float,
     return ax, ay, az
 
 
-def drag_acceleration_xyz(x: float, y: float, z: float, vx: float, vy: float, vz: float, ballistic: float,
-                          rotation_rate: float = OMEGA_EARTH, re: float = R_EARTH,
-                          f: float = WGS84_F) -> tuple[float, float, float]:
+def drag_acceleration_xyz(
+    x: float,
+    y: float,
+    z: float,
+    vx: float,
+    vy: float,
+    vz: float,
+    ballistic: float,
+    rotation_rate: float = OMEGA_EARTH,
+    re: float = R_EARTH,
+    f: float = WGS84_F,
+) -> tuple[float, float, float]:
     """:func:`drag_acceleration` of one state, in Python floats."""
-    wx, wy, wz = vx + rotation_rate * y, vy - rotation_rate * x, vz   # v - omega x r, omega along z
+    wx, wy, wz = vx + rotation_rate * y, vy - rotation_rate * x, vz  # v - omega x r, omega along z
     speed = math.sqrt(wx * wx + wy * wy + wz * wz)
     rn = math.sqrt(x * x + y * y + z * z)
     sin_lat = z / rn

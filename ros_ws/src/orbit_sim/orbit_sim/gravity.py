@@ -6,6 +6,7 @@ With A = J2 Re^2 / 2 (eq. 6):
 Writing a_i = -mu r_i / r^3 + k r_i f_i with k = mu A, f_x = f_y = 15 z^2/r^7 - 3/r^5 and
 f_z = 15 z^2/r^7 - 9/r^5 gives the compact form used for the value and its Jacobian.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,8 +19,7 @@ _C = np.array([3.0, 3.0, 9.0])
 """The r^-5 coefficients of f_x, f_y, f_z."""
 
 
-def acceleration(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
-                 re: float = R_EARTH) -> np.ndarray:
+def acceleration(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH) -> np.ndarray:
     """Acceleration [m/s^2] at position r [m], shape (3,) or (m, 3) (one position per row).
 
     ``j2=0`` gives pure two-body motion (eq. 7 without the perturbation terms w).
@@ -57,18 +57,22 @@ def gravity_gradient(x: float, y: float, z: float, mu: float, j2: float, re: flo
     g_z = g_xy + 30.0 * k * ir7
     xz = x * g_z * z
     yz = y * g_z * z
-    return np.array([[f_xy + g_xy * x * x, g_xy * x * y, xz],
-                     [g_xy * x * y, f_xy + g_xy * y * y, yz],
-                     [xz, yz, f_z + g_z * zz + 30.0 * k * ir7 * zz]])
+    return np.array(
+        [
+            [f_xy + g_xy * x * x, g_xy * x * y, xz],
+            [g_xy * x * y, f_xy + g_xy * y * y, yz],
+            [xz, yz, f_z + g_z * zz + 30.0 * k * ir7 * zz],
+        ]
+    )
 
 
-def acceleration_jacobian(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
-                          re: float = R_EARTH) -> np.ndarray:
+def acceleration_jacobian(r: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH) -> np.ndarray:
     """Analytic d a / d r at a single position r (3,), shape (3, 3) (see ``gravity_gradient``)."""
     return gravity_gradient(float(r[0]), float(r[1]), float(r[2]), mu, j2, re)
 
 
-def state_derivative(t: float, y: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
-                     re: float = R_EARTH) -> np.ndarray:
+def state_derivative(
+    t: float, y: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH, re: float = R_EARTH
+) -> np.ndarray:
     """d/dt [x y z vx vy vz] = [v, a(r)] (eq. 7 with w = 0); signature fits scipy's solve_ivp."""
     return np.concatenate((y[3:6], acceleration(y[0:3], mu, j2, re)))

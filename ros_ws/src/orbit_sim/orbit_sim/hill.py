@@ -6,6 +6,7 @@ are the standard CW equations (paper 004's print of its eq. 4 is garbled). Paper
 (x'' + 2 w y' = 0, y'' - 2 w x' - 3 w^2 y = 0, z'' + w^2 z = 0) is the same system written in its own
 axes (X along-track, Y radial, Z = -normal): convert states with ``relative.to_convention``.
 """
+
 from __future__ import annotations
 
 import numpy as np

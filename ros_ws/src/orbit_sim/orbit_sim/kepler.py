@@ -4,6 +4,7 @@ Angles are in radians; a in metres. Used to build the initial state from the CHA
 paper 000, Table 1. Degenerate cases (e = 0 or i = 0, where the node or perigee is undefined) are
 not handled specially: the elements must be well defined, as they are for CHAMP.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,8 +12,7 @@ import numpy as np
 from .constants import MU_EARTH
 
 
-def solve_kepler(M: float | np.ndarray, e: float, tol: float = 1e-14,
-                 max_iter: int = 50) -> float | np.ndarray:
+def solve_kepler(M: float | np.ndarray, e: float, tol: float = 1e-14, max_iter: int = 50) -> float | np.ndarray:
     """Eccentric anomaly E solving M = E - e sin E (0 <= e < 1) by Newton's method.
 
     M is reduced to [-pi, pi) and Newton starts from Danby's E0 = M + 0.85 e sign(sin M), which
@@ -36,15 +36,18 @@ def _perifocal_to_eci(i: float, raan: float, argp: float) -> np.ndarray:
     co, so = np.cos(raan), np.sin(raan)
     cw, sw = np.cos(argp), np.sin(argp)
     ci, si = np.cos(i), np.sin(i)
-    return np.array([
-        [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
-        [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
-        [sw * si, cw * si, ci],
-    ])
+    return np.array(
+        [
+            [co * cw - so * sw * ci, -co * sw - so * cw * ci, so * si],
+            [so * cw + co * sw * ci, -so * sw + co * cw * ci, -co * si],
+            [sw * si, cw * si, ci],
+        ]
+    )
 
 
-def kepler_to_cartesian(a: float, e: float, i: float, raan: float, argp: float, M: float,
-                        mu: float = MU_EARTH) -> np.ndarray:
+def kepler_to_cartesian(
+    a: float, e: float, i: float, raan: float, argp: float, M: float, mu: float = MU_EARTH
+) -> np.ndarray:
     """Classical elements -> inertial state [x y z vx vy vz] (6,) in m and m/s."""
     E = solve_kepler(M, e)
     cE, sE = np.cos(E), np.sin(E)

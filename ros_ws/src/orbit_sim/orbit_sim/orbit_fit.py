@@ -21,6 +21,7 @@ is Phi(t) [W(min(t, t_j+1)) - W(t_j)] for t > t_j, with W' = Phi^-1 [0; R_rtn]; 
 Psi' = -Psi A, so no inversion is needed. The covariance of p is N^-1 at convergence (the Fisher information
 of the fixes plus the prior: with the truth's force model at the true p, the Cramer-Rao bound of the fit).
 """
+
 from __future__ import annotations
 
 import math
@@ -30,8 +31,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from orbit_sim.constants import OMEGA_EARTH, R_EARTH
-from orbit_sim.geopotential import (drag_acceleration, drag_acceleration_xyz, zonal_acceleration,
-                                    zonal_acceleration_xyz)
+from orbit_sim.geopotential import drag_acceleration, drag_acceleration_xyz, zonal_acceleration, zonal_acceleration_xyz
 from orbit_sim.gravity import gravity_gradient
 
 RTOL, ATOL = 1.0e-13, 1.0e-8
@@ -151,9 +151,7 @@ def rtn_frame(rx: float, ry: float, rz: float, vx: float, vy: float, vz: float) 
     nx, ny, nz = ry * vz - rz * vy, rz * vx - rx * vz, rx * vy - ry * vx
     nn = math.sqrt(nx * nx + ny * ny + nz * nz)
     nx, ny, nz = nx / nn, ny / nn, nz / nn
-    return np.array([[hx, ny * hz - nz * hy, nx],
-                     [hy, nz * hx - nx * hz, ny],
-                     [hz, nx * hy - ny * hx, nz]])
+    return np.array([[hx, ny * hz - nz * hy, nx], [hy, nz * hx - nx * hz, ny], [hz, nx * hy - ny * hx, nz]])
 
 
 def edges(t0: float, t1: float, interval: float | None) -> np.ndarray:
@@ -164,13 +162,24 @@ def edges(t0: float, t1: float, interval: float | None) -> np.ndarray:
     return np.linspace(t0, t1, n + 1)
 
 
-def propagate(x0: np.ndarray, ballistic: float, e: np.ndarray, model: ForceModel, t: np.ndarray,
-              t_edges: np.ndarray, with_partials: bool = True, rtol: float = RTOL) -> Trajectory:
+def propagate(
+    x0: np.ndarray,
+    ballistic: float,
+    e: np.ndarray,
+    model: ForceModel,
+    t: np.ndarray,
+    t_edges: np.ndarray,
+    with_partials: bool = True,
+    rtol: float = RTOL,
+) -> Trajectory:
     """The orbit from x0 at t_edges[0] to the times ``t`` (ascending, within the edges), interval by interval
     (the empirical accelerations ``e`` (J, 3) jump at the edges: each interval is integrated on its own)."""
     n_seg = len(t_edges) - 1
-    y = np.concatenate([x0, np.eye(6).ravel(), np.eye(6).ravel(), np.zeros(6), np.zeros(18)]) if with_partials \
+    y = (
+        np.concatenate([x0, np.eye(6).ravel(), np.eye(6).ravel(), np.zeros(6), np.zeros(18)])
+        if with_partials
         else np.asarray(x0, float)
+    )
     atol = np.full(len(y), ATOL_PARTIALS)
     atol[:3], atol[3:6] = ATOL, ATOL * 1.0e-3
     seg = np.clip(np.searchsorted(t_edges, t, side="right") - 1, 0, n_seg - 1)
@@ -178,21 +187,29 @@ def propagate(x0: np.ndarray, ballistic: float, e: np.ndarray, model: ForceModel
     W_edges = np.zeros((n_seg + 1, 6, 3))
     for j in range(n_seg):
         mask = seg == j
-        t_eval = np.append(t[mask], t_edges[j + 1]) if not (mask.any() and t[mask][-1] == t_edges[j + 1]) \
-            else t[mask]
-        sol = solve_ivp(_rate, (t_edges[j], t_edges[j + 1]), y, method="DOP853", t_eval=t_eval, rtol=rtol,
-                        atol=atol, args=(model, ballistic, e[j] if e[j].any() else None, with_partials))
+        t_eval = np.append(t[mask], t_edges[j + 1]) if not (mask.any() and t[mask][-1] == t_edges[j + 1]) else t[mask]
+        sol = solve_ivp(
+            _rate,
+            (t_edges[j], t_edges[j + 1]),
+            y,
+            method="DOP853",
+            t_eval=t_eval,
+            rtol=rtol,
+            atol=atol,
+            args=(model, ballistic, e[j] if e[j].any() else None, with_partials),
+        )
         if not sol.success:
             raise RuntimeError(f"orbit propagation failed: {sol.message}")
-        out[mask] = sol.y[:, :mask.sum()].T
+        out[mask] = sol.y[:, : mask.sum()].T
         y = sol.y[:, -1]
         if with_partials:
             W_edges[j + 1] = y[84:].reshape(6, 3)
     K = len(t)
     if not with_partials:
         return Trajectory(t, out, np.zeros((K, 6, 6)), np.zeros((K, 6)), np.zeros((K, 6, 3)), seg, W_edges)
-    return Trajectory(t, out[:, :6], out[:, 6:42].reshape(K, 6, 6), out[:, 78:84], out[:, 84:].reshape(K, 6, 3),
-                      seg, W_edges)
+    return Trajectory(
+        t, out[:, :6], out[:, 6:42].reshape(K, 6, 6), out[:, 78:84], out[:, 84:].reshape(K, 6, 3), seg, W_edges
+    )
 
 
 @dataclass
@@ -234,12 +251,12 @@ def state_covariance(traj: Trajectory, covariance: np.ndarray, drag: bool) -> np
         return F @ covariance @ F.transpose(0, 2, 1)
     dW, V = traj.steps(nb)
     n_seg = len(dW)
-    X = covariance[:nb].copy()                      # Cov(y_s, p)
-    Y = covariance[:nb, :nb].copy()                 # Cov(y_s)
+    X = covariance[:nb].copy()  # Cov(y_s, p)
+    Y = covariance[:nb, :nb].copy()  # Cov(y_s)
     Ys, Zs, Cee = np.empty((n_seg, nb, nb)), np.empty((n_seg, nb, 3)), np.empty((n_seg, 3, 3))
     for j in range(n_seg):
         e_rows = slice(nb + 3 * j, nb + 3 * j + 3)
-        Z = X[:, e_rows]                            # Cov(y_s, e_s)
+        Z = X[:, e_rows]  # Cov(y_s, e_s)
         Ys[j], Zs[j], Cee[j] = Y, Z, covariance[e_rows, e_rows]
         step = dW[j] @ Z.T
         Y = Y + step + step.T + dW[j] @ Cee[j] @ dW[j].T
@@ -250,8 +267,9 @@ def state_covariance(traj: Trajectory, covariance: np.ndarray, drag: bool) -> np
     return F @ Ch @ F.transpose(0, 2, 1)
 
 
-def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def normal_equations(
+    traj: Trajectory, z: np.ndarray, sigma: float, n_params: int, drag: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """(N, b) = (sum H'H / sigma^2, sum H'(z - r) / sigma^2) over the fixes z (K, 3) at the trajectory's times,
     H = dr/dp = C G with C = F[:3] (Trajectory), summed interval by interval: with M = C'C / sigma^2, S_m the
     sum of M over the intervals from m on, T_j = sum M V and R_j = sum V'M V over interval j,
@@ -270,7 +288,7 @@ def normal_equations(traj: Trajectory, z: np.ndarray, sigma: float, n_params: in
         return N, b
     dW, V = traj.steps(nb)
     n_seg = len(dW)
-    S = _sums_after(traj.per_interval(M))                            # S_j+1, (J, nb, nb)
+    S = _sums_after(traj.per_interval(M))  # S_j+1, (J, nb, nb)
     Q = S @ dW + traj.per_interval(M @ V)
     N[:nb, nb:] = Q.transpose(1, 0, 2).reshape(nb, 3 * n_seg)
     j = np.arange(n_seg)
@@ -294,13 +312,19 @@ def position_change(traj: Trajectory, dp: np.ndarray, drag: bool) -> np.ndarray:
         dW, V = traj.steps(nb)
         de = dp[nb:].reshape(-1, 3)
         before = np.zeros((len(dW) + 1, nb))
-        before[1:] = np.cumsum(dW @ de[:, :, None], axis=0)[..., 0]   # sum_{j<s} dW_j de_j
+        before[1:] = np.cumsum(dW @ de[:, :, None], axis=0)[..., 0]  # sum_{j<s} dW_j de_j
         h += before[traj.segment] + (V @ de[traj.segment][:, :, None])[..., 0]
     return np.einsum("kai,ki->ka", C, h)
 
 
-def information(model: ForceModel, x0: np.ndarray, ballistic: float, t: np.ndarray, sigma: float,
-                empirical_sigma: float | None = None) -> OrbitFit:
+def information(
+    model: ForceModel,
+    x0: np.ndarray,
+    ballistic: float,
+    t: np.ndarray,
+    sigma: float,
+    empirical_sigma: float | None = None,
+) -> OrbitFit:
     """The Fisher information of fixes at the times t (first = epoch) about p at the given true orbit, as an
     OrbitFit whose covariance is its inverse (the Cramer-Rao bound of any unbiased fit of p)."""
     t_edges = edges(t[0], t[-1], model.empirical_interval_s)
@@ -330,9 +354,17 @@ def initial_guess(t: np.ndarray, z: np.ndarray) -> np.ndarray:
     return np.concatenate([coef[2], coef[1]])
 
 
-def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, ballistic_guess: float = 0.0,
-              empirical_sigma: float | None = None, max_iterations: int = 12, tol_m: float = 1.0e-5,
-              warm_start_s: float = 5400.0) -> OrbitFit:
+def fit_orbit(
+    t: np.ndarray,
+    z: np.ndarray,
+    sigma: float,
+    model: ForceModel,
+    ballistic_guess: float = 0.0,
+    empirical_sigma: float | None = None,
+    max_iterations: int = 12,
+    tol_m: float = 1.0e-5,
+    warm_start_s: float = 5400.0,
+) -> OrbitFit:
     """Batch least-squares orbit of one satellite from its position fixes z (K, 3) at times t (K,), noise
     sigma [m] per axis (module docstring). The state is first fitted over the first ``warm_start_s`` seconds
     (two-body start), then over the whole span; converged when the largest change of the fitted positions
@@ -341,9 +373,15 @@ def fit_orbit(t: np.ndarray, z: np.ndarray, sigma: float, model: ForceModel, bal
     x0, ballistic = initial_guess(t, z), float(ballistic_guess)
     if t[-1] - t[0] > 1.5 * warm_start_s:
         short = t <= t[0] + warm_start_s
-        warm = fit_orbit(t[short], z[short], sigma, ForceModel(model.mu, model.re, model.zonals, False,
-                                                               model.rotation_rate), max_iterations=max_iterations,
-                         tol_m=tol_m, warm_start_s=warm_start_s)
+        warm = fit_orbit(
+            t[short],
+            z[short],
+            sigma,
+            ForceModel(model.mu, model.re, model.zonals, False, model.rotation_rate),
+            max_iterations=max_iterations,
+            tol_m=tol_m,
+            warm_start_s=warm_start_s,
+        )
         x0 = warm.x0
     t_edges = edges(t[0], t[-1], model.empirical_interval_s)
     n_e = 3 * (len(t_edges) - 1) if model.empirical_interval_s else 0

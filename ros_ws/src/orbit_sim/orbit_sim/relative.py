@@ -24,6 +24,7 @@ bounded-motion condition drifts in the nonlinear two-body + J2 truth (metres to 
 orbit, growing with the formation's size, tests/test_relative.py), because the rectilinear CW condition
 ignores curvature and J2 changes the period-matching condition.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -76,8 +77,7 @@ def _rotate(C: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j->...i", C, v)
 
 
-def eci_to_lvlh(chief_state: np.ndarray, deputy_state: np.ndarray,
-                chief_accel: np.ndarray | None = None) -> np.ndarray:
+def eci_to_lvlh(chief_state: np.ndarray, deputy_state: np.ndarray, chief_accel: np.ndarray | None = None) -> np.ndarray:
     """Deputy ECI state(s) -> relative [x y z vx vy vz] in the chief's LVLH frame (rotating-frame velocity)."""
     c = np.asarray(chief_state, dtype=float)
     d = np.asarray(deputy_state, dtype=float)
@@ -87,8 +87,7 @@ def eci_to_lvlh(chief_state: np.ndarray, deputy_state: np.ndarray,
     return np.concatenate((_rotate(C, dr), _rotate(C, dv)), axis=-1)
 
 
-def lvlh_to_eci(chief_state: np.ndarray, rel: np.ndarray,
-                chief_accel: np.ndarray | None = None) -> np.ndarray:
+def lvlh_to_eci(chief_state: np.ndarray, rel: np.ndarray, chief_accel: np.ndarray | None = None) -> np.ndarray:
     """Exact inverse of ``eci_to_lvlh``: relative LVLH state(s) -> deputy ECI state(s)."""
     c = np.asarray(chief_state, dtype=float)
     rel = np.asarray(rel, dtype=float)
@@ -127,19 +126,26 @@ def from_convention(rel: np.ndarray, convention: str) -> np.ndarray:
     return _apply_blocks(convention_matrix(convention).T, rel)
 
 
-def _mean_along_track_drift(chief_state: np.ndarray, rel: np.ndarray, period: float, samples: int,
-                            mu: float, j2: float, re: float) -> float:
+def _mean_along_track_drift(
+    chief_state: np.ndarray, rel: np.ndarray, period: float, samples: int, mu: float, j2: float, re: float
+) -> float:
     """Truth (two-body + J2) along-track drift [m/orbit]: mean y over orbit 2 minus mean y over orbit 1."""
     t = np.linspace(0.0, 2.0 * period, 2 * samples + 1)
     chief = propagate(chief_state, t, mu, j2, re)
     accel = acceleration(chief[:, 0:3], mu, j2, re)
     deputy = propagate(lvlh_to_eci(chief_state, rel, accel[0]), t, mu, j2, re)
     y = eci_to_lvlh(chief, deputy, accel)[:, 1]
-    return float(y[samples:2 * samples].mean() - y[:samples].mean())
+    return float(y[samples : 2 * samples].mean() - y[:samples].mean())
 
 
-def drift_free(chief_state: np.ndarray, rel: np.ndarray, mu: float = MU_EARTH, j2: float = J2_EARTH,
-               re: float = R_EARTH, samples_per_orbit: int = 100) -> np.ndarray:
+def drift_free(
+    chief_state: np.ndarray,
+    rel: np.ndarray,
+    mu: float = MU_EARTH,
+    j2: float = J2_EARTH,
+    re: float = R_EARTH,
+    samples_per_orbit: int = 100,
+) -> np.ndarray:
     """Copy of ``rel`` (6,) with its along-track velocity adjusted so that the deputy has no mean
     along-track drift relative to the chief in the nonlinear two-body + J2 truth.
 

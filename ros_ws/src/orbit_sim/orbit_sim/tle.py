@@ -15,6 +15,7 @@ The truth model ``sgp4`` (entry-point group ``tracking_bench.truth_models``) rea
 list of two strings, or three with the title first) or ``truth.tle_file`` (a file holding one element set), and
 needs ``time.epoch``: sim time t is propagated at tsince = (time.epoch - the element set's epoch) + t.
 """
+
 from __future__ import annotations
 
 import datetime as dt_
@@ -88,8 +89,10 @@ class ElementSet:
         if bad.size:
             k = int(bad[0])
             code = int(errors[k])
-            raise TleError(f"{self.where}: SGP4 fails {times[k]:g} s after {epoch.isoformat()}: "
-                           f"{SGP4_ERRORS.get(code, f'error code {code}')}")
+            raise TleError(
+                f"{self.where}: SGP4 fails {times[k]:g} s after {epoch.isoformat()}: "
+                f"{SGP4_ERRORS.get(code, f'error code {code}')}"
+            )
         states = np.hstack((r, v)) * 1e3
         if not np.all(np.isfinite(states)):
             raise TleError(f"{self.where}: SGP4 gives non-finite states for these elements")
@@ -103,8 +106,9 @@ def read_tle(lines: list[str], where: str) -> ElementSet:
     lines = [line.rstrip("\r\n").rstrip() for line in lines]
     lines = [line for line in lines if line]
     if len(lines) not in (2, 3):
-        raise TleError(f"{where}: an element set has two lines (or a title and two); found {len(lines)} non-empty "
-                       "lines")
+        raise TleError(
+            f"{where}: an element set has two lines (or a title and two); found {len(lines)} non-empty lines"
+        )
     title = lines[0].strip() if len(lines) == 3 else ""
     if title.startswith("0 "):
         title = title[2:].strip()  # the three-line format's title marker
@@ -112,16 +116,19 @@ def read_tle(lines: list[str], where: str) -> ElementSet:
     for number, line in ((1, line1), (2, line2)):
         _check_line(line, number, where)
     if line1[2:7] != line2[2:7]:
-        raise TleError(f"{where}: the two lines name different satellites ({line1[2:7].strip()!r} and "
-                       f"{line2[2:7].strip()!r})")
+        raise TleError(
+            f"{where}: the two lines name different satellites ({line1[2:7].strip()!r} and {line2[2:7].strip()!r})"
+        )
     tle = ElementSet(title, line1, line2, where)
     try:
         sat = tle.satrec()
     except (ValueError, RuntimeError) as err:
         raise TleError(f"{where}: sgp4 cannot read these elements ({' '.join(str(err).split())[:200]})") from None
     if sat.error:
-        raise TleError(f"{where}: sgp4 rejects these elements at their epoch: "
-                       f"{SGP4_ERRORS.get(int(sat.error), f'error code {sat.error}')}")
+        raise TleError(
+            f"{where}: sgp4 rejects these elements at their epoch: "
+            f"{SGP4_ERRORS.get(int(sat.error), f'error code {sat.error}')}"
+        )
     if not 0.0 < sat.no_kozai < 2.0 * np.pi / 60.0:  # rad/min: at most one revolution a minute
         raise TleError(f"{where}: line 2's mean motion {sat.no_kozai * 1440 / (2 * np.pi):g} rev/day is not an orbit")
     return tle
@@ -135,8 +142,10 @@ def _check_line(line: str, number: int, where: str) -> None:
     if not line.startswith(f"{number} "):
         raise TleError(f"{where}: line {number} must start with '{number} ', got {line[:2]!r}")
     if not line[68].isdigit() or int(line[68]) != checksum(line):
-        raise TleError(f"{where}: line {number}'s checksum is {line[68]!r}; its columns 1-68 give {checksum(line)} "
-                       "(a mistyped or damaged element set)")
+        raise TleError(
+            f"{where}: line {number}'s checksum is {line[68]!r}; its columns 1-68 give {checksum(line)} "
+            "(a mistyped or damaged element set)"
+        )
 
 
 def read_tle_file(path: str | Path) -> ElementSet:
@@ -171,8 +180,10 @@ def tle_truth(sec: Sgp4, model: str, earth, grid: TimeGrid, seed: int = 0) -> Tr
     """The ``sgp4`` truth model: the element set's TEME states on the grid (frame ``eci``)."""
     tle = element_set(sec)
     if grid.epoch is None:
-        raise ScenarioError(f"truth model '{model}' needs a calendar epoch: set 'time.epoch' (UTC), e.g. the element "
-                            f"set's own, {tle.epoch.strftime('%Y-%m-%dT%H:%M:%S.%fZ')}")
+        raise ScenarioError(
+            f"truth model '{model}' needs a calendar epoch: set 'time.epoch' (UTC), e.g. the element "
+            f"set's own, {tle.epoch.strftime('%Y-%m-%dT%H:%M:%S.%fZ')}"
+        )
     try:
         states = tle.states(grid.epoch, grid.times())
     except TleError as err:

@@ -10,6 +10,7 @@ Models (``truth.model``, registered in the entry-point group ``tracking_bench.tr
   velocity as seen in the rotating frame (frame "lvlh").
 - ``hill_cw``: the relative state from the exact solution of the Hill/Clohessy-Wiltshire equations.
 """
+
 from __future__ import annotations
 
 import datetime
@@ -24,11 +25,9 @@ from bench_engine import plugins
 from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
 from bench_engine.scenario import scenario_seed
-from bench_engine.settings import (POSITIVE, Builder, Check, SectionReader, Settings, read, setting,
-                                   variant)
+from bench_engine.settings import POSITIVE, Builder, Check, SectionReader, Settings, read, setting, variant
 from bench_engine.timegrid import TimeGrid, build_time
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
-
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -40,14 +39,21 @@ class EarthSettings(Settings):
     j2: float = setting(J2_EARTH, doc="second zonal harmonic (oblateness), unnormalised")
     re: float = setting(R_EARTH, unit="m", doc="equatorial radius", check=POSITIVE)
     rotation_rate: float = setting(OMEGA_EARTH, unit="rad/s", doc="rotation rate of ECEF about ECI's z axis")
-    theta0_deg: float | None = setting(None, unit="deg", doc="Earth rotation angle (ECI x to ECEF x) at t = 0, "
-                                                             "without a calendar epoch (with time.epoch: the "
-                                                             "Greenwich mean sidereal time of the epoch)",
-                                       default_text="0, or the sidereal time of time.epoch")
-    ut1_minus_utc_s: float | None = setting(None, unit="s", doc="UT1 - UTC at the epoch (with time.epoch only)",
-                                            check=Check(lambda v: abs(v) < 1.0,
-                                                        "in (-1, 1) s (IERS keeps |UT1 - UTC| < 0.9 s)"),
-                                            default_text="0")
+    theta0_deg: float | None = setting(
+        None,
+        unit="deg",
+        doc="Earth rotation angle (ECI x to ECEF x) at t = 0, "
+        "without a calendar epoch (with time.epoch: the "
+        "Greenwich mean sidereal time of the epoch)",
+        default_text="0, or the sidereal time of time.epoch",
+    )
+    ut1_minus_utc_s: float | None = setting(
+        None,
+        unit="s",
+        doc="UT1 - UTC at the epoch (with time.epoch only)",
+        check=Check(lambda v: abs(v) < 1.0, "in (-1, 1) s (IERS keeps |UT1 - UTC| < 0.9 s)"),
+        default_text="0",
+    )
 
 
 @dataclass(frozen=True)
@@ -81,8 +87,10 @@ def build_earth(cfg: dict) -> Earth:
             raise ScenarioError("'earth.ut1_minus_utc_s' needs a calendar epoch, 'time.epoch'")
         theta0 = np.radians(sec.theta0_deg or 0.0)
     elif sec.theta0_deg is not None:
-        raise ScenarioError("'earth.theta0_deg' and 'time.epoch' both fix the Earth's orientation at t = 0: with an "
-                            "epoch, theta0 is the sidereal time of the epoch; remove theta0_deg (or set it to null)")
+        raise ScenarioError(
+            "'earth.theta0_deg' and 'time.epoch' both fix the Earth's orientation at t = 0: with an "
+            "epoch, theta0 is the sidereal time of the epoch; remove theta0_deg (or set it to null)"
+        )
     else:
         dut1 = sec.ut1_minus_utc_s or 0.0
         theta0 = frames.gmst82(*frames.julian_date(epoch + datetime.timedelta(seconds=dut1)))
@@ -101,10 +109,13 @@ motion) to beyond the Moon; outside, a typo is likelier than intent."""
 class OrbitElements(Settings):
     """One spacecraft's Keplerian elements at the epoch: ``a`` or ``period_s`` (exactly one), the rest default 0."""
 
-    a: float | None = setting(None, unit="m", doc="semi-major axis (exactly one of a and period_s)",
-                              check=POSITIVE)
-    period_s: float | None = setting(None, unit="s", doc="orbital period, converted to a with Kepler's third law "
-                                                         "(exactly one of a and period_s)", check=POSITIVE)
+    a: float | None = setting(None, unit="m", doc="semi-major axis (exactly one of a and period_s)", check=POSITIVE)
+    period_s: float | None = setting(
+        None,
+        unit="s",
+        doc="orbital period, converted to a with Kepler's third law (exactly one of a and period_s)",
+        check=POSITIVE,
+    )
     e: float = setting(0.0, doc="eccentricity", check=Check(lambda v: 0.0 <= v < 1.0, "in [0, 1)"))
     i_deg: float = setting(0.0, unit="deg", doc="inclination")
     raan_deg: float = setting(0.0, unit="deg", doc="right ascension of the ascending node")
@@ -120,8 +131,10 @@ class OrbitElements(Settings):
         a = self.a if self.a is not None else float((mu * (self.period_s / (2.0 * np.pi)) ** 2) ** (1.0 / 3.0))
         if not A_RANGE_M[0] <= a <= A_RANGE_M[1]:
             key = self.where("a" if self.a is not None else "period_s")
-            raise ScenarioError(f"'{key}' gives a semi-major axis of {a:.4g} m; it must be between "
-                                f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m")
+            raise ScenarioError(
+                f"'{key}' gives a semi-major axis of {a:.4g} m; it must be between "
+                f"{A_RANGE_M[0]:g} and {A_RANGE_M[1]:g} m"
+            )
         return a
 
     def state(self, mu: float) -> np.ndarray:
@@ -141,8 +154,7 @@ class SingleOrbit(Settings):
 class ProjectedCircularOrbit(Settings):
     """A deputy on a projected circular orbit about the chief, bounded under CW."""
 
-    size: float = setting(unit="m", doc="diameter of the circle in the along-track/cross-track plane",
-                          check=POSITIVE)
+    size: float = setting(unit="m", doc="diameter of the circle in the along-track/cross-track plane", check=POSITIVE)
     phase_deg: float = setting(0.0, unit="deg", doc="phase of the deputy on it at the epoch")
 
 
@@ -154,11 +166,17 @@ class Deputy(Settings):
     pco: ProjectedCircularOrbit | None = setting(None, doc="a projected circular orbit (instead of position)")
     position: list[float] | None = setting(None, unit="m", doc="relative position, LVLH (instead of pco)")
     velocity: list[float] = setting([0.0, 0.0, 0.0], unit="m/s", doc="relative velocity as seen in LVLH")
-    convention: str = setting("radial_along_normal", choices=relative.CONVENTIONS,
-                              doc="the axes of position and velocity: radial_along_normal (x radial, y along-track, "
-                                  "z orbit normal) or along_radial")
-    drift_free: bool = setting(False, doc="correct the deputy's along-track velocity so that its mean motion "
-                                          "equals the chief's (no secular drift; two-body or J2 truths)")
+    convention: str = setting(
+        "radial_along_normal",
+        choices=relative.CONVENTIONS,
+        doc="the axes of position and velocity: radial_along_normal (x radial, y along-track, "
+        "z orbit normal) or along_radial",
+    )
+    drift_free: bool = setting(
+        False,
+        doc="correct the deputy's along-track velocity so that its mean motion "
+        "equals the chief's (no secular drift; two-body or J2 truths)",
+    )
 
     def validate(self, path: str) -> None:
         if (self.pco is None) == (self.position is None):
@@ -200,10 +218,12 @@ class TruthModel(Builder):
 class TruthSection(Settings):
     """The scenario's ``truth`` section: a registered model and its keys."""
 
-    model: str = setting(doc="a registered truth model (tracking_bench.truth_models)",
-                         choices=lambda: plugins.names("truth_models"))
-    options: Settings = variant("model", lambda: plugins.names("truth_models"),
-                                lambda name: plugins.load("truth_models", name).settings)
+    model: str = setting(
+        doc="a registered truth model (tracking_bench.truth_models)", choices=lambda: plugins.names("truth_models")
+    )
+    options: Settings = variant(
+        "model", lambda: plugins.names("truth_models"), lambda name: plugins.load("truth_models", name).settings
+    )
 
 
 def read_truth(cfg: dict) -> TruthSection:
@@ -282,8 +302,9 @@ class Sgp4(Settings):
     """``sgp4``: a real satellite from its two-line element set, propagated by SGP4 in TEME (orbit_sim.tle); needs
     ``time.epoch``."""
 
-    tle: list[str] | None = setting(None, doc="the element set's two lines (or a title line and the two; exactly "
-                                              "one of tle and tle_file)")
+    tle: list[str] | None = setting(
+        None, doc="the element set's two lines (or a title line and the two; exactly one of tle and tle_file)"
+    )
     tle_file: str | None = setting(None, doc="a file holding one element set (exactly one of tle and tle_file)")
 
     def validate(self, path: str) -> None:
@@ -308,8 +329,9 @@ def build_truth(cfg: dict) -> Truth:
     return _build_truth(json.dumps(fields, sort_keys=True, default=str))
 
 
-TRUTH = SectionReader("truth", TruthSection, "the ground truth of the run: a registered model and its keys",
-                      build_truth)
+TRUTH = SectionReader(
+    "truth", TruthSection, "the ground truth of the run: a registered model and its keys", build_truth
+)
 
 
 @lru_cache(maxsize=4)

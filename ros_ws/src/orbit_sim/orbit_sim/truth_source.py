@@ -5,6 +5,7 @@ Registered as the node kind ``truth`` (role ``source``); the engine's source she
 trajectory is computed (and scipy loaded: orbit_sim.cowell) only when the source is built: every node reads the
 kind.
 """
+
 from __future__ import annotations
 
 from bench_engine import plugins
@@ -34,5 +35,12 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
     return NodeSpec(name, "truth", publishes={TRUTH_TOPIC: TRUTH_TYPE, CLOCK_TOPIC: CLOCK_TYPE}, labels=labels)
 
 
-TRUTH = NodeKind("truth", "source", "bench_engine.source_node:CoreSourceNode", instances=lambda cfg, requested: ["truth"],
-                 spec=_spec, check=lambda cfg, name: TruthSource(cfg), stage=TruthSource)
+TRUTH = NodeKind(
+    "truth",
+    "source",
+    "bench_engine.source_node:CoreSourceNode",
+    instances=lambda cfg, requested: ["truth"],
+    spec=_spec,
+    check=lambda cfg, name: TruthSource(cfg),
+    stage=TruthSource,
+)

@@ -11,6 +11,7 @@ interval) plus the clutter keys:
       cam: {type: relative_position, interval: 1.0, sigma_position: 0.5, p_detect: 0.9,
             clutter_rate: 2.0, clutter_halfwidth: [20.0, 20.0, 20.0]}
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -62,12 +63,15 @@ class ClutteredSensor:
 class ClutteredSettings(SensorSettings):
     """One entry of ``cluttered_sensors``: a registered sensor type's keys plus the clutter's."""
 
-    clutter_rate: float = setting(doc="mean number of false detections per sample (Poisson)",
-                                  check=Check(lambda v: 0.0 <= v < float("inf"), "finite and >= 0"))
-    clutter_halfwidth: list[float] = setting(doc="half-width of the box around the true measurement the false "
-                                                 "detections fall in, one per measurement component [its units]",
-                                             check=Check(lambda v: all(np.isfinite(v)) and all(w > 0 for w in v),
-                                                         "values > 0"))
+    clutter_rate: float = setting(
+        doc="mean number of false detections per sample (Poisson)",
+        check=Check(lambda v: 0.0 <= v < float("inf"), "finite and >= 0"),
+    )
+    clutter_halfwidth: list[float] = setting(
+        doc="half-width of the box around the true measurement the false "
+        "detections fall in, one per measurement component [its units]",
+        check=Check(lambda v: all(np.isfinite(v)) and all(w > 0 for w in v), "values > 0"),
+    )
 
 
 def read_section(cfg: dict) -> dict[str, ClutteredSettings]:
@@ -89,14 +93,19 @@ def build_cluttered(cfg: dict, name: str) -> ClutteredSensor:
     sensor = plugins.load("sensors", s.type).build(s, name, build_earth(cfg), every_n_steps(s, cfg))
     halfwidth = np.asarray(s.clutter_halfwidth, dtype=float)
     if halfwidth.shape != (len(sensor.model.labels),):
-        raise ScenarioError(f"'{s.where('clutter_halfwidth')}' must hold {len(sensor.model.labels)} values > 0 "
-                            f"({', '.join(sensor.model.labels)}), got {halfwidth.tolist()}")
+        raise ScenarioError(
+            f"'{s.where('clutter_halfwidth')}' must hold {len(sensor.model.labels)} values > 0 "
+            f"({', '.join(sensor.model.labels)}), got {halfwidth.tolist()}"
+        )
     return ClutteredSensor(sensor, s.clutter_rate, halfwidth)
 
 
-CLUTTERED_SENSORS = SectionReader(SECTION, dict[str, ClutteredSettings],
-                                  "sensors whose samples are sets of detections with clutter (node kind "
-                                  "cluttered_sensor; a tracker associates them)", read_section)
+CLUTTERED_SENSORS = SectionReader(
+    SECTION,
+    dict[str, ClutteredSettings],
+    "sensors whose samples are sets of detections with clutter (node kind cluttered_sensor; a tracker associates them)",
+    read_section,
+)
 
 
 class ClutteredSensorStage:
@@ -116,12 +125,25 @@ class ClutteredSensorStage:
         if Z is None:
             return []
         R = np.broadcast_to(self.cluttered.sensor.R, (len(Z),) + self.cluttered.sensor.R.shape)
-        return [(self.topic, DetectionSet(truth.step, truth.t_ns, self.cluttered.sensor.frame_id, self.name,
-                                          self.labels, Z, R))]
+        return [
+            (
+                self.topic,
+                DetectionSet(truth.step, truth.t_ns, self.cluttered.sensor.frame_id, self.name, self.labels, Z, R),
+            )
+        ]
 
 
 CLUTTERED_SENSOR = NodeKind(
-    "cluttered_sensor", "sensor", "bench_engine.stage_node:StageNode", instances=lambda cfg, requested: names(cfg),
-    spec=lambda cfg, name: NodeSpec(name, "cluttered_sensor", publishes={detections_topic(name): DETECTION_SET_TYPE},
-                                    subscribes={TRUTH_TOPIC: TRUTH_TYPE}),
-    check=build_cluttered, stage=ClutteredSensorStage)
+    "cluttered_sensor",
+    "sensor",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, requested: names(cfg),
+    spec=lambda cfg, name: NodeSpec(
+        name,
+        "cluttered_sensor",
+        publishes={detections_topic(name): DETECTION_SET_TYPE},
+        subscribes={TRUTH_TOPIC: TRUTH_TYPE},
+    ),
+    check=build_cluttered,
+    stage=ClutteredSensorStage,
+)

@@ -9,6 +9,7 @@ stationary standard deviation: e_k = phi e_(k-1) + sqrt(1 - phi^2) L w_k, phi = 
 kinematic orbits have errors correlated over minutes (multipath, orbit and clock errors of the GPS
 satellites); a filter told R = sigma^2 I sees white noise of the right size but not the correlation.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -59,45 +60,66 @@ class Gnss(Settings):
 
     position: list[str] = setting(doc="the truth's components it measures (e.g. x1 y1 z1)", check=_labels(3))
     sigma_position: float = setting(unit="m", doc="noise per axis (1σ, stationary)", check=POSITIVE)
-    correlation_time: float = setting(0.0, unit="s", doc="Gauss-Markov correlation time of the noise (0: white)",
-                                      check=Check(lambda v: v >= 0.0, ">= 0 (s; 0 = white noise)"))
+    correlation_time: float = setting(
+        0.0,
+        unit="s",
+        doc="Gauss-Markov correlation time of the noise (0: white)",
+        check=Check(lambda v: v >= 0.0, ">= 0 (s; 0 = white noise)"),
+    )
     outages: list = setting([], unit="s", doc="[start, end] spans since the epoch without fixes")
     outlier_probability: float = setting(0.0, doc="probability that a fix carries a gross error", check=PROBABILITY)
-    outlier_sigma: float = setting(30.0, unit="m", doc="a gross error's size per axis (1σ); R does not know it",
-                                   check=NON_NEGATIVE)
+    outlier_sigma: float = setting(
+        30.0, unit="m", doc="a gross error's size per axis (1σ); R does not know it", check=NON_NEGATIVE
+    )
     frame_id: str = setting("eci", doc="header.frame_id of the measurements")
 
     def validate(self, path: str) -> None:
-        if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(v, (int, float)) for v in s)
-                   and s[0] <= s[1] for s in self.outages):
-            raise ScenarioError(f"'{path}.outages' must be a list of [start, end] times in s (start <= end), "
-                                f"got {self.outages!r}")
+        if not all(
+            isinstance(s, list) and len(s) == 2 and all(isinstance(v, (int, float)) for v in s) and s[0] <= s[1]
+            for s in self.outages
+        ):
+            raise ScenarioError(
+                f"'{path}.outages' must be a list of [start, end] times in s (start <= end), got {self.outages!r}"
+            )
 
 
 def _gnss(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
     """Kinematic GNSS position fix of one satellite: ``position`` names its truth components (e.g. x1 y1 z1)."""
     g = s.model
     outages = tuple((float(a), float(b)) for a, b in g.outages)
-    return GnssReceiver(name, "gnss", ComponentModel(g.position), g.sigma_position**2 * np.eye(3), s.p_detect, every,
-                        g.frame_id, lambda x, t: not any(a <= t <= b for a, b in outages),
-                        correlation_time=g.correlation_time, outlier_probability=g.outlier_probability,
-                        outlier_sigma=g.outlier_sigma, outages=outages)
+    return GnssReceiver(
+        name,
+        "gnss",
+        ComponentModel(g.position),
+        g.sigma_position**2 * np.eye(3),
+        s.p_detect,
+        every,
+        g.frame_id,
+        lambda x, t: not any(a <= t <= b for a, b in outages),
+        correlation_time=g.correlation_time,
+        outlier_probability=g.outlier_probability,
+        outlier_sigma=g.outlier_sigma,
+        outages=outages,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
 class Kbr(Settings):
     """``kbr``: K-band ranging, range and/or range rate between two satellites from their baseline."""
 
-    components: list[str] = setting(["range_rate"], doc="what it measures: range and/or range_rate",
-                                    check=Check(lambda c: bool(c) and all(x in ("range", "range_rate") for x in c),
-                                                "a list of 'range' and/or 'range_rate'"))
+    components: list[str] = setting(
+        ["range_rate"],
+        doc="what it measures: range and/or range_rate",
+        check=Check(
+            lambda c: bool(c) and all(x in ("range", "range_rate") for x in c), "a list of 'range' and/or 'range_rate'"
+        ),
+    )
     position: list[str] = setting(doc="the truth's baseline position components (e.g. bx by bz)", check=_labels(3))
-    velocity: list[str] = setting(doc="the truth's baseline velocity components (e.g. bvx bvy bvz)",
-                                  check=_labels(3))
-    sigma_range: float | None = setting(None, unit="m", doc="range noise (1σ); when range is measured",
-                                        check=POSITIVE)
-    sigma_range_rate: float | None = setting(None, unit="m/s", doc="range-rate noise (1σ); when range_rate is measured",
-                                             check=POSITIVE)
+    velocity: list[str] = setting(doc="the truth's baseline velocity components (e.g. bvx bvy bvz)", check=_labels(3))
+    sigma_range: float | None = setting(None, unit="m", doc="range noise (1σ); when range is measured", check=POSITIVE)
+    sigma_range_rate: float | None = setting(
+        None, unit="m/s", doc="range-rate noise (1σ); when range_rate is measured", check=POSITIVE
+    )
     frame_id: str = setting("eci", doc="header.frame_id of the measurements")
 
     def validate(self, path: str) -> None:

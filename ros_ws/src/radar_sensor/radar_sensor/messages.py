@@ -4,6 +4,7 @@ Registered per message type in the entry-point group ``tracking_bench.codecs``: 
 elevation, optional range rate, 4x4 covariance), VectorMeasurement (labelled vector + covariance) and
 DetectionSet (a set of labelled vectors with their covariances).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -40,8 +41,9 @@ class RangeAzElCodec:
         d = 4 if msg.has_range_rate else 3
         z = np.array([msg.range, msg.azimuth, msg.elevation, msg.range_rate][:d])
         R = np.asarray(msg.covariance, dtype=float).reshape(4, 4)[:d, :d].copy()
-        return Measurement(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, z, R,
-                           list(RANGE_AZ_EL_LABELS[:d]))
+        return Measurement(
+            msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, z, R, list(RANGE_AZ_EL_LABELS[:d])
+        )
 
 
 class VectorMeasurementCodec:
@@ -62,8 +64,15 @@ class VectorMeasurementCodec:
 
     def decode(self, msg) -> Measurement:
         z = np.asarray(msg.value, dtype=float)
-        return Measurement(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, z,
-                           np.asarray(msg.covariance, dtype=float).reshape(len(z), len(z)), list(msg.labels))
+        return Measurement(
+            msg.step,
+            stamp_ns(msg),
+            msg.header.frame_id,
+            msg.sensor_id,
+            z,
+            np.asarray(msg.covariance, dtype=float).reshape(len(z), len(z)),
+            list(msg.labels),
+        )
 
 
 RANGE_AZ_EL = RangeAzElCodec()
@@ -85,8 +94,15 @@ class DetectionSetCodec:
     def decode(self, msg) -> DetectionSet:
         d = len(msg.labels)
         Z = np.asarray(msg.values, dtype=float).reshape(-1, d)
-        return DetectionSet(msg.step, stamp_ns(msg), msg.header.frame_id, msg.sensor_id, list(msg.labels), Z,
-                            np.asarray(msg.covariance, dtype=float).reshape(len(Z), d, d))
+        return DetectionSet(
+            msg.step,
+            stamp_ns(msg),
+            msg.header.frame_id,
+            msg.sensor_id,
+            list(msg.labels),
+            Z,
+            np.asarray(msg.covariance, dtype=float).reshape(len(Z), d, d),
+        )
 
 
 DETECTION_SET = DetectionSetCodec()

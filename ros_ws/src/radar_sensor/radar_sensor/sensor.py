@@ -7,6 +7,7 @@ objects (the message type they publish and their builder): a new sensor type is 
 ``setup.py``. :class:`Sensor` and :class:`SensorType` are defined in radar_sensor.sensor_types (cheap to
 import) and imported from here too; this module holds the builders.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -36,8 +37,7 @@ def every_n_steps(sensor: SensorSettings, cfg: dict) -> int:
     interval, dt = sensor.interval, build_time(cfg).dt
     n = int(round(interval / dt))
     if n < 1 or abs(n * dt - interval) > 1e-9 * max(interval, 1.0):
-        raise ScenarioError(f"'{sensor.where('interval')}' ({interval} s) must be a whole multiple of time.dt "
-                            f"({dt} s)")
+        raise ScenarioError(f"'{sensor.where('interval')}' ({interval} s) must be a whole multiple of time.dt ({dt} s)")
     return n
 
 
@@ -62,10 +62,12 @@ class GroundRadar(Settings):
     sigma_range: float = setting(unit="m", doc="range noise (1σ)", check=POSITIVE)
     sigma_azimuth: float = setting(unit="rad", doc="azimuth noise (1σ)", check=POSITIVE)
     sigma_elevation: float = setting(unit="rad", doc="elevation noise (1σ)", check=POSITIVE)
-    sigma_range_rate: float | None = setting(None, unit="m/s", doc="range-rate noise (1σ); with range_rate only",
-                                             check=POSITIVE)
-    min_elevation_deg: float = setting(0.0, unit="deg", doc="the target is visible above this elevation",
-                                       check=LATITUDE)
+    sigma_range_rate: float | None = setting(
+        None, unit="m/s", doc="range-rate noise (1σ); with range_rate only", check=POSITIVE
+    )
+    min_elevation_deg: float = setting(
+        0.0, unit="deg", doc="the target is visible above this elevation", check=LATITUDE
+    )
     frame_id: str | None = setting(None, doc="header.frame_id of the measurements", default_text="NAME_enu")
 
     def validate(self, path: str) -> None:
@@ -75,14 +77,23 @@ class GroundRadar(Settings):
 
 def _ground_radar(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
     radar, st = s.model, s.model.station
-    model = GroundRadarModel(np.radians(st.lat_deg), np.radians(st.lon_deg), st.alt_m, theta0=earth.theta0,
-                             with_range_rate=radar.range_rate)
+    model = GroundRadarModel(
+        np.radians(st.lat_deg), np.radians(st.lon_deg), st.alt_m, theta0=earth.theta0, with_range_rate=radar.range_rate
+    )
     sigmas = [radar.sigma_range, radar.sigma_azimuth, radar.sigma_elevation]
     if radar.range_rate:
         sigmas.append(radar.sigma_range_rate)
     mask = np.radians(radar.min_elevation_deg)
-    return Sensor(name, "ground_radar", model, np.diag(np.square(sigmas)), s.p_detect, every,
-                  radar.frame_id or f"{name}_enu", lambda x, t: float(model.elevation(x, t)) >= mask)
+    return Sensor(
+        name,
+        "ground_radar",
+        model,
+        np.diag(np.square(sigmas)),
+        s.p_detect,
+        every,
+        radar.frame_id or f"{name}_enu",
+        lambda x, t: float(model.elevation(x, t)) >= mask,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -90,8 +101,9 @@ class IslRadio(Settings):
     """``isl_radio``: range, azimuth, elevation of the deputy seen from the chief (paper 001 eqs. 6-8 with
     convention along_radial, paper 004 eqs. 29-32 with radial_along_normal)."""
 
-    convention: str = setting(choices=("radial_along_normal", "along_radial"), doc="the LVLH axes the angles are "
-                                                                                   "measured in")
+    convention: str = setting(
+        choices=("radial_along_normal", "along_radial"), doc="the LVLH axes the angles are measured in"
+    )
     sigma_range: float = setting(unit="m", doc="range noise (1σ)", check=POSITIVE)
     sigma_azimuth: float = setting(unit="rad", doc="azimuth noise (1σ)", check=POSITIVE)
     sigma_elevation: float = setting(unit="rad", doc="elevation noise (1σ)", check=POSITIVE)
@@ -101,8 +113,16 @@ class IslRadio(Settings):
 def _isl_radio(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
     isl = s.model
     sigmas = [isl.sigma_range, isl.sigma_azimuth, isl.sigma_elevation]
-    return Sensor(name, "isl_radio", RangeAzElModel(isl.convention), np.diag(np.square(sigmas)), s.p_detect, every,
-                  isl.frame_id, lambda x, t: True)
+    return Sensor(
+        name,
+        "isl_radio",
+        RangeAzElModel(isl.convention),
+        np.diag(np.square(sigmas)),
+        s.p_detect,
+        every,
+        isl.frame_id,
+        lambda x, t: True,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -114,8 +134,16 @@ class RelativePosition(Settings):
 
 
 def _relative_position(s: SensorSettings, name: str, earth: Earth, every: int) -> Sensor:
-    return Sensor(name, "relative_position", RelativePositionModel(), s.model.sigma_position**2 * np.eye(3),
-                  s.p_detect, every, s.model.frame_id, lambda x, t: True)
+    return Sensor(
+        name,
+        "relative_position",
+        RelativePositionModel(),
+        s.model.sigma_position**2 * np.eye(3),
+        s.p_detect,
+        every,
+        s.model.frame_id,
+        lambda x, t: True,
+    )
 
 
 GROUND_RADAR = SensorType("bench_msgs/msg/RangeAzEl", GroundRadar, _ground_radar)

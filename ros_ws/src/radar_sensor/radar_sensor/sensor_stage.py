@@ -4,6 +4,7 @@ kind ``sensor`` for every entry of the scenario's ``sensors`` section.
 Subscribes ``/truth/state``; publishes ``/NAME/measurement`` (the message type of the sensor's registered
 type), stamped with the truth's sim time and step, its frame in header.frame_id.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,19 +36,33 @@ class SensorStage:
         z = self.sensor.observe(truth.state, truth.t_ns * 1e-9, truth.step, self.rng)
         if z is None:
             return []
-        return [(self.topic, Measurement(truth.step, truth.t_ns, self.sensor.frame_id, self.name, z,
-                                         self.sensor.R, self.labels))]
+        return [
+            (
+                self.topic,
+                Measurement(truth.step, truth.t_ns, self.sensor.frame_id, self.name, z, self.sensor.R, self.labels),
+            )
+        ]
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
-    return NodeSpec(name, "sensor", publishes={measurement_topic(name): sensor_type(cfg, name).message_type},
-                    subscribes={TRUTH_TOPIC: TRUTH_TYPE})
+    return NodeSpec(
+        name,
+        "sensor",
+        publishes={measurement_topic(name): sensor_type(cfg, name).message_type},
+        subscribes={TRUTH_TOPIC: TRUTH_TYPE},
+    )
 
 
 def _check(cfg: dict, name: str) -> None:
     build_sensor(cfg, name)
 
 
-SENSOR = NodeKind("sensor", "sensor", "bench_engine.stage_node:StageNode",
-                  instances=lambda cfg, requested: sensor_names(cfg), spec=_spec, check=_check, stage=SensorStage)
-
+SENSOR = NodeKind(
+    "sensor",
+    "sensor",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, requested: sensor_names(cfg),
+    spec=_spec,
+    check=_check,
+    stage=SensorStage,
+)

@@ -1,5 +1,6 @@
 """Registered sensor types, what they build (:class:`Sensor`) and the scenario's sensors, without building
 them (cheap to import: the graph reads these for every node; the builders are in radar_sensor.sensor)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -10,8 +11,16 @@ import numpy as np
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
 from bench_engine.labels import AZIMUTHS
-from bench_engine.settings import (POSITIVE, PROBABILITY, SectionReader, Settings, read_entries, read_key, setting,
-                                   variant)
+from bench_engine.settings import (
+    POSITIVE,
+    PROBABILITY,
+    SectionReader,
+    Settings,
+    read_entries,
+    read_key,
+    setting,
+    variant,
+)
 from bench_models.models import MeasurementModel, check_angles
 
 if TYPE_CHECKING:
@@ -72,13 +81,17 @@ class SensorSettings(Settings):
     """One entry of ``sensors`` (or of ``cluttered_sensors``): a registered sensor type with its sampling, and
     the type's own keys (its :class:`SensorType`'s ``settings``)."""
 
-    type: str = setting(doc="a registered sensor type (entry-point group tracking_bench.sensors)",
-                        choices=lambda: plugins.names("sensors"))
+    type: str = setting(
+        doc="a registered sensor type (entry-point group tracking_bench.sensors)",
+        choices=lambda: plugins.names("sensors"),
+    )
     interval: float = setting(unit="s", doc="time between two samples: a whole multiple of time.dt", check=POSITIVE)
-    p_detect: float = setting(1.0, doc="probability that a sample where the target is visible gives a measurement",
-                              check=PROBABILITY)
-    model: Settings = variant("type", lambda: plugins.names("sensors"),
-                              lambda name: plugins.load("sensors", name).settings)
+    p_detect: float = setting(
+        1.0, doc="probability that a sample where the target is visible gives a measurement", check=PROBABILITY
+    )
+    model: Settings = variant(
+        "type", lambda: plugins.names("sensors"), lambda name: plugins.load("sensors", name).settings
+    )
 
 
 @dataclass(frozen=True)
@@ -110,6 +123,9 @@ def sensor_type(cfg: dict, name: str) -> SensorType:
     return plugins.load("sensors", read_key(SensorSettings, sensors[name], "type", f"sensors.{name}"))
 
 
-SENSORS = SectionReader("sensors", dict[str, SensorSettings], "the sensors (node kind sensor): each a registered "
-                                                              "type with its noise, sampling and visibility",
-                        read_sensors)
+SENSORS = SectionReader(
+    "sensors",
+    dict[str, SensorSettings],
+    "the sensors (node kind sensor): each a registered type with its noise, sampling and visibility",
+    read_sensors,
+)

@@ -25,6 +25,7 @@ about the first. Its first-order covariance, for σ1, σ2 rad per axis on b1, b2
 derived here by linearising the triads; tests/test_star_attitude.py checks it by Monte Carlo), is
 P = σ1² I + |b1×b2|⁻² [σ1² (b1·b2)(b1 b2ᵀ + b2 b1ᵀ) + (σ2² − σ1²) b1 b1ᵀ].
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -103,9 +104,13 @@ def _matrix_from_xyzw(x: float, y: float, z: float, w: float) -> np.ndarray:
     """Rotation matrix of the unit quaternion (x, y, z, w) (w the scalar part)."""
     x2, y2, z2, w2 = x * x, y * y, z * z, w * w
     xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
-    return np.array([[x2 - y2 - z2 + w2, 2.0 * (xy - zw), 2.0 * (xz + yw)],
-                     [2.0 * (xy + zw), -x2 + y2 - z2 + w2, 2.0 * (yz - xw)],
-                     [2.0 * (xz - yw), 2.0 * (yz + xw), -x2 - y2 + z2 + w2]])
+    return np.array(
+        [
+            [x2 - y2 - z2 + w2, 2.0 * (xy - zw), 2.0 * (xz + yw)],
+            [2.0 * (xy + zw), -x2 + y2 - z2 + w2, 2.0 * (yz - xw)],
+            [2.0 * (xz - yw), 2.0 * (yz + xw), -x2 - y2 + z2 + w2],
+        ]
+    )
 
 
 def _rotvec_from_xyzw(x: float, y: float, z: float, w: float) -> np.ndarray:
@@ -191,7 +196,7 @@ def residuals(A: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Angles (rad) between observed directions b (N, 3) and the predicted A r (N, 3)."""
     d = np.asarray(b) - np.asarray(r) @ np.asarray(A).T
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    return 2.0 * np.arcsin(np.minimum(np.sqrt(x * x + y * y + z * z) / 2.0, 1.0))    # |d| = 2 sin(angle/2)
+    return 2.0 * np.arcsin(np.minimum(np.sqrt(x * x + y * y + z * z) / 2.0, 1.0))  # |d| = 2 sin(angle/2)
 
 
 def _svd(B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -209,9 +214,9 @@ def wahba_matrix(b: np.ndarray, r: np.ndarray, w: np.ndarray | None = None) -> n
     B = b.T @ r if w is None else (b * np.asarray(w, dtype=float)[:, None]).T @ r
     U, _, Vt = _svd(B)
     A = U @ Vt
-    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A.tolist()     # det A = ±1
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A.tolist()  # det A = ±1
     if a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20) < 0:
-        A = (U * np.array([1.0, 1.0, -1.0])) @ Vt   # the proper rotation: flip the smallest singular value's axis
+        A = (U * np.array([1.0, 1.0, -1.0])) @ Vt  # the proper rotation: flip the smallest singular value's axis
     return A
 
 
@@ -235,17 +240,19 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def triad_matrix(b1: np.ndarray, b2: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
     """TRIAD attitude matrix, anchored on the first star (module docstring)."""
+
     def triad(v1: np.ndarray, v2: np.ndarray) -> np.ndarray:
         t1 = v1 / np.linalg.norm(v1)
         t2 = cross(v1, v2)
         t2 = t2 / np.linalg.norm(t2)
         return np.column_stack([t1, t2, cross(t1, t2)])
-    return triad(np.asarray(b1, float), np.asarray(b2, float)) @ triad(np.asarray(r1, float),
-                                                                        np.asarray(r2, float)).T
+
+    return triad(np.asarray(b1, float), np.asarray(b2, float)) @ triad(np.asarray(r1, float), np.asarray(r2, float)).T
 
 
-def triad(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray, pair: tuple[int, int] | None = None
-          ) -> AttitudeSolution:
+def triad(
+    b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray, pair: tuple[int, int] | None = None
+) -> AttitudeSolution:
     """TRIAD from two of the stars (b, r (N, 3), N >= 2), as the paper computes the attitude. ``pair`` picks
     them (anchor first); by default the pair with the largest separation, whose |b1 × b2| is largest, anchored
     on the first star of the list. The residuals are of all N stars against the TRIAD attitude."""
@@ -261,6 +268,7 @@ def triad(b: np.ndarray, r: np.ndarray, sigma: float | np.ndarray, pair: tuple[i
     A = triad_matrix(b[i], b[j], r[i], r[j])
     b1, b2 = b[i], b[j]
     c = cross(b1, b2)
-    P = s[i] ** 2 * np.eye(3) + (s[i] ** 2 * (b1 @ b2) * (np.outer(b1, b2) + np.outer(b2, b1))
-                                 + (s[j] ** 2 - s[i] ** 2) * np.outer(b1, b1)) / (c @ c)
+    P = s[i] ** 2 * np.eye(3) + (
+        s[i] ** 2 * (b1 @ b2) * (np.outer(b1, b2) + np.outer(b2, b1)) + (s[j] ** 2 - s[i] ** 2) * np.outer(b1, b1)
+    ) / (c @ c)
     return AttitudeSolution(A, P, 2, b, r)

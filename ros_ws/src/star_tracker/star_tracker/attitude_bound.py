@@ -12,6 +12,7 @@ boresight (|t| ≪ 1) it is the QUEST measurement model's Σ (I − b bᵀ)/σ²
 evaluated at the measured centroids (their 0.1-pixel noise moves it by a negligible amount) and takes every
 centroid for a star: a false star would add information that does not exist (the study's default has none).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -32,4 +33,4 @@ def centroid_jacobians(xy: np.ndarray) -> np.ndarray:
 def attitude_information(xy: np.ndarray, sigma: float) -> np.ndarray:
     """J = Σ H_iᵀ H_i / σ² (3, 3) of one frame's centroids xy (N, 2), noise sigma per axis (tangent units)."""
     H = centroid_jacobians(xy)
-    return np.einsum("nki,nkj->ij", H, H) / sigma ** 2
+    return np.einsum("nki,nkj->ij", H, H) / sigma**2

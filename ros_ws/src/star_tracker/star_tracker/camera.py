@@ -18,6 +18,7 @@ average (tests/test_star_camera.py checks the spread over random pointings), eno
 anywhere on the sky, while the paper's centroid noise σ = 0.005–0.03 px at 71"/px gives star-direction errors
 of 0.35"–2", consistent with the arc-second attitude errors the paper reports.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -102,11 +103,16 @@ class Camera:
     def in_image(self, uv: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """True where a pixel coordinate lies in the image, at least ``margin`` pixels from its edges."""
         uv = np.asarray(uv, dtype=float)
-        return ((uv[..., 0] >= margin) & (uv[..., 0] <= self.width - margin)
-                & (uv[..., 1] >= margin) & (uv[..., 1] <= self.height - margin))
+        return (
+            (uv[..., 0] >= margin)
+            & (uv[..., 0] <= self.width - margin)
+            & (uv[..., 1] >= margin)
+            & (uv[..., 1] <= self.height - margin)
+        )
 
-    def stars_in_view(self, catalogue: StarCatalogue, attitude: np.ndarray,
-                      margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def stars_in_view(
+        self, catalogue: StarCatalogue, attitude: np.ndarray, margin: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Catalogue indices (brightest first) and pixel coordinates (N, 2) of the stars imaged with the
         camera-from-ICRS attitude matrix ``attitude``: a k-d tree cone search around the boresight (the cone
         through the image corners), then the exact image rectangle."""

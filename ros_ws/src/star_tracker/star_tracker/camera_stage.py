@@ -24,6 +24,7 @@ truth_model.py) and publishes, per frame,
         mag_sigma: 0.1           # instrument magnitude noise
         cache_dir: null          # the catalogue cache (default: catalogue.default_cache_dir())
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -47,20 +48,36 @@ class CameraConfig(Settings):
     fov_deg: float = setting(20.0, unit="deg", check=between(0.5, 90.0, "deg"), doc="full field across the width")
     width: int = setting(1024, check=between(16, 16384, "px", what="an integer in"), doc="image width [px]")
     height: int = setting(1024, check=between(16, 16384, "px", what="an integer in"), doc="image height [px]")
-    magnitude_limit: float = setting(6.0, check=between(2.0, 9.0, "(Hipparcos)"),
-                                     doc="the on-board catalogue's and the camera's detection limit [mag]")
-    epoch: float = setting(2025.0, check=between(1900.0, 2100.0, what="a year in"),
-                           doc="proper motion applied to this epoch [year] (catalogue.py)")
-    merge_arcsec: float = setting(140.0, unit="arcsec", check=between(0.0, 3600.0, "arcsec"),
-                                  doc="catalogue pairs closer than this are one entry (unresolved by the camera)")
-    sigma_px: float = setting(0.2, unit="px", check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
-                              doc="centroid noise per axis (1σ)")
-    p_detect: float = setting(0.95, check=Check(lambda v: 0.0 < v <= 1.0, "in (0, 1]"),
-                              doc="probability that each star in view is detected")
-    false_stars: int = setting(0, check=between(0, 1000, what="an integer in"), doc="false stars per frame (a fixed "
-                                                                                     "number) ...")
-    false_rate: float = setting(0.0, check=between(0.0, 1000.0, "per frame"),
-                                doc="... plus a Poisson number of false stars with this mean per frame")
+    magnitude_limit: float = setting(
+        6.0,
+        check=between(2.0, 9.0, "(Hipparcos)"),
+        doc="the on-board catalogue's and the camera's detection limit [mag]",
+    )
+    epoch: float = setting(
+        2025.0,
+        check=between(1900.0, 2100.0, what="a year in"),
+        doc="proper motion applied to this epoch [year] (catalogue.py)",
+    )
+    merge_arcsec: float = setting(
+        140.0,
+        unit="arcsec",
+        check=between(0.0, 3600.0, "arcsec"),
+        doc="catalogue pairs closer than this are one entry (unresolved by the camera)",
+    )
+    sigma_px: float = setting(
+        0.2, unit="px", check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"), doc="centroid noise per axis (1σ)"
+    )
+    p_detect: float = setting(
+        0.95, check=Check(lambda v: 0.0 < v <= 1.0, "in (0, 1]"), doc="probability that each star in view is detected"
+    )
+    false_stars: int = setting(
+        0, check=between(0, 1000, what="an integer in"), doc="false stars per frame (a fixed number) ..."
+    )
+    false_rate: float = setting(
+        0.0,
+        check=between(0.0, 1000.0, "per frame"),
+        doc="... plus a Poisson number of false stars with this mean per frame",
+    )
     mag_sigma: float = setting(0.1, check=between(0.0, 2.0, "mag"), doc="instrument magnitude noise [mag]")
     cache_dir: str | None = setting(None, doc="the catalogue cache", default_text="catalogue.default_cache_dir()")
 
@@ -81,9 +98,12 @@ def camera_config(cfg: dict, name: str) -> CameraConfig:
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
-    return NodeSpec(name, "star_camera", publishes={measurement_topic(name): STAR_CENTROIDS_TYPE,
-                                                    star_truth_topic(name): STAR_CENTROIDS_TYPE},
-                    subscribes={TRUTH_TOPIC: TRUTH_TYPE})
+    return NodeSpec(
+        name,
+        "star_camera",
+        publishes={measurement_topic(name): STAR_CENTROIDS_TYPE, star_truth_topic(name): STAR_CENTROIDS_TYPE},
+        subscribes={TRUTH_TOPIC: TRUTH_TYPE},
+    )
 
 
 def _check(cfg: dict, name: str) -> None:
@@ -96,11 +116,18 @@ def _check(cfg: dict, name: str) -> None:
 def _star_camera(cfg: dict, name: str, run: dict | None = None):
     """The camera's core (star_tracker.star_camera.StarCameraStage), its random draws seeded by the run."""
     from star_tracker.star_camera import StarCameraStage  # catalogue, camera, frames: scipy, not for every node
+
     seed = int((run or {}).get("seed", scenario_seed(cfg)))
     rng = np.random.default_rng([seed, 3000 + sorted(read_cameras(cfg)).index(name)])
     return StarCameraStage(name, camera_config(cfg, name), rng, read_truth(cfg))
 
 
-STAR_CAMERA = NodeKind("star_camera", "sensor", "bench_engine.stage_node:StageNode",
-                       instances=lambda cfg, requested: list(read_cameras(cfg)), spec=_spec, check=_check,
-                       stage=_star_camera)
+STAR_CAMERA = NodeKind(
+    "star_camera",
+    "sensor",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, requested: list(read_cameras(cfg)),
+    spec=_spec,
+    check=_check,
+    stage=_star_camera,
+)

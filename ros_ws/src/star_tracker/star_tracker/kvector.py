@@ -21,6 +21,7 @@ image can subtend (camera.max_separation), sorted by their angular distance, wit
 angles. The Pyramid identification (pyramid.py) asks it for every catalogue pair whose angle lies in
 [θ − ε, θ + ε].
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -3,6 +3,7 @@
 its per-centroid truth (scoring only, its own topic) and an estimator's identification of the centroids.
 Positions travel as tangent-plane coordinates (camera.py: to_tangent / from_tangent).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -54,11 +55,18 @@ class StarCentroidsCodec:
         return msg
 
     def decode(self, msg) -> StarFrame:
-        return StarFrame(msg.step, stamp_ns(msg), msg.header.frame_id, msg.camera_id,
-                         np.column_stack([np.asarray(msg.x, dtype=float), np.asarray(msg.y, dtype=float)]),
-                         np.asarray(msg.magnitude, dtype=float), float(msg.sigma),
-                         np.asarray(msg.body_rate, dtype=float), float(msg.jitter_rate),
-                         np.asarray(msg.star_id, dtype=np.int64))
+        return StarFrame(
+            msg.step,
+            stamp_ns(msg),
+            msg.header.frame_id,
+            msg.camera_id,
+            np.column_stack([np.asarray(msg.x, dtype=float), np.asarray(msg.y, dtype=float)]),
+            np.asarray(msg.magnitude, dtype=float),
+            float(msg.sigma),
+            np.asarray(msg.body_rate, dtype=float),
+            float(msg.jitter_rate),
+            np.asarray(msg.star_id, dtype=np.int64),
+        )
 
 
 STAR_CENTROIDS = StarCentroidsCodec()

@@ -28,6 +28,7 @@ F against the closed form
     F = [[1, sin ωΔt/ω, 0, −(1 − cos ωΔt)/ω], [0, cos ωΔt, 0, −sin ωΔt],
          [0, (1 − cos ωΔt)/ω, 1, sin ωΔt/ω],  [0, sin ωΔt, 0, cos ωΔt]].)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -89,9 +90,9 @@ class ConstantVelocity:
         f = np.array([[1.0, dt], [0.0, 1.0]])
         if self.kind == "discrete":
             e = np.array([dt * dt / 2.0, dt])
-            q = self.sigma_a ** 2 * np.outer(e, e)
+            q = self.sigma_a**2 * np.outer(e, e)
         else:
-            q = self.sigma_a ** 2 * np.array([[dt ** 3 / 3.0, dt ** 2 / 2.0], [dt ** 2 / 2.0, dt]])
+            q = self.sigma_a**2 * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
         F, Q = np.zeros((4, 4)), np.zeros((4, 4))
         F[:2, :2] = F[2:, 2:] = f
         Q[:2, :2] = Q[2:, 2:] = q
@@ -118,7 +119,7 @@ class CoordinatedTurn:
 
     def transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """F = e^{AΔt} and Q in closed form (module docstring); tests check both against expm/Van Loan."""
-        return turn_matrix(self.omega, dt), turn_noise(self.omega, dt, self.sigma_a ** 2)
+        return turn_matrix(self.omega, dt), turn_noise(self.omega, dt, self.sigma_a**2)
 
 
 def _turn_terms(omega: float, dt: float) -> tuple[float, float, float]:
@@ -127,10 +128,10 @@ def _turn_terms(omega: float, dt: float) -> tuple[float, float, float]:
     x = omega * dt
     if abs(x) < 1e-2:
         x2 = x * x
-        a = dt ** 3 * (1.0 / 6.0 - x2 / 120.0 + x2 * x2 / 5040.0)          # (x − sin x)/ω³
-        c = dt ** 2 * (0.5 - x2 / 24.0 + x2 * x2 / 720.0)                  # (1 − cos x)/ω²
+        a = dt**3 * (1.0 / 6.0 - x2 / 120.0 + x2 * x2 / 5040.0)  # (x − sin x)/ω³
+        c = dt**2 * (0.5 - x2 / 24.0 + x2 * x2 / 720.0)  # (1 − cos x)/ω²
         return a, a * omega, c
-    return (x - np.sin(x)) / omega ** 3, (x - np.sin(x)) / omega ** 2, (1.0 - np.cos(x)) / omega ** 2
+    return (x - np.sin(x)) / omega**3, (x - np.sin(x)) / omega**2, (1.0 - np.cos(x)) / omega**2
 
 
 def turn_noise(omega: float, dt: float, q: float) -> np.ndarray:
@@ -148,10 +149,7 @@ def turn_matrix(omega: float, dt: float) -> np.ndarray:
     """The closed-form coordinated-turn F (module docstring), written with the terms of :func:`_turn_terms`
     so that it stays accurate as ω → 0 (ω = 0 gives constant velocity)."""
     _, s2, c2 = _turn_terms(omega, dt)
-    sin_w = dt - omega * s2                 # sin x / ω
-    cos_1 = omega * c2                      # (1 − cos x) / ω
+    sin_w = dt - omega * s2  # sin x / ω
+    cos_1 = omega * c2  # (1 − cos x) / ω
     s, c = omega * sin_w, 1.0 - omega * cos_1
-    return np.array([[1.0, sin_w, 0.0, -cos_1],
-                     [0.0, c, 0.0, -s],
-                     [0.0, cos_1, 1.0, sin_w],
-                     [0.0, s, 0.0, c]])
+    return np.array([[1.0, sin_w, 0.0, -cos_1], [0.0, c, 0.0, -s], [0.0, cos_1, 1.0, sin_w], [0.0, s, 0.0, c]])

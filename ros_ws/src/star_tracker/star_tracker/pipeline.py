@@ -40,6 +40,7 @@ for measured positions, the filter's √(tr(H P Hᵀ)/2) (at most σ) for the JP
 covariance reflects the filtering (the filtered errors of one star are correlated from frame to frame; between
 stars they are independent as long as the known rate is exact).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -107,11 +108,24 @@ class StarTrackerPipeline:
     between the trackers (starting tracks, a frame's step, the check after verification) is the strategy
     ``tracking`` (SNATracking, JPDAFTracking), chosen once from ``tracker``."""
 
-    def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float, tracker: str = "jpdaf",
-                 solver: str = "wahba", motion: str = "constant_velocity", sigma_a: float = 0.5,
-                 p_detect: float = 0.95, clutter_density: float | None = None, gate: float | None = None,
-                 min_stars: int = 3, verify_sigmas: float = 6.0, max_misses: int = 3, aid: str = "rate",
-                 identifier: PyramidIdentifier | None = None) -> None:
+    def __init__(
+        self,
+        catalogue: StarCatalogue,
+        camera: Camera,
+        sigma_px: float,
+        tracker: str = "jpdaf",
+        solver: str = "wahba",
+        motion: str = "constant_velocity",
+        sigma_a: float = 0.5,
+        p_detect: float = 0.95,
+        clutter_density: float | None = None,
+        gate: float | None = None,
+        min_stars: int = 3,
+        verify_sigmas: float = 6.0,
+        max_misses: int = 3,
+        aid: str = "rate",
+        identifier: PyramidIdentifier | None = None,
+    ) -> None:
         if tracker not in TRACKERS:
             raise ValueError(f"tracker must be one of {TRACKERS}, got {tracker!r}")
         if solver not in SOLVERS:
@@ -163,16 +177,18 @@ class StarTrackerPipeline:
         return jpdaf_motion(self.motion_kind, self.aid, self.sigma_a, float(omega_body[2]), jitter_rate)
 
     # ------------------------------------------------------------------------------------------------ frame
-    def process(self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float, omega_body: np.ndarray,
-                jitter_rate: float = 0.0) -> FrameResult:
+    def process(
+        self, uv: np.ndarray, magnitudes: np.ndarray | None, t: float, omega_body: np.ndarray, jitter_rate: float = 0.0
+    ) -> FrameResult:
         """One frame (module docstring): ``omega_body`` the body rate (rad/s, camera frame) and ``jitter_rate``
         its measured boresight jitter part (rad/s; used by ``aid="jitter"`` only). Never raises on a frame's
         content."""
         uv = np.asarray(uv, dtype=float).reshape(-1, 2)
         finite = np.all(np.isfinite(uv), axis=1)
-        if not finite.all():   # a centroid that is not a number is no measurement
-            result = self.process(uv[finite], None if magnitudes is None else np.asarray(magnitudes)[finite],
-                                  t, omega_body, jitter_rate)
+        if not finite.all():  # a centroid that is not a number is no measurement
+            result = self.process(
+                uv[finite], None if magnitudes is None else np.asarray(magnitudes)[finite], t, omega_body, jitter_rate
+            )
             index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
             index[finite] = result.index
             result.index = index
@@ -219,8 +235,9 @@ class StarTrackerPipeline:
                 break
             keep[np.flatnonzero(keep)[int(np.argmax(res))]] = False
         if keep.sum() < self.min_stars:
-            return FrameResult(False, f"{int(keep.sum())} verified tracked stars, fewer than {self.min_stars}",
-                               "tracking", None, index)
+            return FrameResult(
+                False, f"{int(keep.sum())} verified tracked stars, fewer than {self.min_stars}", "tracking", None, index
+            )
         if not keep.all():
             self._forget(ids[~keep])
             ids, rows, pos, sig, b, r = ids[keep], rows[keep], pos[keep], sig[keep], b[keep], r[keep]
@@ -293,8 +310,9 @@ class SNATracking:
         """Start tracks for the stars ``ids`` identified at the centroids uv."""
         self.tracker.start(ids, uv)
 
-    def step(self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def step(
+        self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Follow the stars to the frame's centroids uv: the (ids, rows into uv, positions, σ px) of the stars
         updated this frame."""
         ids = self.tracker.ids.copy()
@@ -303,8 +321,17 @@ class SNATracking:
         ids, rows, pos = ids[hit], taken[hit], uv[taken[hit]]
         return ids, rows, pos, np.full(len(ids), self.pipe.sigma_px)
 
-    def verified(self, ids: np.ndarray, rows: np.ndarray, uv: np.ndarray, pos: np.ndarray, sig: np.ndarray,
-                 b: np.ndarray, r: np.ndarray, A_fit: np.ndarray) -> Verified:
+    def verified(
+        self,
+        ids: np.ndarray,
+        rows: np.ndarray,
+        uv: np.ndarray,
+        pos: np.ndarray,
+        sig: np.ndarray,
+        b: np.ndarray,
+        r: np.ndarray,
+        A_fit: np.ndarray,
+    ) -> Verified:
         """The verified stars (ids, their rows into the frame's centroids uv, positions, σ, directions b,
         catalogue vectors r, the fit A_fit) as they are: the SNA's positions are the measurements."""
         return Verified(pos, sig, b, A_fit)
@@ -327,9 +354,15 @@ class JPDAFTracking:
 
     def _new_tracker(self) -> JPDAFTracker:
         pipe = self.pipe
-        return JPDAFTracker(ConstantVelocity(pipe.sigma_a), pipe.sigma_px, p_detect=pipe.p_detect,
-                            clutter_density=pipe.clutter_density, gate=pipe.gate, max_misses=pipe.max_misses,
-                            camera=pipe.camera)
+        return JPDAFTracker(
+            ConstantVelocity(pipe.sigma_a),
+            pipe.sigma_px,
+            p_detect=pipe.p_detect,
+            clutter_density=pipe.clutter_density,
+            gate=pipe.gate,
+            max_misses=pipe.max_misses,
+            camera=pipe.camera,
+        )
 
     def reset(self) -> None:
         """A new, empty tracker and no agreement history."""
@@ -352,23 +385,33 @@ class JPDAFTracking:
             velocity = image_velocity(pipe.camera, uv, self._model_rate(omega_body, jitter_rate))
             self.tracker.start(ids, uv, velocity, velocity_sigma=1.0)
 
-    def step(self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def step(
+        self, uv: np.ndarray, dt: float, omega_body: np.ndarray, jitter_rate: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Follow the stars to the frame's centroids uv: the (ids, rows into uv, filtered positions, σ px) of
         the stars whose most probable hypothesis is a detection (σ: the filter's, at most the centroid's)."""
         pipe, shift = self.pipe, None
         if pipe.aid == "rate":
             p = self.tracker.positions
             shift = predict_centroids(pipe.camera, p, omega_body, dt) - p
-        elif pipe.aid == "jitter":   # the image turns by −j dt about the boresight's pixel (eq. 18)
+        elif pipe.aid == "jitter":  # the image turns by −j dt about the boresight's pixel (eq. 18)
             self.tracker.turn_image(-jitter_rate * dt, pipe.camera.centre)
         step = self.tracker.step(uv, dt, pipe.motion_for(omega_body, jitter_rate), shift)
         hit = step.detection >= 0
         ids, rows, pos = step.ids[hit], step.detection[hit], step.positions[hit]
         return ids, rows, pos, np.minimum(step.position_sigma[hit], pipe.sigma_px)
 
-    def verified(self, ids: np.ndarray, rows: np.ndarray, uv: np.ndarray, pos: np.ndarray, sig: np.ndarray,
-                 b: np.ndarray, r: np.ndarray, A_fit: np.ndarray) -> Verified:
+    def verified(
+        self,
+        ids: np.ndarray,
+        rows: np.ndarray,
+        uv: np.ndarray,
+        pos: np.ndarray,
+        sig: np.ndarray,
+        b: np.ndarray,
+        r: np.ndarray,
+        A_fit: np.ndarray,
+    ) -> Verified:
         """The verified stars (ids, their rows into the frame's centroids uv, filtered positions, σ, directions
         b, catalogue vectors r, the fit A_fit) after the agreement check: the filtered stars with their
         all-star attitude (and the disagreement as a covariance inflation when suspect), or, when they
@@ -381,11 +424,11 @@ class JPDAFTracking:
             return Verified(pos, sig, b, A_fit, filtered, None if delta is None else np.outer(delta, delta))
         self.tracker.reseed(ids, measured)
         self.resets += 1
-        return Verified(measured, np.full(len(ids), self.pipe.sigma_px), b_measured, wahba_matrix(b_measured, r),
-                        own)
+        return Verified(measured, np.full(len(ids), self.pipe.sigma_px), b_measured, wahba_matrix(b_measured, r), own)
 
-    def unbiased(self, b: np.ndarray, sig: np.ndarray, b_measured: np.ndarray, r: np.ndarray
-                 ) -> tuple[bool, np.ndarray | None, AttitudeSolution, AttitudeSolution]:
+    def unbiased(
+        self, b: np.ndarray, sig: np.ndarray, b_measured: np.ndarray, r: np.ndarray
+    ) -> tuple[bool, np.ndarray | None, AttitudeSolution, AttitudeSolution]:
         """Whether the filtered stars (directions b, σ ``sig`` px) agree with the measurements their tracks
         took (directions ``b_measured``; catalogue vectors r) (module docstring, step 3), the disagreement δθ
         to add to the reported covariance (as δθ δθᵀ) when it is suspect, and the two all-star attitudes
@@ -435,8 +478,20 @@ def pipeline_for(conf, cam) -> StarTrackerPipeline:
     if clutter is None:
         clutter = max(cam.false_stars + cam.false_rate, 0.1)
     identifier = PyramidIdentifier(catalogue, camera, sigma_px, pair_table=pair_table(cam))
-    return StarTrackerPipeline(catalogue, camera, sigma_px, tracker=conf.tracker, solver=conf.solver,
-                               motion=conf.motion, sigma_a=conf.sigma_a, p_detect=conf.p_detect,
-                               clutter_density=clutter / (camera.width * camera.height), gate=conf.gate,
-                               min_stars=conf.min_stars, verify_sigmas=conf.verify_sigmas,
-                               max_misses=conf.max_misses, aid=conf.aid, identifier=identifier)
+    return StarTrackerPipeline(
+        catalogue,
+        camera,
+        sigma_px,
+        tracker=conf.tracker,
+        solver=conf.solver,
+        motion=conf.motion,
+        sigma_a=conf.sigma_a,
+        p_detect=conf.p_detect,
+        clutter_density=clutter / (camera.width * camera.height),
+        gate=conf.gate,
+        min_stars=conf.min_stars,
+        verify_sigmas=conf.verify_sigmas,
+        max_misses=conf.max_misses,
+        aid=conf.aid,
+        identifier=identifier,
+    )

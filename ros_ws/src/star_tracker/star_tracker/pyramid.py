@@ -27,6 +27,7 @@ Tolerances (σ = centroid noise in pixels, ifov = rad per pixel): a star directi
 an inter-star angle ≈ √2 σ_θ, so ε = ``pair_sigmas``·√2·σ_θ + ``floor`` (the floor absorbs catalogue and
 pinhole-scale errors), and the match radius is ``match_sigmas``·σ_θ + ``floor``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -75,9 +76,11 @@ def triangle_order(n: int) -> Iterator[tuple[int, int, int]]:
 def triple_product(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """a · (b × c) along the last axis."""
     a, b, c = np.asarray(a), np.asarray(b), np.asarray(c)
-    return (a[..., 0] * (b[..., 1] * c[..., 2] - b[..., 2] * c[..., 1])
-            + a[..., 1] * (b[..., 2] * c[..., 0] - b[..., 0] * c[..., 2])
-            + a[..., 2] * (b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0]))
+    return (
+        a[..., 0] * (b[..., 1] * c[..., 2] - b[..., 2] * c[..., 1])
+        + a[..., 1] * (b[..., 2] * c[..., 0] - b[..., 0] * c[..., 2])
+        + a[..., 2] * (b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0])
+    )
 
 
 class _Angles:
@@ -126,7 +129,7 @@ class _Near:
     unit vectors (ties aside)."""
 
     def __init__(self, identifier: "PyramidIdentifier", a: int) -> None:
-        self.stars = identifier._near[identifier._near_start[a]:identifier._near_start[a + 1]]
+        self.stars = identifier._near[identifier._near_start[a] : identifier._near_start[a + 1]]
         self.vectors_t = identifier.catalogue.vectors.take(self.stars, axis=0).T  # a is the last column
         self.reach_chord = identifier._reach_chord
 
@@ -146,10 +149,19 @@ class _Near:
 class PyramidIdentifier:
     """Lost-in-space identification of a frame's centroids against a catalogue (module docstring)."""
 
-    def __init__(self, catalogue: StarCatalogue, camera: Camera, sigma_px: float = 0.2,
-                 pair_sigmas: float = 4.0, match_sigmas: float = 6.0, floor_arcsec: float = 2.0,
-                 max_stars: int = 12, max_triangles: int = 1000, max_false_alarm: float = 1e-6,
-                 pair_table: PairTable | None = None) -> None:
+    def __init__(
+        self,
+        catalogue: StarCatalogue,
+        camera: Camera,
+        sigma_px: float = 0.2,
+        pair_sigmas: float = 4.0,
+        match_sigmas: float = 6.0,
+        floor_arcsec: float = 2.0,
+        max_stars: int = 12,
+        max_triangles: int = 1000,
+        max_false_alarm: float = 1e-6,
+        pair_table: PairTable | None = None,
+    ) -> None:
         if sigma_px < 0:
             raise ValueError(f"sigma_px must be >= 0, got {sigma_px}")
         if max_stars < 4:
@@ -185,7 +197,7 @@ class PyramidIdentifier:
         index = np.full(len(uv), UNIDENTIFIED, dtype=np.int64)
         b = self.camera.unproject(np.where(finite[:, None], uv, 0.0))
         mags = None if magnitudes is None else np.asarray(magnitudes, dtype=float).ravel()
-        if mags is not None and len(mags) != len(uv):   # not one magnitude per centroid: ignore them
+        if mags is not None and len(mags) != len(uv):  # not one magnitude per centroid: ignore them
             mags = None
         order = np.arange(len(uv)) if mags is None else np.argsort(mags, kind="stable")
         order = order[finite[order]]
@@ -206,8 +218,13 @@ class PyramidIdentifier:
         tried, candidates = 0, 0
         for i, j, k in self._triangles(n):
             if tried >= self.max_triangles:
-                return Identification(False, f"no confirmed triangle within the limit of {self.max_triangles} "
-                                      f"triangles ({candidates} catalogue candidates tested)", none, triangles=tried)
+                return Identification(
+                    False,
+                    f"no confirmed triangle within the limit of {self.max_triangles} "
+                    f"triangles ({candidates} catalogue candidates tested)",
+                    none,
+                    triangles=tried,
+                )
             tried += 1
             for a, bb, c in self._triangle_candidates(b, theta, i, j, k, cache):
                 candidates += 1
@@ -216,8 +233,13 @@ class PyramidIdentifier:
                     result.triangles = tried
                     result.stats["candidates"] = candidates
                     return result
-        return Identification(False, f"no confirmed triangle among the {tried} triangles of the {n} centroids "
-                              f"({candidates} catalogue candidates tested)", none, triangles=tried)
+        return Identification(
+            False,
+            f"no confirmed triangle among the {tried} triangles of the {n} centroids "
+            f"({candidates} catalogue candidates tested)",
+            none,
+            triangles=tried,
+        )
 
     def _triangles(self, n: int) -> Iterator[tuple[int, int, int]]:
         """Triangles of the brightest ``max_stars`` in Mortari's order, then, if none was confirmed (false
@@ -232,21 +254,22 @@ class PyramidIdentifier:
                 return
             done, size = size, min(n, size + self.max_stars)
 
-    def match(self, b: np.ndarray, attitude: np.ndarray, radius: float | None = None
-              ) -> tuple[np.ndarray, np.ndarray]:
+    def match(self, b: np.ndarray, attitude: np.ndarray, radius: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Catalogue index of the nearest catalogue star within ``radius`` (default: the match radius) of each
         observed direction b (N, 3) mapped to ICRS by the camera-from-ICRS ``attitude`` (−1 where none), each
         catalogue star going to its closest centroid only; and the angular distances (inf where none). This
         identifies the stars of a frame once the attitude is known (new stars entering the field too)."""
         b = np.asarray(b, dtype=float).reshape(-1, 3)
-        index, rows, d = self._nearest(b, np.asarray(attitude, dtype=float),
-                                       self._match_chord if radius is None else chord(radius))
+        index, rows, d = self._nearest(
+            b, np.asarray(attitude, dtype=float), self._match_chord if radius is None else chord(radius)
+        )
         dist = np.full(len(b), np.inf)
         dist[rows] = 2.0 * np.arcsin(np.minimum(d[rows] / 2.0, 1.0))
         return index, dist
 
-    def _nearest(self, b: np.ndarray, attitude: np.ndarray, bound: float, near: _Near | None = None
-                 ) -> tuple[np.ndarray, ...]:
+    def _nearest(
+        self, b: np.ndarray, attitude: np.ndarray, bound: float, near: _Near | None = None
+    ) -> tuple[np.ndarray, ...]:
         """:meth:`match`'s catalogue indices (N,), with the rows that have one and every row's chord distance
         (None when ``near`` answered)."""
         index = np.full(len(b), UNIDENTIFIED, dtype=np.int64)
@@ -257,8 +280,11 @@ class PyramidIdentifier:
         if len(rows):
             stars = np.sort(found)
             if (stars[1:] == stars[:-1]).any():  # a catalogue star near two centroids: the closest one keeps it
-                closeness = (d[rows] if d is not None
-                             else -np.einsum("ij,ij->i", p[rows], self.catalogue.vectors.take(found, axis=0)))
+                closeness = (
+                    d[rows]
+                    if d is not None
+                    else -np.einsum("ij,ij->i", p[rows], self.catalogue.vectors.take(found, axis=0))
+                )
                 order = closeness.argsort(kind="stable")
                 rows, found = rows[order], found[order]
                 _, first = np.unique(found, return_index=True)
@@ -266,8 +292,9 @@ class PyramidIdentifier:
             index[rows] = found
         return index, rows, d
 
-    def _query(self, p: np.ndarray, bound: float, near: _Near | None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def _query(
+        self, p: np.ndarray, bound: float, near: _Near | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(rows of ``p`` (M, 3) with a catalogue star within chord ``bound``, that nearest star, every row's
         chord distance): by ``near`` when it answers (then no distances), else by the catalogue's k-d tree."""
         if near is not None:
@@ -295,8 +322,7 @@ class PyramidIdentifier:
             side += [count.cumsum() - count, count]
         return side
 
-    def _triangle_candidates(self, b: np.ndarray, theta: _Angles, i: int, j: int, k: int,
-                             cache: dict) -> np.ndarray:
+    def _triangle_candidates(self, b: np.ndarray, theta: _Angles, i: int, j: int, k: int, cache: dict) -> np.ndarray:
         """(M, 3) catalogue triangles (a, b, c) matching observed (i, j, k) (module docstring, step 1): the
         candidate pairs of sides (i, j) and (i, k) joined on their common star a, then the third side's angle
         θ_jk checked directly on the catalogue vectors."""
@@ -306,14 +332,17 @@ class PyramidIdentifier:
         total = int(cnt.sum())
         if total == 0:
             return np.empty((0, 3), dtype=np.int64)
-        first = cnt.cumsum() - cnt      # each (i, j) pair's first joined row
+        first = cnt.cumsum() - cnt  # each (i, j) pair's first joined row
         tc = y2.take(np.arange(total) + (start2.take(x1) - first).repeat(cnt))
         tb = y1.repeat(cnt)
         v = self.catalogue.vectors
         cos_bc = np.einsum("ij,ij->i", v.take(tb, axis=0), v.take(tc, axis=0))  # (take: a fraction of v[tb]'s cost)
         t = theta[j, k]
-        ok = (tb != tc) & (cos_bc >= np.cos(min(t + self.epsilon, np.pi))) & \
-            (cos_bc <= np.cos(max(t - self.epsilon, 0.0)))
+        ok = (
+            (tb != tc)
+            & (cos_bc >= np.cos(min(t + self.epsilon, np.pi)))
+            & (cos_bc <= np.cos(max(t - self.epsilon, 0.0)))
+        )
         ok = ok.nonzero()[0]
         if len(ok) == 0:
             return np.empty((0, 3), dtype=np.int64)
@@ -327,8 +356,9 @@ class PyramidIdentifier:
             tri = tri[np.sign(s_cat) == np.sign(s_obs)]
         return tri
 
-    def _confirm(self, b: np.ndarray, theta: _Angles, obs: tuple[int, int, int],
-                 cat: tuple[int, int, int]) -> Identification | None:
+    def _confirm(
+        self, b: np.ndarray, theta: _Angles, obs: tuple[int, int, int], cat: tuple[int, int, int]
+    ) -> Identification | None:
         """Steps 2–4 for one catalogue triangle; None when it is not confirmed."""
         v = self.catalogue.vectors
         obs_i, cat_i = list(obs), list(cat)
@@ -342,7 +372,7 @@ class PyramidIdentifier:
         if len(hit) == 0:
             return None
         rows = others[hit]
-        cat_ang = np.arccos(np.clip(v.take(cands, axis=0) @ v.take(cat_i, axis=0).T, -1.0, 1.0))   # (M, 3)
+        cat_ang = np.arccos(np.clip(v.take(cands, axis=0) @ v.take(cat_i, axis=0).T, -1.0, 1.0))  # (M, 3)
         confirmed = (np.abs(theta.block(rows, obs_i) - cat_ang) <= self.epsilon).all(axis=1)
         confirmed &= (cands != cat_i[0]) & (cands != cat_i[1]) & (cands != cat_i[2])
         if not confirmed.any():
@@ -358,7 +388,7 @@ class PyramidIdentifier:
             A = wahba_matrix(b[ident], v[index[ident]])
             index, previous = self._nearest(b, A, self._match_chord, near)[0], index
             if np.array_equal(index, previous):  # the same stars give the same attitude: matching again
-                break                            # would repeat this match exactly
+                break  # would repeat this match exactly
         ident = index >= 0
         m = int(ident.sum())
         if m < 4:
@@ -369,11 +399,12 @@ class PyramidIdentifier:
         # step 4: could this many matches be chance?
         n = len(b)
         density = self.catalogue.cone_count(solution.matrix[2], self._cone_radius) / self._cone_solid_angle
-        p = min(1.0, density * np.pi * self.match_radius ** 2)
+        p = min(1.0, density * np.pi * self.match_radius**2)
         false_alarm = float(bdtrc(m - 3 - 1, n - 3, p))
         if false_alarm > self.max_false_alarm:
             return None
         full = np.full(n, UNIDENTIFIED, dtype=np.int64)
         full[ident] = index[ident]
-        return Identification(True, "", full, solution, false_alarm=false_alarm,
-                              stats={"pyramid_confirmations": int(confirmed.sum())})
+        return Identification(
+            True, "", full, solution, false_alarm=false_alarm, stats={"pyramid_confirmations": int(confirmed.sum())}
+        )

@@ -22,6 +22,7 @@ Jitter (paper, eq. 18 and its text): the camera turns about its boresight at a r
 The jitter angle φ(t) (the integral of that rate) turns the camera about its own z axis relative to its LVLH
 mount: A(t) = exp(−φ(t) [ẑ×]) A_LVLH(t), and the body rate is ω = exp(−φ [ẑ×]) ω_LVLH + φ̇ ẑ.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -31,7 +32,6 @@ from scipy.spatial.transform import Rotation
 
 from orbit_sim.constants import MU_EARTH, R_EARTH
 from star_tracker.options import BORESIGHTS
-
 
 
 @dataclass(frozen=True)
@@ -51,22 +51,25 @@ class CircularOrbit:
         if self.period_s is not None:
             return 2.0 * np.pi / self.period_s
         a = R_EARTH + self.altitude_m
-        return float(np.sqrt(MU_EARTH / a ** 3))
+        return float(np.sqrt(MU_EARTH / a**3))
 
     def axes(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """r̂, t̂, ĥ (each (K, 3), ICRS) at times t (K,) (s)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         i, O = np.radians(self.inclination_deg), np.radians(self.raan_deg)
         u = np.radians(self.arg_latitude0_deg) + self.mean_motion * t
-        r = np.column_stack([np.cos(O) * np.cos(u) - np.sin(O) * np.sin(u) * np.cos(i),
-                             np.sin(O) * np.cos(u) + np.cos(O) * np.sin(u) * np.cos(i),
-                             np.sin(u) * np.sin(i)])
+        r = np.column_stack(
+            [
+                np.cos(O) * np.cos(u) - np.sin(O) * np.sin(u) * np.cos(i),
+                np.sin(O) * np.cos(u) + np.cos(O) * np.sin(u) * np.cos(i),
+                np.sin(u) * np.sin(i),
+            ]
+        )
         h = np.broadcast_to([np.sin(O) * np.sin(i), -np.cos(O) * np.sin(i), np.cos(i)], r.shape).copy()
         return r, np.cross(h, r), h
 
 
-def lvlh_attitude(orbit: CircularOrbit, t: np.ndarray, boresight: str = "zenith"
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def lvlh_attitude(orbit: CircularOrbit, t: np.ndarray, boresight: str = "zenith") -> tuple[np.ndarray, np.ndarray]:
     """Camera-from-ICRS attitudes (K, 3, 3) and body rates (K, 3) (rad/s, camera frame) of a camera fixed in
     LVLH (module docstring)."""
     r, tt, h = orbit.axes(t)
@@ -111,8 +114,15 @@ class AttitudeTruth:
         return np.where(q[:, :1] < 0, -q, q)
 
 
-def orbit_truth(orbit: CircularOrbit, n_frames: int, frame_dt: float, boresight: str = "zenith",
-                jitter_deg_s: float = 0.0, rng: np.random.Generator | None = None, hold: int = 10) -> AttitudeTruth:
+def orbit_truth(
+    orbit: CircularOrbit,
+    n_frames: int,
+    frame_dt: float,
+    boresight: str = "zenith",
+    jitter_deg_s: float = 0.0,
+    rng: np.random.Generator | None = None,
+    hold: int = 10,
+) -> AttitudeTruth:
     """The attitude truth of ``n_frames`` frames every ``frame_dt`` s (module docstring). The jitter rate of
     frame interval k (between frames k and k + 1) is jitter_rates(...)[k]; frame 0 has φ = 0."""
     t = np.arange(n_frames) * frame_dt
@@ -124,7 +134,7 @@ def orbit_truth(orbit: CircularOrbit, n_frames: int, frame_dt: float, boresight:
     else:
         rates = np.zeros(n_frames)
     phi = np.concatenate([[0.0], np.cumsum(rates[:-1] * frame_dt)])
-    turn = Rotation.from_rotvec(-phi[:, None] * np.array([0.0, 0.0, 1.0])).as_matrix()    # exp(−φ[ẑ×])
+    turn = Rotation.from_rotvec(-phi[:, None] * np.array([0.0, 0.0, 1.0])).as_matrix()  # exp(−φ[ẑ×])
     A = turn @ A
     w = np.einsum("kij,kj->ki", turn, w)
     w[:, 2] += rates

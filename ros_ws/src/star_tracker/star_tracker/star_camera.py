@@ -2,6 +2,7 @@
 measured centroids and their truth (frames.simulate_frame), with the gyro's body rate and its jitter part; and
 what a camera's settings (camera_stage.CameraConfig) make: its pinhole model and its on-board catalogue.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -62,24 +63,46 @@ class StarCameraStage:
     def on_input(self, topic: str, truth: TruthSample) -> Outputs:
         labels = list(truth.labels)
         if not all(lab in labels for lab in (*QUATERNION, *ANGULAR_RATE)):
-            raise ValueError(f"star camera '{self.name}' needs a truth labelled {[*QUATERNION, *ANGULAR_RATE]}, "
-                             f"got {labels}")
+            raise ValueError(
+                f"star camera '{self.name}' needs a truth labelled {[*QUATERNION, *ANGULAR_RATE]}, got {labels}"
+            )
         q = truth.state[[labels.index(lab) for lab in QUATERNION]]
         rate = truth.state[[labels.index(lab) for lab in ANGULAR_RATE]]
         A = matrix_from_quaternion(q)
         c = self.conf
-        frame = simulate_frame(self.catalogue, self.camera, A, self.rng, sigma_px=c.sigma_px, p_detect=c.p_detect,
-                               n_false=c.false_stars, false_rate=c.false_rate, mag_sigma=c.mag_sigma)
-        gyro = rate if self.previous_rate is None else self.previous_rate   # the interval since the last frame
+        frame = simulate_frame(
+            self.catalogue,
+            self.camera,
+            A,
+            self.rng,
+            sigma_px=c.sigma_px,
+            p_detect=c.p_detect,
+            n_false=c.false_stars,
+            false_rate=c.false_rate,
+            mag_sigma=c.mag_sigma,
+        )
+        gyro = rate if self.previous_rate is None else self.previous_rate  # the interval since the last frame
         self.previous_rate = rate
         star = frame.truth != FALSE_STAR
         true_uv = frame.uv.copy()
         true_uv[star] = self.camera.project(self.catalogue.vectors[frame.truth[star]] @ A.T)
         ids = np.where(star, self.catalogue.ids[np.maximum(frame.truth, 0)], -1)
         common = dict(step=truth.step, t_ns=truth.t_ns, frame_id=self.name, source=self.name)
-        measured = StarFrame(**common, xy=self.camera.to_tangent(frame.uv), magnitudes=frame.magnitudes,
-                             sigma=self.sigma, body_rate=gyro, jitter_rate=float(gyro[2]) - self.mount_rate)
-        truth_frame = StarFrame(**common, xy=self.camera.to_tangent(true_uv), magnitudes=frame.magnitudes,
-                                sigma=0.0, body_rate=gyro, jitter_rate=float(gyro[2]) - self.mount_rate,
-                                star_id=ids)
+        measured = StarFrame(
+            **common,
+            xy=self.camera.to_tangent(frame.uv),
+            magnitudes=frame.magnitudes,
+            sigma=self.sigma,
+            body_rate=gyro,
+            jitter_rate=float(gyro[2]) - self.mount_rate,
+        )
+        truth_frame = StarFrame(
+            **common,
+            xy=self.camera.to_tangent(true_uv),
+            magnitudes=frame.magnitudes,
+            sigma=0.0,
+            body_rate=gyro,
+            jitter_rate=float(gyro[2]) - self.mount_rate,
+            star_id=ids,
+        )
         return [(self.topic, measured), (self.truth_topic, truth_frame)]

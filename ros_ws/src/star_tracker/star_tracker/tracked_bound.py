@@ -32,6 +32,7 @@ to frame j (b_j = A_j A_kᵀ b_k) is the same star as the centroid of frame j ne
 the trackers carry a star. A false star starts a chain of its own (it adds information that does not exist;
 the study's default has none).
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -50,8 +51,9 @@ def _carry(xy: np.ndarray, turn: np.ndarray) -> np.ndarray:
     return b[:, :2] / b[:, 2:]
 
 
-def star_chains(frames: Sequence[np.ndarray], attitudes: np.ndarray, radius: float, max_misses: int
-                ) -> list[np.ndarray]:
+def star_chains(
+    frames: Sequence[np.ndarray], attitudes: np.ndarray, radius: float, max_misses: int
+) -> list[np.ndarray]:
     """Per frame, the chain (star) index of each centroid: ``frames[k]`` (N_k, 2) tangent-plane centroids,
     ``attitudes`` (K, 3, 3) the true camera-from-ICRS attitudes, ``radius`` the association gate (tangent
     units), a chain ended after ``max_misses`` frames without a detection (module docstring)."""
@@ -64,7 +66,7 @@ def star_chains(frames: Sequence[np.ndarray], attitudes: np.ndarray, radius: flo
         alive = np.flatnonzero(k - last_frame <= max_misses + 1)
         if len(alive) and len(xy):
             predicted = np.empty((len(alive), 2))
-            for j in np.unique(last_frame[alive]):      # the chains last seen in frame j, carried to frame k
+            for j in np.unique(last_frame[alive]):  # the chains last seen in frame j, carried to frame k
                 rows = last_frame[alive] == j
                 predicted[rows] = _carry(last_xy[alive[rows]], attitudes[k] @ attitudes[j].T)
             taken = sna_associate(predicted, xy, radius)
@@ -79,8 +81,9 @@ def star_chains(frames: Sequence[np.ndarray], attitudes: np.ndarray, radius: flo
     return out
 
 
-def centroid_information(detected: np.ndarray, transitions: np.ndarray, noises: np.ndarray, J0: np.ndarray,
-                         scan: np.ndarray) -> np.ndarray:
+def centroid_information(
+    detected: np.ndarray, transitions: np.ndarray, noises: np.ndarray, J0: np.ndarray, scan: np.ndarray
+) -> np.ndarray:
     """Eq. (1) for one star from its first detection: ``detected`` (K,) bool (detected[0] True),
     ``transitions``/``noises`` (K − 1, n, n) F and Q of each frame interval, ``J0`` the start information,
     ``scan`` a detection's information Hᵀ H / σ²; returns J (K, n, n) per frame (px units)."""
@@ -90,9 +93,16 @@ def centroid_information(detected: np.ndarray, transitions: np.ndarray, noises: 
     return pcrb_recursion(J0, transitions, noises, info)
 
 
-def tracked_attitude_covariance(frames: Sequence[np.ndarray], chains: Sequence[np.ndarray],
-                                transitions: np.ndarray, noises: np.ndarray, P0: np.ndarray, sigma_px: float,
-                                ifov: float, measurement: np.ndarray = CENTROID) -> np.ndarray:
+def tracked_attitude_covariance(
+    frames: Sequence[np.ndarray],
+    chains: Sequence[np.ndarray],
+    transitions: np.ndarray,
+    noises: np.ndarray,
+    P0: np.ndarray,
+    sigma_px: float,
+    ifov: float,
+    measurement: np.ndarray = CENTROID,
+) -> np.ndarray:
     """The bound J_att,k⁻¹ (K, 3, 3) (rad², camera frame) of eq. (2) per frame: ``frames`` and ``chains`` as
     star_chains', ``transitions``/``noises`` (K − 1, n, n) F and Q of each frame interval (px), ``P0`` (n, n)
     the start covariance, ``measurement`` (2, n) the H that picks the centroid from the state (the trackers'
@@ -100,27 +110,35 @@ def tracked_attitude_covariance(frames: Sequence[np.ndarray], chains: Sequence[n
     stars."""
     K = len(frames)
     J0 = np.linalg.inv(P0)
-    scan = measurement.T @ measurement / sigma_px ** 2
+    scan = measurement.T @ measurement / sigma_px**2
     n_chains = 1 + max((int(c.max()) for c in chains if len(c)), default=-1)
     seen = np.zeros((n_chains, K), dtype=bool)
-    at = np.zeros((n_chains, K, 2))                    # each chain's centroid per frame where seen
+    at = np.zeros((n_chains, K, 2))  # each chain's centroid per frame where seen
     for k, c in enumerate(chains):
         seen[c, k] = True
         at[c, k] = frames[k]
     J_att = np.zeros((K, 3, 3))
-    constant = bool(np.allclose(transitions, transitions[:1], rtol=1e-12, atol=0.0)
-                    and np.allclose(noises, noises[:1], rtol=1e-12, atol=0.0))
-    done: list[tuple[np.ndarray, np.ndarray]] = []   # (detections, J): reused for a chain with the same prefix
+    constant = bool(
+        np.allclose(transitions, transitions[:1], rtol=1e-12, atol=0.0)
+        and np.allclose(noises, noises[:1], rtol=1e-12, atol=0.0)
+    )
+    done: list[tuple[np.ndarray, np.ndarray]] = []  # (detections, J): reused for a chain with the same prefix
     for c in np.argsort(-seen.sum(axis=1), kind="stable"):
         frames_c = np.flatnonzero(seen[c])
         first, last = frames_c[0], frames_c[-1]
-        mask = seen[c, first:last + 1]
-        J = next((Jd[:len(mask)] for d, Jd in done if constant and len(d) >= len(mask)
-                  and np.array_equal(d[:len(mask)], mask)), None)
+        mask = seen[c, first : last + 1]
+        J = next(
+            (
+                Jd[: len(mask)]
+                for d, Jd in done
+                if constant and len(d) >= len(mask) and np.array_equal(d[: len(mask)], mask)
+            ),
+            None,
+        )
         if J is None:
             J = centroid_information(mask, transitions[first:last], noises[first:last], J0, scan)
             done.append((mask, J))
-        P_pos = measurement @ np.linalg.inv(J[frames_c - first]) @ measurement.T * ifov ** 2   # (n, 2, 2)
+        P_pos = measurement @ np.linalg.inv(J[frames_c - first]) @ measurement.T * ifov**2  # (n, 2, 2)
         Hi = centroid_jacobians(at[c, frames_c])
         J_att[frames_c] += np.swapaxes(Hi, 1, 2) @ np.linalg.solve(P_pos, Hi)
     P = np.full_like(J_att, np.nan)

@@ -24,6 +24,7 @@ attitude publishes no estimate; its reason is logged. ``/NAME/stars`` (bench_msg
 frame: per measured centroid, the star id it was given (HIP, −1: none) and the position the attitude used
 (filtered for the JPDAF; NaN if unused).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -52,30 +53,52 @@ def stars_topic(tracker: str) -> str:
 class TrackerConfig(Settings):
     """One entry of ``star_trackers``, over ``star_tracker_defaults`` (the module docstring)."""
 
-    camera: str | None = setting(None, doc="the star_cameras entry whose frames it reads",
-                                 default_text="the only camera")
+    camera: str | None = setting(
+        None, doc="the star_cameras entry whose frames it reads", default_text="the only camera"
+    )
     tracker: str = setting(choices=TRACKERS, doc="star tracking: SNA or JPDAF")
     solver: str = setting(choices=SOLVERS, doc="attitude from the tracked stars: SVD Wahba or TRIAD")
-    motion: str = setting("constant_velocity", choices=MOTIONS, doc="the JPDAF's image-plane motion model "
-                                                                     "(paper eqs. 14-16)")
-    aid: str = setting("rate", choices=AIDS, doc="what the body rate compensates in the JPDAF's prediction "
-                                                  "(pipeline.StarTrackerPipeline.motion_for)")
-    sigma_px: float | None = setting(None, unit="px", check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
-                                     doc="the centroid σ the identifier, the SNA gate and the JPDAF's R assume",
-                                     default_text="the camera's sigma_px")
-    sigma_a: float = setting(0.05, unit="px/s^2", check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4] px/s^2"),
-                             doc="the JPDAF's process noise")
+    motion: str = setting(
+        "constant_velocity", choices=MOTIONS, doc="the JPDAF's image-plane motion model (paper eqs. 14-16)"
+    )
+    aid: str = setting(
+        "rate",
+        choices=AIDS,
+        doc="what the body rate compensates in the JPDAF's prediction (pipeline.StarTrackerPipeline.motion_for)",
+    )
+    sigma_px: float | None = setting(
+        None,
+        unit="px",
+        check=Check(lambda v: 0.0 < v <= 10.0, "in (0, 10] px"),
+        doc="the centroid σ the identifier, the SNA gate and the JPDAF's R assume",
+        default_text="the camera's sigma_px",
+    )
+    sigma_a: float = setting(
+        0.05,
+        unit="px/s^2",
+        check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4] px/s^2"),
+        doc="the JPDAF's process noise",
+    )
     p_detect: float = setting(0.95, check=Check(lambda v: 0.0 < v < 1.0, "in (0, 1)"), doc="the JPDA's P_D")
-    clutter_per_frame: float | None = setting(None, check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
-                                              doc="the JPDA's false-star density times the image area",
-                                              default_text="the camera's false stars per frame, at least 0.1")
-    gate: float | None = setting(None, check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
-                                 doc="the JPDA's gate δ on d²", default_text="the JPDA's")
+    clutter_per_frame: float | None = setting(
+        None,
+        check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+        doc="the JPDA's false-star density times the image area",
+        default_text="the camera's false stars per frame, at least 0.1",
+    )
+    gate: float | None = setting(
+        None,
+        check=Check(lambda v: 0.0 < v <= 1e4, "in (0, 1e4]"),
+        doc="the JPDA's gate δ on d²",
+        default_text="the JPDA's",
+    )
     min_stars: int = setting(3, check=between(3, 100, what="an integer in"), doc="stars an attitude needs")
-    verify_sigmas: float = setting(6.0, check=between(1.0, 100.0), doc="the identification's verification "
-                                                                       "threshold [σ]")
-    max_misses: int = setting(3, check=between(0, 100, what="an integer in"),
-                              doc="frames a tracked star may miss before it is dropped")
+    verify_sigmas: float = setting(
+        6.0, check=between(1.0, 100.0), doc="the identification's verification threshold [σ]"
+    )
+    max_misses: int = setting(
+        3, check=between(0, 100, what="an integer in"), doc="frames a tracked star may miss before it is dropped"
+    )
 
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
@@ -99,10 +122,16 @@ def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
     return trackers
 
 
-TRACKERS_SECTION = SectionReader(SECTION, dict[str, TrackerConfig],
-                                 "the star trackers (node kind star_tracker: estimators)", read_trackers)
-TRACKER_DEFAULTS = SectionReader(DEFAULTS, TrackerConfig, "defaults of every star_trackers entry: any of its keys",
-                                 read_trackers, defaults_of=SECTION)
+TRACKERS_SECTION = SectionReader(
+    SECTION, dict[str, TrackerConfig], "the star trackers (node kind star_tracker: estimators)", read_trackers
+)
+TRACKER_DEFAULTS = SectionReader(
+    DEFAULTS,
+    TrackerConfig,
+    "defaults of every star_trackers entry: any of its keys",
+    read_trackers,
+    defaults_of=SECTION,
+)
 
 
 def tracker_config(cfg: dict, name: str) -> TrackerConfig:
@@ -115,6 +144,7 @@ def tracker_config(cfg: dict, name: str) -> TrackerConfig:
 def build_pipeline(cfg: dict, name: str):
     """The pipeline of tracker ``name`` (its camera's catalogue and geometry: pipeline.pipeline_for)."""
     from star_tracker.pipeline import pipeline_for  # catalogue, Pyramid, JPDAF: scipy, not for every node
+
     conf = tracker_config(cfg, name)
     return pipeline_for(conf, camera_config(cfg, conf.camera))
 
@@ -144,26 +174,61 @@ class StarTrackerStage:
         ids = np.where(result.index >= 0, self.pipeline.catalogue.ids[np.maximum(result.index, 0)], -1)
         used = np.full((len(uv), 2), np.nan)
         used[result.star_rows] = self.camera.to_tangent(result.star_uv)
-        out: Outputs = [(self.stars, StarFrame(frame.step, frame.t_ns, FRAME, self.name, used,
-                                               np.asarray(frame.magnitudes, dtype=float), frame.sigma,
-                                               frame.body_rate, frame.jitter_rate, ids))]
+        out: Outputs = [
+            (
+                self.stars,
+                StarFrame(
+                    frame.step,
+                    frame.t_ns,
+                    FRAME,
+                    self.name,
+                    used,
+                    np.asarray(frame.magnitudes, dtype=float),
+                    frame.sigma,
+                    frame.body_rate,
+                    frame.jitter_rate,
+                    ids,
+                ),
+            )
+        ]
         if not result.ok:
             self.log("info", f"step {frame.step}: no attitude ({result.reason})")
             return out
         sol = result.attitude
-        diagnostics = {"stars": float(sol.n_stars), "identified": float(np.sum(result.index >= 0)),
-                       **{k: float(v) for k, v in self.counts.items()},
-                       "filter_resets": float(self.pipeline.filter_resets)}
-        out.append((self.topic, Estimate(frame.step, frame.t_ns, FRAME, self.name, list(QUATERNION), sol.quaternion,
-                                         sol.covariance, float("nan"), diagnostics)))
+        diagnostics = {
+            "stars": float(sol.n_stars),
+            "identified": float(np.sum(result.index >= 0)),
+            **{k: float(v) for k, v in self.counts.items()},
+            "filter_resets": float(self.pipeline.filter_resets),
+        }
+        out.append(
+            (
+                self.topic,
+                Estimate(
+                    frame.step,
+                    frame.t_ns,
+                    FRAME,
+                    self.name,
+                    list(QUATERNION),
+                    sol.quaternion,
+                    sol.covariance,
+                    float("nan"),
+                    diagnostics,
+                ),
+            )
+        )
         return out
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = tracker_config(cfg, name)
-    return NodeSpec(name, "star_tracker", publishes={estimate_topic(name): ESTIMATE_TYPE,
-                                                     stars_topic(name): STAR_CENTROIDS_TYPE},
-                    subscribes={measurement_topic(conf.camera): ""}, labels={estimate_topic(name): QUATERNION})
+    return NodeSpec(
+        name,
+        "star_tracker",
+        publishes={estimate_topic(name): ESTIMATE_TYPE, stars_topic(name): STAR_CENTROIDS_TYPE},
+        subscribes={measurement_topic(conf.camera): ""},
+        labels={estimate_topic(name): QUATERNION},
+    )
 
 
 def _check(cfg: dict, name: str) -> None:
@@ -172,6 +237,13 @@ def _check(cfg: dict, name: str) -> None:
     build_pipeline(cfg, name)
 
 
-STAR_TRACKER = NodeKind("star_tracker", "estimator", "bench_engine.stage_node:StageNode",
-                        instances=lambda cfg, names: list(names), spec=_spec, check=_check, stage=StarTrackerStage,
-                        claims=lambda cfg: list(read_trackers(cfg)))
+STAR_TRACKER = NodeKind(
+    "star_tracker",
+    "estimator",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, names: list(names),
+    spec=_spec,
+    check=_check,
+    stage=StarTrackerStage,
+    claims=lambda cfg: list(read_trackers(cfg)),
+)

@@ -26,6 +26,7 @@ The filtered positions H X_r are the star centroids handed to the attitude solve
 clutter (λ = 0) and P_D = 1 the weights are one-hot and the JPDAF is a Kalman filter
 (tests/test_star_tracking.py).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -66,6 +67,7 @@ def image_velocity(camera: Camera, uv: np.ndarray, omega_body: np.ndarray, dt: f
 
 # ------------------------------------------------------------------------------------------------------ SNA
 
+
 def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.ndarray:
     """(T,) index into Z of the measurement each predicted centroid (T, 2) takes inside its Euclidean gate of
     ``radius`` pixels (MISSED where none): the nearest, each measurement to the nearest star only."""
@@ -81,11 +83,11 @@ def sna_associate(predicted: np.ndarray, Z: np.ndarray, radius: float) -> np.nda
     near = np.argmin(d, axis=1)
     dn = d[np.arange(T), near]
     inside = np.flatnonzero(dn <= radius)
-    order = inside[np.argsort(dn[inside], kind="stable")]      # nearest pair first
+    order = inside[np.argsort(dn[inside], kind="stable")]  # nearest pair first
     j = near[order]
     rank = np.arange(len(order))
     first = np.full(N, len(order))
-    np.minimum.at(first, j, rank)                              # a measurement goes to the first that wants it
+    np.minimum.at(first, j, rank)  # a measurement goes to the first that wants it
     won = first[j] == rank
     out[order[won]] = j[won]
     return out
@@ -135,6 +137,7 @@ class SNATracker:
 
 # ---------------------------------------------------------------------------------------------------- JPDAF
 
+
 @dataclass
 class JPDAFStep:
     """One frame of the JPDAF."""
@@ -154,9 +157,17 @@ class JPDAFStep:
 class JPDAFTracker:
     """JPDAF over the identified stars (module docstring)."""
 
-    def __init__(self, motion: MotionModel, sigma_px: float, p_detect: float = 0.95,
-                 clutter_density: float | None = None, gate: float | None = None,
-                 max_events: int = 20000, max_misses: int = 3, camera: Camera | None = None) -> None:
+    def __init__(
+        self,
+        motion: MotionModel,
+        sigma_px: float,
+        p_detect: float = 0.95,
+        clutter_density: float | None = None,
+        gate: float | None = None,
+        max_events: int = 20000,
+        max_misses: int = 3,
+        camera: Camera | None = None,
+    ) -> None:
         """``gate`` is the threshold δ on d² (default: the 99.9 % chi-square gate for 2-D, δ = 13.8);
         ``clutter_density`` per square pixel (None: the non-parametric form of jpdaf.py); ``camera``, when
         given, drops tracks predicted out of its image."""
@@ -169,7 +180,7 @@ class JPDAFTracker:
         if gate <= 0:
             raise ValueError(f"gate must be > 0, got {gate}")
         self.gate = gate
-        self.gate_probability = float(chdtr(2, gate))                            # chi2.cdf(δ, 2)
+        self.gate_probability = float(chdtr(2, gate))  # chi2.cdf(δ, 2)
         self.associator = JointProbabilisticAssociator(p_detect, clutter_density, max_events)
         self.max_misses = int(max_misses)
         self.camera = camera
@@ -186,8 +197,9 @@ class JPDAFTracker:
         """(T, 2) filtered centroids H X (a copy)."""
         return self.x[:, ::2].copy()
 
-    def start(self, ids: np.ndarray, uv: np.ndarray, velocity: np.ndarray | None = None,
-              velocity_sigma: float = 1.0) -> None:
+    def start(
+        self, ids: np.ndarray, uv: np.ndarray, velocity: np.ndarray | None = None, velocity_sigma: float = 1.0
+    ) -> None:
         """Start tracks for stars (catalogue indices) at centroids uv (N, 2), with image velocities (N, 2)
         (px/s, e.g. image_velocity from the body rate; zero if None) known to ``velocity_sigma`` px/s; the
         position variance is the measurement's σ². A star already tracked is skipped."""
@@ -196,7 +208,7 @@ class JPDAFTracker:
         new = ~member(ids, self.ids)
         n = int(new.sum())
         x = np.column_stack([uv[new, 0], vel[new, 0], uv[new, 1], vel[new, 1]])
-        P0 = np.diag([self.sigma_px ** 2, velocity_sigma ** 2, self.sigma_px ** 2, velocity_sigma ** 2])
+        P0 = np.diag([self.sigma_px**2, velocity_sigma**2, self.sigma_px**2, velocity_sigma**2])
         self.ids = np.concatenate([self.ids, ids[new]])
         self.x = np.vstack([self.x, x])
         self.P = np.concatenate([self.P, np.broadcast_to(P0, (n, 4, 4))])
@@ -214,7 +226,7 @@ class JPDAFTracker:
         uv = np.asarray(uv, dtype=float).reshape(-1, 2)
         for r in rows:
             self.x[r, [0, 2]] = uv[where[int(self.ids[r])]]
-            self.P[r] = np.diag([self.sigma_px ** 2, velocity_sigma ** 2, self.sigma_px ** 2, velocity_sigma ** 2])
+            self.P[r] = np.diag([self.sigma_px**2, velocity_sigma**2, self.sigma_px**2, velocity_sigma**2])
 
     def predict(self, dt: float, motion: MotionModel | None = None, displacement: np.ndarray | None = None) -> None:
         """Step 1 for every track (``motion`` replaces the tracker's model for this and later frames).
@@ -251,8 +263,8 @@ class JPDAFTracker:
         ids = self.ids.copy()
         if T == 0:
             return JPDAFStep(np.empty(0, dtype=np.int64), np.empty((0, N + 1)), ids, np.empty((0, 2)), np.empty(0))
-        Pzz = self.P[:, ::2, ::2]                                                 # H P Hᵀ (T, 2, 2)
-        zhat = self.x[:, ::2]                                                     # H X (T, 2)
+        Pzz = self.P[:, ::2, ::2]  # H P Hᵀ (T, 2, 2)
+        zhat = self.x[:, ::2]  # H X (T, 2)
         S = Pzz + self.R
         nu_c, spread = np.zeros((T, 2)), np.zeros((T, 2, 2))
         if N == 0:
@@ -260,19 +272,19 @@ class JPDAFTracker:
         else:
             beta = self.associator.weights(gaussian_hypotheses(zhat, Pzz, Z, self.R, self.gate_probability))
             r, j = np.divmod(np.flatnonzero(beta), N + 1)
-            r, j = r[j > 0], j[j > 0] - 1                                         # pairs with β_rj > 0
-            nu = Z[j] - zhat[r]                                                   # ν_rj
+            r, j = r[j > 0], j[j > 0] - 1  # pairs with β_rj > 0
+            nu = Z[j] - zhat[r]  # ν_rj
             b_nu = beta[r, j + 1][:, None] * nu
             for d in range(2):
-                nu_c[:, d] = np.bincount(r, b_nu[:, d], minlength=T)              # ν_r = Σ_j β_rj ν_rj
+                nu_c[:, d] = np.bincount(r, b_nu[:, d], minlength=T)  # ν_r = Σ_j β_rj ν_rj
                 for e in range(d + 1):
                     spread[:, d, e] = spread[:, e, d] = np.bincount(r, b_nu[:, d] * nu[:, e], minlength=T)
             spread -= nu_c[:, :, None] * nu_c[:, None, :]
-        detection = np.argmax(beta, axis=1) - 1                                   # column 0, the miss: MISSED
-        K = self.P[:, :, ::2] @ np.linalg.inv(S)                                  # P Hᵀ S⁻¹ (T, 4, 2)
+        detection = np.argmax(beta, axis=1) - 1  # column 0, the miss: MISSED
+        K = self.P[:, :, ::2] @ np.linalg.inv(S)  # P Hᵀ S⁻¹ (T, 4, 2)
         detected = 1.0 - beta[:, 0]
         self.x = self.x + np.einsum("tij,tj->ti", K, nu_c)
-        self.P = self.P + K @ (spread - detected[:, None, None] * S) @ K.transpose(0, 2, 1)   # step 7
+        self.P = self.P + K @ (spread - detected[:, None, None] * S) @ K.transpose(0, 2, 1)  # step 7
         self.P = 0.5 * (self.P + self.P.transpose(0, 2, 1))
         self.misses = np.where(detection >= 0, 0, self.misses + 1)
         positions = self.positions
@@ -283,8 +295,9 @@ class JPDAFTracker:
         self.drop(keep)
         return JPDAFStep(detection, beta, ids, positions, position_sigma)
 
-    def step(self, Z: np.ndarray, dt: float, motion: MotionModel | None = None,
-             displacement: np.ndarray | None = None) -> JPDAFStep:
+    def step(
+        self, Z: np.ndarray, dt: float, motion: MotionModel | None = None, displacement: np.ndarray | None = None
+    ) -> JPDAFStep:
         """predict(dt, motion, displacement) then update(Z)."""
         self.predict(dt, motion, displacement)
         return self.update(Z)

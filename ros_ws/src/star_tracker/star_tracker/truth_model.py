@@ -19,6 +19,7 @@ State per step: the camera-from-ICRS attitude quaternion (qw, qx, qy, qz), scala
 attitude.py: the convention of the attitude estimates), then the body rate (wx, wy, wz) in rad/s in the camera
 frame; frame "icrs". The rate of step k is the rate over the interval from step k to k + 1 (sky_motion).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,13 +32,24 @@ from star_tracker.truth_settings import FRAME, LABELS, CameraTruth
 
 def orbit_of(sec: CameraTruth) -> CircularOrbit:
     """The circular orbit of the truth's keys."""
-    return CircularOrbit(altitude_m=sec.altitude_m, inclination_deg=sec.inclination_deg, raan_deg=sec.raan_deg,
-                         arg_latitude0_deg=sec.arg_latitude0_deg)
+    return CircularOrbit(
+        altitude_m=sec.altitude_m,
+        inclination_deg=sec.inclination_deg,
+        raan_deg=sec.raan_deg,
+        arg_latitude0_deg=sec.arg_latitude0_deg,
+    )
 
 
 def camera_truth(sec: CameraTruth, model: str, earth, grid: TimeGrid, seed: int = 0) -> Truth:
     """Truth of the module docstring's section; ``seed`` is the run's seed (``jitter_seed`` overrides it)."""
     seed = seed if sec.jitter_seed is None else sec.jitter_seed
-    truth = orbit_truth(orbit_of(sec), grid.steps, grid.dt, sec.boresight, sec.jitter_deg_s,
-                        np.random.default_rng([seed, 7]), sec.jitter_hold)
+    truth = orbit_truth(
+        orbit_of(sec),
+        grid.steps,
+        grid.dt,
+        sec.boresight,
+        sec.jitter_deg_s,
+        np.random.default_rng([seed, 7]),
+        sec.jitter_hold,
+    )
     return Truth(grid, np.hstack([truth.quaternions, truth.rate]), LABELS, FRAME)

@@ -22,6 +22,7 @@ beta_i0 for the miss and beta_ij over the gated detections, from ``log_likelihoo
 density) is a new class with the same ``associate`` returning soft weights; the tracker then needs a
 probabilistic update for those tracks (tracker_filters.tracker.Tracker.update_track).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -57,9 +58,9 @@ def measurement_prediction(flt, model, t: float) -> MeasurementPrediction:
     particles = getattr(flt, "particles", None)
     if particles is not None:
         w = np.asarray(flt.weights, dtype=float)
-        Y = model.h(particles, t)                    # (M, d)
+        Y = model.h(particles, t)  # (M, d)
         ref = model.h(flt.x, t)
-        zhat = ref + w @ model.residual(Y, ref)      # weighted mean, angles averaged as residuals
+        zhat = ref + w @ model.residual(Y, ref)  # weighted mean, angles averaged as residuals
         r = model.residual(Y, zhat)
         return MeasurementPrediction(zhat, (r * w[:, None]).T @ r)  # Pzz = sum_m w_m r_m r_m'
     return linearised_prediction(flt.x, flt.P, model, t)
@@ -97,8 +98,14 @@ class Hypotheses:
         return self.d2.shape[1]
 
 
-def gaussian_hypotheses(z_pred: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: np.ndarray,
-                        gate_probability: float, residual: Callable | None = None) -> Hypotheses:
+def gaussian_hypotheses(
+    z_pred: np.ndarray,
+    Pzz: np.ndarray,
+    Z: np.ndarray,
+    R: np.ndarray,
+    gate_probability: float,
+    residual: Callable | None = None,
+) -> Hypotheses:
     """The module docstring's quantities for T tracks' predictions z_pred (T, d), Pzz (T, d, d) against the
     detections Z (N, d), computed for every pair at once: R is one noise covariance (d, d) shared by the
     detections (one innovation covariance per track) or one per detection (N, d, d). ``residual(z, z_pred)``
@@ -108,22 +115,22 @@ def gaussian_hypotheses(z_pred: np.ndarray, Pzz: np.ndarray, Z: np.ndarray, R: n
     prediction or detection that is not a number) is outside every gate: d2 = inf, log-likelihood -inf."""
     z_pred, Z = np.asarray(z_pred, dtype=float), np.asarray(Z, dtype=float)
     T, (N, d) = len(z_pred), Z.shape
-    nu = np.empty((d, T, N))                  # by component: each a contiguous (T, N) array
+    nu = np.empty((d, T, N))  # by component: each a contiguous (T, N) array
     if residual is None:
         for i in range(d):
             np.subtract(Z[None, :, i], z_pred[:, None, i], out=nu[i])
     else:
         nu[...] = np.moveaxis(np.asarray(residual(Z[None, :, :], z_pred[:, None, :]), dtype=float), -1, 0)
-    S = np.asarray(Pzz, dtype=float).reshape(T, 1, d, d) + np.asarray(R, dtype=float)    # (T, 1 or N, d, d)
+    S = np.asarray(Pzz, dtype=float).reshape(T, 1, d, d) + np.asarray(R, dtype=float)  # (T, 1 or N, d, d)
     L = np.linalg.cholesky(S)
-    e = np.empty((d, T, N))                   # L e = nu by forward substitution, each step over all pairs
+    e = np.empty((d, T, N))  # L e = nu by forward substitution, each step over all pairs
     for i in range(d):
         acc = nu[i]
         for j in range(i):
             acc = acc - L[..., i, j] * e[j]
         np.divide(acc, L[..., i, i], out=e[i])
     d2 = np.einsum("ktn,ktn->tn", e, e)
-    log_det = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)            # (T, 1 or N)
+    log_det = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)  # (T, 1 or N)
     loglik = -0.5 * (d2 + (log_det + d * np.log(2.0 * np.pi)))
     bad = ~np.isfinite(loglik)
     if bad.any():
@@ -142,8 +149,9 @@ class MahalanobisHypothesiser:
             raise ValueError(f"gate_probability must be in (0, 1), got {gate_probability}")
         self.gate_probability = float(gate_probability)
 
-    def hypothesise(self, predictions: Sequence[MeasurementPrediction], Z: np.ndarray, R: np.ndarray,
-                    model) -> Hypotheses:
+    def hypothesise(
+        self, predictions: Sequence[MeasurementPrediction], Z: np.ndarray, R: np.ndarray, model
+    ) -> Hypotheses:
         """Hypotheses of the detections Z (N, d), R (N, d, d) against each track's prediction. A detection
         with a NaN/inf value or covariance is outside every gate (d2 = inf)."""
         Z = np.asarray(Z, dtype=float)
@@ -151,8 +159,9 @@ class MahalanobisHypothesiser:
         T, (N, d) = len(predictions), Z.shape
         valid = np.isfinite(Z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
         if not valid.all():  # score stand-ins, then put the invalid ones out of reach
-            hyp = self.hypothesise(predictions, np.where(valid[:, None], Z, 0.0),
-                                   np.where(valid[:, None, None], R, np.eye(d)), model)
+            hyp = self.hypothesise(
+                predictions, np.where(valid[:, None], Z, 0.0), np.where(valid[:, None, None], R, np.eye(d)), model
+            )
             hyp.d2[:, ~valid], hyp.log_likelihood[:, ~valid] = np.inf, -np.inf
             hyp.nu[:, ~valid] = np.nan
             hyp.S = hyp.S.copy()
@@ -163,12 +172,20 @@ class MahalanobisHypothesiser:
         return gaussian_hypotheses(z_pred, Pzz, Z, R, self.gate_probability, model.residual)
 
 
-def hypothesise(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray], Z: np.ndarray, R: np.ndarray,
-                model, t: float, gate_probability: float) -> Hypotheses:
+def hypothesise(
+    states: Sequence[np.ndarray],
+    covariances: Sequence[np.ndarray],
+    Z: np.ndarray,
+    R: np.ndarray,
+    model,
+    t: float,
+    gate_probability: float,
+) -> Hypotheses:
     """Hypotheses of Z against tracks given by their predicted states and covariances (first-order
     measurement prediction)."""
-    predictions = [linearised_prediction(np.asarray(x, float), np.asarray(P, float), model, t)
-                   for x, P in zip(states, covariances)]
+    predictions = [
+        linearised_prediction(np.asarray(x, float), np.asarray(P, float), model, t) for x, P in zip(states, covariances)
+    ]
     return MahalanobisHypothesiser(gate_probability).hypothesise(predictions, Z, R, model)
 
 

@@ -4,6 +4,7 @@ A filter node's behaviour comes entirely from its settings (tracker_filters.filt
 merged with ``filters.NAME``, declared and read there); the registered dynamics models and initialisers
 (filter_settings' Builders) build here.
 """
+
 from __future__ import annotations
 
 import zlib
@@ -22,9 +23,21 @@ from radar_sensor.sensor_types import sensor_names
 from tracker_filters import registry
 from tracker_filters.derived import DerivedSource, derived_source, read_derived
 from tracker_filters.filter_base import Filter
-from tracker_filters.filter_settings import (Cw, CwBias, DynamicsSettings, FirstScan, Given,
-                                             InitSettings, OrbitJ2, PositionFix, RelativeMotion, Ss, TruthScaled,
-                                             WhiteJerk, filter_settings)
+from tracker_filters.filter_settings import (
+    Cw,
+    CwBias,
+    DynamicsSettings,
+    FirstScan,
+    Given,
+    InitSettings,
+    OrbitJ2,
+    PositionFix,
+    RelativeMotion,
+    Ss,
+    TruthScaled,
+    WhiteJerk,
+    filter_settings,
+)
 from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
 from bench_models.models import DynamicsModel, ScanPositionModel
@@ -96,6 +109,7 @@ def first_scan(sec: FirstScan, cfg: dict, dynamics: DynamicsModel) -> Initialise
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
         return initial_state_from_scan(z, R, sensor.model, t, velocity_sigma)
+
     initialise.requires = ScanPositionModel
     return initialise
 
@@ -135,8 +149,10 @@ def position_fix(sec: PositionFix, cfg: dict, dynamics: DynamicsModel) -> Initia
     the others zero mean with ``sigma_velocity`` or ``sigma_acceleration`` [SI]."""
     n = len(dynamics.labels)
     if n % 3:
-        raise ScenarioError(f"'{sec.where()}': position_fix needs a state of positions, velocities and "
-                            f"accelerations in three equal blocks, got {list(dynamics.labels)}")
+        raise ScenarioError(
+            f"'{sec.where()}': position_fix needs a state of positions, velocities and "
+            f"accelerations in three equal blocks, got {list(dynamics.labels)}"
+        )
     prior = np.repeat([np.inf, sec.sigma_velocity, sec.sigma_acceleration], n // 3)
 
     def initialise(z: np.ndarray, R: np.ndarray, sensor: Sensor, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -148,6 +164,7 @@ def position_fix(sec: PositionFix, cfg: dict, dynamics: DynamicsModel) -> Initia
         x0[measured] = z
         P0[np.ix_(measured, measured)] = R
         return x0, P0
+
     return initialise
 
 
@@ -180,10 +197,12 @@ def _check_initialiser(init: Initialiser, sources: dict, path: str) -> None:
     requires = getattr(init, "requires", None)
     for name, source in sources.items():
         if requires is not None and not isinstance(source.model, requires):
-            raise ScenarioError(f"'{path}' starts the filter from one measurement through the model's "
-                                f"{requires.__name__} methods, which measurement '{name}' "
-                                f"({type(source.model).__name__}) does not have; choose another init method "
-                                f"(e.g. given) or a sensor whose model has them")
+            raise ScenarioError(
+                f"'{path}' starts the filter from one measurement through the model's "
+                f"{requires.__name__} methods, which measurement '{name}' "
+                f"({type(source.model).__name__}) does not have; choose another init method "
+                f"(e.g. given) or a sensor whose model has them"
+            )
 
 
 def measurement_source(cfg: dict, name: str, state_labels) -> Sensor | DerivedSource:

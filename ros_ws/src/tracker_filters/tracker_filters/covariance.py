@@ -1,4 +1,5 @@
 """Covariance hygiene shared by all Gaussian filters."""
+
 from __future__ import annotations
 
 import numpy as np

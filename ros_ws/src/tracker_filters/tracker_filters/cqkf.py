@@ -4,6 +4,7 @@ The Gaussian integrals of the prediction and update steps are evaluated on the 2
 ``cubature.cubature_quadrature_points``; order n' = 1 is the cubature Kalman filter (Arasaratnam & Haykin 2009).
 Angle components of the measurement are averaged on the circle and differenced with wrapping.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -21,6 +21,7 @@ data must not cross +-pi) and the same linear mean as the bench.
 Stone Soup is imported with this module: import it only where Stone Soup is installed (the test suite and the
 benchmark; requirements.txt installs it as a test dependency).
 """
+
 from __future__ import annotations
 
 from datetime import datetime, timedelta
@@ -112,13 +113,19 @@ class BenchMeasurement(NonLinearGaussianMeasurement):
         return self.model.jacobian(np.asarray(state.state_vector, dtype=float)[:, 0], self.time)
 
 
-def detection(model: MeasurementModel, t: float, z: np.ndarray, R: np.ndarray, ndim_state: int,
-              angles_as_bearings: bool = True) -> Detection:
+def detection(
+    model: MeasurementModel, t: float, z: np.ndarray, R: np.ndarray, ndim_state: int, angles_as_bearings: bool = True
+) -> Detection:
     """A Stone Soup Detection of the bench measurement z of an ``ndim_state``-dimensional state (angles typed
     like :class:`BenchMeasurement`'s h)."""
-    sm = BenchMeasurement(ndim_state=ndim_state, mapping=tuple(range(ndim_state)),
-                          noise_covar=CovarianceMatrix(np.asarray(R, dtype=float)), model=model, time=float(t),
-                          angles_as_bearings=angles_as_bearings)
+    sm = BenchMeasurement(
+        ndim_state=ndim_state,
+        mapping=tuple(range(ndim_state)),
+        noise_covar=CovarianceMatrix(np.asarray(R, dtype=float)),
+        model=model,
+        time=float(t),
+        angles_as_bearings=angles_as_bearings,
+    )
     vector = StateVector(np.asarray(z, dtype=float))
     if angles_as_bearings and model.angle_indices:
         vector = vector.astype(object)
@@ -132,8 +139,9 @@ class StoneSoupFilter:
     covariance, the bench's) or UKF (``"ukf"``: UnscentedKalmanPredictor and Updater with scaled sigma points
     alpha, beta, kappa) over a bench DynamicsModel, one Stone Soup detection at a time."""
 
-    def __init__(self, kind: str, dynamics: DynamicsModel, alpha: float = 1.0, beta: float = 2.0,
-                 kappa: float = 0.0) -> None:
+    def __init__(
+        self, kind: str, dynamics: DynamicsModel, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0
+    ) -> None:
         transition = BenchTransition(dynamics=dynamics)
         self.ndim_state = transition.ndim_state
         if kind == "ekf":
@@ -147,8 +155,11 @@ class StoneSoupFilter:
         self.state: GaussianState | None = None
 
     def initialise(self, x0: np.ndarray, P0: np.ndarray, t0: float) -> None:
-        self.state = GaussianState(StateVector(np.asarray(x0, dtype=float)),
-                                   CovarianceMatrix(np.asarray(P0, dtype=float)), timestamp=timestamp(t0))
+        self.state = GaussianState(
+            StateVector(np.asarray(x0, dtype=float)),
+            CovarianceMatrix(np.asarray(P0, dtype=float)),
+            timestamp=timestamp(t0),
+        )
 
     def process(self, det: Detection) -> GaussianState:
         """Predict to the detection's time and update with it; returns the posterior."""
@@ -157,10 +168,19 @@ class StoneSoupFilter:
         return self.state
 
 
-def stonesoup_filter(kind: str, dynamics: DynamicsModel, model: MeasurementModel, x0: np.ndarray,
-                     P0: np.ndarray, t0: float, measurements: Sequence[Measurement],
-                     alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0,
-                     angles_as_bearings: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def stonesoup_filter(
+    kind: str,
+    dynamics: DynamicsModel,
+    model: MeasurementModel,
+    x0: np.ndarray,
+    P0: np.ndarray,
+    t0: float,
+    measurements: Sequence[Measurement],
+    alpha: float = 1.0,
+    beta: float = 2.0,
+    kappa: float = 0.0,
+    angles_as_bearings: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
     """:class:`StoneSoupFilter` from N(x0, P0) at t0 over the bench's measurement items (their t, z, R): the
     posterior means (m, n) and covariances (m, n, n) after each."""
     flt = StoneSoupFilter(kind, dynamics, alpha, beta, kappa)
@@ -175,10 +195,18 @@ def stonesoup_filter(kind: str, dynamics: DynamicsModel, model: MeasurementModel
 
 # ---- association ----------------------------------------------------------------------------------------------
 
+
 def gaussian_track(x: np.ndarray, P: np.ndarray, t: float) -> Track:
     """A Stone Soup track holding one Gaussian state N(x, P) at bench time t."""
-    return Track([GaussianState(StateVector(np.asarray(x, dtype=float)),
-                                CovarianceMatrix(np.asarray(P, dtype=float)), timestamp=timestamp(t))])
+    return Track(
+        [
+            GaussianState(
+                StateVector(np.asarray(x, dtype=float)),
+                CovarianceMatrix(np.asarray(P, dtype=float)),
+                timestamp=timestamp(t),
+            )
+        ]
+    )
 
 
 class StoneSoupGNN:
@@ -209,10 +237,12 @@ class StoneSoupGNN:
         key = (n_tracks, gate)
         if key not in self._associators:
             miss = (n_tracks + 1) * gate if self.miss_cost is None else self.miss_cost
-            hypothesiser = DistanceHypothesiser(self.predictor, self.updater, SquaredMahalanobis(),
-                                                missed_distance=miss, include_all=True)
-            self._associators[key] = GNNWith2DAssignment(DistanceGater(hypothesiser, SquaredMahalanobis(),
-                                                                       gate_threshold=gate))
+            hypothesiser = DistanceHypothesiser(
+                self.predictor, self.updater, SquaredMahalanobis(), missed_distance=miss, include_all=True
+            )
+            self._associators[key] = GNNWith2DAssignment(
+                DistanceGater(hypothesiser, SquaredMahalanobis(), gate_threshold=gate)
+            )
         return self._associators[key]
 
     def step(self, tracks: Sequence[Track], detections: Sequence[Detection], t: float) -> list[int]:
@@ -251,11 +281,19 @@ class StoneSoupJPDA:
     they agree for a track alone in its cluster.
     """
 
-    def __init__(self, predictor: Predictor, updater: Updater, p_detect: float, clutter_density: float,
-                 gate_probability: float) -> None:
+    def __init__(
+        self, predictor: Predictor, updater: Updater, p_detect: float, clutter_density: float, gate_probability: float
+    ) -> None:
         self.updater = updater
-        self.associator = JPDA(PDAHypothesiser(predictor, updater, clutter_spatial_density=clutter_density,
-                                               prob_detect=p_detect, prob_gate=gate_probability))
+        self.associator = JPDA(
+            PDAHypothesiser(
+                predictor,
+                updater,
+                clutter_spatial_density=clutter_density,
+                prob_detect=p_detect,
+                prob_gate=gate_probability,
+            )
+        )
 
     def step(self, tracks: Sequence[Track], detections: Sequence[Detection], t: float) -> np.ndarray:
         """Associate and update every track with the detections of time t; returns the weights (T, N + 1):

@@ -10,6 +10,7 @@ The product rule has 2·n·n' points ξ = √(2λ_i)·(±e_j) with weights A_i /
 every polynomial of degree ≤ 3 and for the radial moments E|x|^(2k), k ≤ 2n' − 1 (E|x|⁴ needs n' ≥ 2).
 n' = 1 gives λ_1 = n/2: the standard cubature Kalman filter points ±√n·e_j with weights 1/(2n).
 """
+
 from __future__ import annotations
 
 import numpy as np

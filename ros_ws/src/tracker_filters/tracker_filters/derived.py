@@ -21,6 +21,7 @@ sample's step and time: a lag of order / 2 samples; the last order / 2 samples o
 overlapping windows make successive derived measurements correlated, which a filter cannot know: the
 reason paper 002's variant (b) can lose to (a).
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -29,8 +30,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError
-from bench_engine.settings import (POSITIVE, Check, NoKeys, SectionReader, Settings, at_least, read_entries, setting,
-                                   variant)
+from bench_engine.settings import (
+    POSITIVE,
+    Check,
+    NoKeys,
+    SectionReader,
+    Settings,
+    at_least,
+    read_entries,
+    setting,
+    variant,
+)
 from bench_engine.graph import NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, python_log
 from bench_models.labelled import ComponentModel
@@ -44,8 +54,9 @@ VECTOR_TYPE = "bench_msgs/msg/VectorMeasurement"
 class Differentiated(Settings):
     """``differentiated``: positions with Newton velocities over a centred window."""
 
-    order: int = setting(4, doc="degree of Newton's interpolating polynomial (order + 1 samples a window)",
-                         check=at_least(1))
+    order: int = setting(
+        4, doc="degree of Newton's interpolating polynomial (order + 1 samples a window)", check=at_least(1)
+    )
     max_gap: float = setting(float("inf"), unit="s", doc="no window spans a gap longer than this", check=POSITIVE)
 
 
@@ -56,12 +67,17 @@ KINDS = {"difference": NoKeys, "differentiated": Differentiated}
 class DerivedConfig(Settings):
     """One entry of ``derived_measurements`` (the module docstring)."""
 
-    type: str = setting(choices=TYPES, doc="difference: z_a - z_b of one step; differentiated: positions with "
-                                           "their numerical velocities")
-    of: str | list[str] = setting(doc="the sensors or earlier derived measurements it derives from: two for a "
-                                      "difference ([a, b]: a - b), one to differentiate")
-    labels: list[str] = setting(doc="the state components the result measures",
-                                check=Check(bool, "a non-empty list of state labels"))
+    type: str = setting(
+        choices=TYPES,
+        doc="difference: z_a - z_b of one step; differentiated: positions with their numerical velocities",
+    )
+    of: str | list[str] = setting(
+        doc="the sensors or earlier derived measurements it derives from: two for a "
+        "difference ([a, b]: a - b), one to differentiate"
+    )
+    labels: list[str] = setting(
+        doc="the state components the result measures", check=Check(bool, "a non-empty list of state labels")
+    )
     options: Settings = variant("type", lambda: TYPES, KINDS.get)
 
     @property
@@ -77,15 +93,21 @@ def read_derived(cfg: dict) -> dict[str, DerivedConfig]:
     for name, conf in out.items():
         need = 2 if conf.type == "difference" else 1
         if len(conf.sources) != need or any(s not in known for s in conf.sources):
-            raise ScenarioError(f"'{conf.where('of')}' must name {need} of the sensors or earlier derived "
-                                f"measurements {known}, got {list(conf.sources)}")
+            raise ScenarioError(
+                f"'{conf.where('of')}' must name {need} of the sensors or earlier derived "
+                f"measurements {known}, got {list(conf.sources)}"
+            )
         known.append(name)
     return out
 
 
-DERIVED_MEASUREMENTS = SectionReader(SECTION, dict[str, DerivedConfig], "measurements derived from others between "
-                                     "sensors and filters (node kind derived); a filter lists them in its sensors",
-                                     read_derived)
+DERIVED_MEASUREMENTS = SectionReader(
+    SECTION,
+    dict[str, DerivedConfig],
+    "measurements derived from others between "
+    "sensors and filters (node kind derived); a filter lists them in its sensors",
+    read_derived,
+)
 
 
 def derived_config(cfg: dict, name: str) -> DerivedConfig:
@@ -128,10 +150,16 @@ class DifferenceStage:
             for step in [k for k in buffer if k <= m.step]:
                 del buffer[step]
         if ma.z.shape != mb.z.shape or len(ma.z) != len(self.conf.labels):
-            raise ValueError(f"derived measurement '{self.name}': {list(self.conf.sources)} give {len(ma.z)} and "
-                             f"{len(mb.z)} components, labels {list(self.conf.labels)}")
-        return [(measurement_topic(self.name), Measurement(m.step, m.t_ns, ma.frame_id, self.name, ma.z - mb.z,
-                                                           ma.R + mb.R, list(self.conf.labels)))]
+            raise ValueError(
+                f"derived measurement '{self.name}': {list(self.conf.sources)} give {len(ma.z)} and "
+                f"{len(mb.z)} components, labels {list(self.conf.labels)}"
+            )
+        return [
+            (
+                measurement_topic(self.name),
+                Measurement(m.step, m.t_ns, ma.frame_id, self.name, ma.z - mb.z, ma.R + mb.R, list(self.conf.labels)),
+            )
+        ]
 
 
 class DifferentiatedStage:
@@ -139,6 +167,7 @@ class DifferentiatedStage:
 
     def __init__(self, name: str, conf: DerivedConfig) -> None:
         from tracker_filters.differentiation import weights_at_node  # scipy: only where a derivative is taken
+
         self.name, self.conf, self.weights = name, conf, weights_at_node
         self.max_gap_ns = conf.options.max_gap * 1e9
         self.window: deque[Measurement] = deque(maxlen=conf.options.order + 1)
@@ -153,13 +182,27 @@ class DifferentiatedStage:
         w = self.weights(np.array([m.t_ns for m in self.window]) * 1e-9, len(self.window) // 2)
         d = len(centre.z)
         if 2 * d != len(self.conf.labels):
-            raise ValueError(f"derived measurement '{self.name}' differentiates {d} components into "
-                             f"{len(self.conf.labels)} labels (need {2 * d})")
+            raise ValueError(
+                f"derived measurement '{self.name}' differentiates {d} components into "
+                f"{len(self.conf.labels)} labels (need {2 * d})"
+            )
         v = np.einsum("k,kd->d", w, np.array([s.z for s in self.window]))
         R_vel = np.einsum("k,kij->ij", w * w, np.array([s.R for s in self.window]))
         R = np.block([[centre.R, w[len(w) // 2] * centre.R], [w[len(w) // 2] * centre.R, R_vel]])
-        return [(measurement_topic(self.name), Measurement(centre.step, centre.t_ns, centre.frame_id, self.name,
-                                                           np.concatenate([centre.z, v]), R, list(self.conf.labels)))]
+        return [
+            (
+                measurement_topic(self.name),
+                Measurement(
+                    centre.step,
+                    centre.t_ns,
+                    centre.frame_id,
+                    self.name,
+                    np.concatenate([centre.z, v]),
+                    R,
+                    list(self.conf.labels),
+                ),
+            )
+        ]
 
 
 def build_stage(cfg: dict, name: str, run: dict | None = None):
@@ -171,10 +214,21 @@ def build_stage(cfg: dict, name: str, run: dict | None = None):
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = derived_config(cfg, name)
-    return NodeSpec(name, "derived", publishes={measurement_topic(name): VECTOR_TYPE},
-                    subscribes={measurement_topic(s): "" for s in conf.sources})
+    return NodeSpec(
+        name,
+        "derived",
+        publishes={measurement_topic(name): VECTOR_TYPE},
+        subscribes={measurement_topic(s): "" for s in conf.sources},
+    )
 
 
-DERIVED = NodeKind("derived", "sensor", "bench_engine.stage_node:StageNode",
-                   instances=lambda cfg, requested: list(read_derived(cfg)), spec=_spec,
-                   check=lambda cfg, name: derived_config(cfg, name), stage=build_stage, order=1)
+DERIVED = NodeKind(
+    "derived",
+    "sensor",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, requested: list(read_derived(cfg)),
+    spec=_spec,
+    check=lambda cfg, name: derived_config(cfg, name),
+    stage=build_stage,
+    order=1,
+)

@@ -15,6 +15,7 @@
 
 Both return NaN where a segment is too short to differentiate (a single isolated sample).
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -31,7 +32,7 @@ def divided_differences(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     t = np.asarray(t, dtype=float)
     c = np.array(y, dtype=float)
     for j in range(1, len(t)):
-        c[j:] = (c[j:] - c[j - 1:-1]) / (t[j:] - t[:-j]).reshape((-1,) + (1,) * (c.ndim - 1))
+        c[j:] = (c[j:] - c[j - 1 : -1]) / (t[j:] - t[:-j]).reshape((-1,) + (1,) * (c.ndim - 1))
     return c
 
 
@@ -111,7 +112,7 @@ def savgol_weights(n: int, polyorder: int, at: np.ndarray) -> np.ndarray:
         raise ValueError(f"Savitzky-Golay needs 1 <= polyorder < window, got {polyorder} and {n}")
     half = (n - 1) / 2.0
     q, r = np.linalg.qr(legendre.legvander((np.arange(n) - half) / half, polyorder))
-    basis_slope = legendre.legder(np.eye(polyorder + 1), axis=0)          # (polyorder, polyorder + 1)
+    basis_slope = legendre.legder(np.eye(polyorder + 1), axis=0)  # (polyorder, polyorder + 1)
     D = legendre.legval((np.asarray(at, dtype=float) - half) / half, basis_slope).T / half
     return np.linalg.solve(r.T, D.T).T @ q.T
 
@@ -131,8 +132,9 @@ def savgol_window_length(window_s: float, spacing: float, polyorder: int) -> int
     return max(n if n % 2 else n - 1, polyorder + 3 - polyorder % 2)
 
 
-def savgol_derivative(t: np.ndarray, z: np.ndarray, window_length: int, polyorder: int,
-                      max_gap: float = np.inf) -> np.ndarray:
+def savgol_derivative(
+    t: np.ndarray, z: np.ndarray, window_length: int, polyorder: int, max_gap: float = np.inf
+) -> np.ndarray:
     """Velocities (K, d) by Savitzky-Golay on each evenly sampled segment: centred windows inside, the first
     and last window's polynomial at the segment's ends.
 
@@ -150,9 +152,9 @@ def savgol_derivative(t: np.ndarray, z: np.ndarray, window_length: int, polyorde
             table = savgol_table(w, polyorder) / float(ts[1] - ts[0])
             h = w // 2
             out = v[seg]
-            out[h:n - h] = np.einsum("k,i...k->i...", table[h], sliding_window_view(zs, w, axis=0))
+            out[h : n - h] = np.einsum("k,i...k->i...", table[h], sliding_window_view(zs, w, axis=0))
             out[:h] = np.einsum("ik,k...->i...", table[:h], zs[:w])
-            out[n - h:] = np.einsum("ik,k...->i...", table[w - h:], zs[n - w:])
+            out[n - h :] = np.einsum("ik,k...->i...", table[w - h :], zs[n - w :])
             v[seg] = out
         elif n >= 2:
             v[seg] = newton_derivative(ts, zs, n - 1)

@@ -8,6 +8,7 @@ applies the gain of eq. 20 with the Joseph-form covariance (kf.joseph_update) in
 Both accept ``relinearise`` (a growth factor > 1; 0 = off, the paper's filter): Gauss-Newton re-solves of
 all scans since the first on a geometric schedule (relinearisation.py), for deterministic process models.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,7 +27,7 @@ def second_order_moments(hessians: np.ndarray, P: np.ndarray) -> tuple[np.ndarra
     d, m = hessians.shape[0:2]
     HP = hessians @ P
     flat = HP.reshape(d, m * m)
-    return 0.5 * flat[:, ::m + 1].sum(axis=1), 0.5 * flat.dot(HP.transpose(0, 2, 1).reshape(d, m * m).T)
+    return 0.5 * flat[:, :: m + 1].sum(axis=1), 0.5 * flat.dot(HP.transpose(0, 2, 1).reshape(d, m * m).T)
 
 
 class ExtendedKalmanFilter(Relinearising, KalmanFilter):

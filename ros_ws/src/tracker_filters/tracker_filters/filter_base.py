@@ -4,6 +4,7 @@ A concrete filter (``kf.py``, ``ekf.py``, ``ukf.py``, ...) implements ``_predict
 class owns the checks the bench promises: a NaN/inf or out-of-order measurement is rejected with a reason
 and leaves the filter untouched; a covariance that loses positive-definiteness is repaired and reported.
 """
+
 from __future__ import annotations
 
 import math
@@ -103,9 +104,14 @@ class Filter(ABC):
             return StepResult(False, f"update failed and was undone ({err})", warnings=self._warnings)
         if self.gate_probability and nis > gate_threshold(self.gate_probability, z.shape[0]):
             self.x, self.P, self.t = saved
-            return StepResult(False, f"gated outlier at t={t} s: NIS {nis:.4g} > "
-                                     f"{gate_threshold(self.gate_probability, z.shape[0]):.4g} "
-                                     f"(gate probability {self.gate_probability})", nis=nis, gated=True)
+            return StepResult(
+                False,
+                f"gated outlier at t={t} s: NIS {nis:.4g} > "
+                f"{gate_threshold(self.gate_probability, z.shape[0]):.4g} "
+                f"(gate probability {self.gate_probability})",
+                nis=nis,
+                gated=True,
+            )
         self.P = self._repaired(self.P, "after update")
         return StepResult(True, nis=nis, warnings=self._warnings)
 

@@ -13,6 +13,7 @@ declared here and whose builders (tracker_filters.builders) are imported when a 
     gate_probability: 0.9999  # optional NIS gate: reject measurements beyond this chi-square quantile
     gate_reinit_after: 3      # that many consecutive gated measurements: lock lost, restart from the next one
 """
+
 from __future__ import annotations
 
 import inspect
@@ -22,20 +23,33 @@ from typing import Any
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, merge
-from bench_engine.settings import (NON_NEGATIVE, POSITIVE, Builder, Check, SectionReader, Settings, at_least,
-                                   read, read_key, setting, variant)
+from bench_engine.settings import (
+    NON_NEGATIVE,
+    POSITIVE,
+    Builder,
+    Check,
+    SectionReader,
+    Settings,
+    at_least,
+    read,
+    read_key,
+    setting,
+    variant,
+)
 from bench_engine.labels import BIAS, ORBIT
 from orbit_sim.relative import CONVENTIONS
 
 
 # --- dynamics models ------------------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True, kw_only=True)
 class OrbitJ2(Settings):
     """``orbit_j2``: two-body + J2 orbit in ECI (the scenario's earth), white acceleration noise."""
 
-    sigma_accel: float = setting(unit="m/s^1.5", check=NON_NEGATIVE,
-                                 doc="square root of the white-acceleration spectral density")
+    sigma_accel: float = setting(
+        unit="m/s^1.5", check=NON_NEGATIVE, doc="square root of the white-acceleration spectral density"
+    )
 
     def state_labels(self) -> tuple[str, ...]:
         return ORBIT
@@ -51,12 +65,16 @@ class RelativeMotion(Settings):
     """A linear relative-motion model about the chief of ``truth.chief`` (LVLH: x radial, y along, z normal)."""
 
     sigma_accel: float | list[float] = setting(
-        unit="m/s^1.5", check=Check(_one_or_three, ">= 0, one value or three"),
+        unit="m/s^1.5",
+        check=Check(_one_or_three, ">= 0, one value or three"),
         doc="square root of the white-acceleration spectral density: one value, or one per LVLH axis (radial, "
-            "along, normal)")
-    reference: str = setting("stated", choices=("stated", "mean"),
-                             doc="the chief's reference radius: stated (its a) or mean (its orbit-averaged |r| "
-                                 "under the truth's gravity)")
+        "along, normal)",
+    )
+    reference: str = setting(
+        "stated",
+        choices=("stated", "mean"),
+        doc="the chief's reference radius: stated (its a) or mean (its orbit-averaged |r| under the truth's gravity)",
+    )
 
     def state_labels(self) -> tuple[str, ...]:
         return ORBIT
@@ -66,16 +84,18 @@ class RelativeMotion(Settings):
 class Cw(RelativeMotion):
     """``cw``: Clohessy-Wiltshire."""
 
-    discretisation: str = setting("exact", choices=("exact", "euler"),
-                                  doc="the transition matrix: the exact exponential or Euler's first order")
+    discretisation: str = setting(
+        "exact", choices=("exact", "euler"), doc="the transition matrix: the exact exponential or Euler's first order"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
 class CwBias(RelativeMotion):
     """``cw_bias``: Clohessy-Wiltshire with a constant unknown acceleration bias in the state (9 states)."""
 
-    sigma_bias: float = setting(unit="m/s^2.5", check=NON_NEGATIVE,
-                                doc="square root of the bias's random-walk spectral density")
+    sigma_bias: float = setting(
+        unit="m/s^2.5", check=NON_NEGATIVE, doc="square root of the bias's random-walk spectral density"
+    )
 
     def state_labels(self) -> tuple[str, ...]:
         return ORBIT + BIAS
@@ -91,9 +111,13 @@ class WhiteJerk(Settings):
     """``white_jerk``: paper 002's kinematic model, white jerk on positions, velocities, accelerations."""
 
     q: float = setting(unit="m^2/s^5", check=NON_NEGATIVE, doc="the white jerk's spectral density")
-    labels: list[str] = setting(doc="the state: 3 positions, 3 velocities, 3 accelerations, in that order",
-                                 check=Check(lambda v: len(v) == 9 and len(set(v)) == 9,
-                                             "9 distinct components (3 positions, 3 velocities, 3 accelerations)"))
+    labels: list[str] = setting(
+        doc="the state: 3 positions, 3 velocities, 3 accelerations, in that order",
+        check=Check(
+            lambda v: len(v) == 9 and len(set(v)) == 9,
+            "9 distinct components (3 positions, 3 velocities, 3 accelerations)",
+        ),
+    )
     frame: str = setting("eci", doc="the frame of the state (header.frame_id of the estimates)")
 
     def state_labels(self) -> tuple[str, ...]:
@@ -112,19 +136,25 @@ class DynamicsSettings(Settings):
     """A filter's ``dynamics``: a registered model (tracking_bench.dynamics) with its keys, and optionally a
     given process noise."""
 
-    model: str = setting(doc="a registered dynamics model (entry-point group tracking_bench.dynamics)",
-                         choices=lambda: plugins.names("dynamics"))
+    model: str = setting(
+        doc="a registered dynamics model (entry-point group tracking_bench.dynamics)",
+        choices=lambda: plugins.names("dynamics"),
+    )
     q_diagonal: list[float] | None = setting(
-        None, check=Check(lambda q: all(v >= 0 for v in q), "a list of values >= 0"),
+        None,
+        check=Check(lambda q: all(v >= 0 for v in q), "a list of values >= 0"),
         doc="the per-step discrete process noise Q's diagonal at q_reference_dt, in q_convention axes, instead of "
-            "the model's own (one value per state component)")
+        "the model's own (one value per state component)",
+    )
     q_convention: str = setting("radial_along_normal", choices=CONVENTIONS, doc="the axes of q_diagonal")
     q_reference_dt: float = setting(1.0, unit="s", check=POSITIVE, doc="the step q_diagonal is given for")
-    options: Settings = variant("model", lambda: plugins.names("dynamics"),
-                                lambda name: plugins.load("dynamics", name).settings)
+    options: Settings = variant(
+        "model", lambda: plugins.names("dynamics"), lambda name: plugins.load("dynamics", name).settings
+    )
 
 
 # --- initialisers ---------------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, kw_only=True)
 class FirstScan(Settings):
@@ -143,12 +173,15 @@ class Given(Settings):
 
     convention: str = setting("radial_along_normal", choices=CONVENTIONS, doc="the axes of mean and sigma")
     mean: list[float] = setting(unit="m, m/s", check=_six("6 values"), doc="initial relative position and velocity")
-    sigma: list[float] = setting(unit="m, m/s", check=_six("6 values > 0", lambda x: x > 0),
-                                 doc="their standard deviations")
-    bias_mean: list[float] | None = setting(None, unit="m/s^2", doc="initial bias of a 9-state filter",
-                                            default_text="zeros")
-    bias_sigma: list[float] | None = setting(None, unit="m/s^2", doc="its standard deviations (9-state filter)",
-                                             default_text="zeros")
+    sigma: list[float] = setting(
+        unit="m, m/s", check=_six("6 values > 0", lambda x: x > 0), doc="their standard deviations"
+    )
+    bias_mean: list[float] | None = setting(
+        None, unit="m/s^2", doc="initial bias of a 9-state filter", default_text="zeros"
+    )
+    bias_sigma: list[float] | None = setting(
+        None, unit="m/s^2", doc="its standard deviations (9-state filter)", default_text="zeros"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -159,8 +192,9 @@ class TruthScaled(Settings):
     sigma_position: float = setting(unit="m", check=POSITIVE, doc="initial position standard deviation")
     sigma_velocity: float = setting(unit="m/s", check=POSITIVE, doc="initial velocity standard deviation")
     sigma_bias: float = setting(1e-6, unit="m/s^2", check=POSITIVE, doc="initial bias standard deviation (CW+bias)")
-    bias_mean: list[float] | None = setting(None, unit="m/s^2", doc="initial bias of a 9-state filter",
-                                            default_text="zeros")
+    bias_mean: list[float] | None = setting(
+        None, unit="m/s^2", doc="initial bias of a 9-state filter", default_text="zeros"
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -169,8 +203,7 @@ class PositionFix(Settings):
     accelerations); the others zero mean."""
 
     sigma_velocity: float = setting(unit="m/s", check=POSITIVE, doc="the velocities' prior standard deviation")
-    sigma_acceleration: float = setting(unit="m/s^2", check=POSITIVE,
-                                        doc="the accelerations' prior standard deviation")
+    sigma_acceleration: float = setting(unit="m/s^2", check=POSITIVE, doc="the accelerations' prior standard deviation")
 
 
 FIRST_SCAN = Builder(FirstScan, "tracker_filters.builders:first_scan")
@@ -183,13 +216,17 @@ POSITION_FIX = Builder(PositionFix, "tracker_filters.builders:position_fix")
 class InitSettings(Settings):
     """A filter's ``init``: a registered initialiser (tracking_bench.initialisers) with its keys."""
 
-    method: str = setting(doc="a registered initialiser (entry-point group tracking_bench.initialisers)",
-                          choices=lambda: plugins.names("initialisers"))
-    options: Settings = variant("method", lambda: plugins.names("initialisers"),
-                                lambda name: plugins.load("initialisers", name).settings)
+    method: str = setting(
+        doc="a registered initialiser (entry-point group tracking_bench.initialisers)",
+        choices=lambda: plugins.names("initialisers"),
+    )
+    options: Settings = variant(
+        "method", lambda: plugins.names("initialisers"), lambda name: plugins.load("initialisers", name).settings
+    )
 
 
 # --- estimator parameters -------------------------------------------------------------------------------------
+
 
 @lru_cache(maxsize=None)
 def estimator_parameters(name: str) -> type:
@@ -210,22 +247,38 @@ def estimator_parameters(name: str) -> type:
 
 # --- the filter -----------------------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True, kw_only=True)
 class FilterSettings(Settings):
     """One filter: ``filters.NAME`` merged over ``filter_defaults``."""
 
-    type: str = setting(doc="a registered estimator type (entry-point group tracking_bench.estimators)",
-                        choices=lambda: plugins.names("estimators"), default_text="the filter's name")
-    sensors: list[str] | None = setting(None, doc="the sensors and derived measurements it consumes",
-                                        default_text="every sensor")
+    type: str = setting(
+        doc="a registered estimator type (entry-point group tracking_bench.estimators)",
+        choices=lambda: plugins.names("estimators"),
+        default_text="the filter's name",
+    )
+    sensors: list[str] | None = setting(
+        None, doc="the sensors and derived measurements it consumes", default_text="every sensor"
+    )
     dynamics: DynamicsSettings = setting(doc="its dynamics model")
     init: InitSettings = setting(doc="how it starts")
-    params: Settings = variant("type", lambda: plugins.names("estimators"), estimator_parameters, inline=False,
-                               doc="its estimator type's parameters")
-    gate_probability: float = setting(0.0, check=Check(lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = no gate)"),
-                                      doc="reject a measurement whose NIS is beyond this chi-square quantile")
-    gate_reinit_after: int = setting(3, check=at_least(1), doc="after this many consecutive gated measurements "
-                                                               "the filter has lost lock: restart from the next")
+    params: Settings = variant(
+        "type",
+        lambda: plugins.names("estimators"),
+        estimator_parameters,
+        inline=False,
+        doc="its estimator type's parameters",
+    )
+    gate_probability: float = setting(
+        0.0,
+        check=Check(lambda v: 0.0 <= v < 1.0, "in [0, 1) (0 = no gate)"),
+        doc="reject a measurement whose NIS is beyond this chi-square quantile",
+    )
+    gate_reinit_after: int = setting(
+        3,
+        check=at_least(1),
+        doc="after this many consecutive gated measurements the filter has lost lock: restart from the next",
+    )
 
 
 def filter_config(cfg: dict, name: str) -> dict:
@@ -268,9 +321,17 @@ def read_filters(cfg: dict) -> dict[str, FilterSettings]:
     return {name: filter_settings(cfg, name) for name in filters}
 
 
-FILTERS = SectionReader("filters", dict[str, FilterSettings], "the filters (node kind filter: estimators); a "
-                        "selected estimator no section defines is a filter of that type with filter_defaults",
-                        read_filters)
-FILTER_DEFAULTS = SectionReader("filter_defaults", FilterSettings, "defaults of every filter (and of a selected "
-                                "filter type without an entry): any key of filters.<name>", read_filters,
-                                defaults_of="filters")
+FILTERS = SectionReader(
+    "filters",
+    dict[str, FilterSettings],
+    "the filters (node kind filter: estimators); a "
+    "selected estimator no section defines is a filter of that type with filter_defaults",
+    read_filters,
+)
+FILTER_DEFAULTS = SectionReader(
+    "filter_defaults",
+    FilterSettings,
+    "defaults of every filter (and of a selected filter type without an entry): any key of filters.<name>",
+    read_filters,
+    defaults_of="filters",
+)

@@ -12,6 +12,7 @@ failed update) are logged and skipped;
 recoveries (covariance repaired, particle cloud re-initialised) are logged as warnings. The filters are
 imported only when one is built (:func:`build_stack`: every node of a run reads the kind to build the graph).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,6 +29,7 @@ def build_stack(cfg: dict, name: str):
     """The filter stack of ``filters.NAME`` (tracker_filters.builders.build_filter_stack), for this module and
     the other estimator kinds built on a filter (fixed-lag smoother, tracker)."""
     from tracker_filters.builders import build_filter_stack  # every filter and scipy: only where one is built
+
     return build_filter_stack(cfg, name)
 
 
@@ -47,9 +49,12 @@ class FilterStage:
         sensor = self.stack.sensors[self.sensor_of[topic]]
         flt = self.stack.filter
         if topic in self.last_t_ns and m.t_ns <= self.last_t_ns[topic]:
-            self.log("warning", f"rejected measurement at step {m.step}: out-of-order measurement from "
-                                f"{sensor.name} (duplicated or out-of-order: t = {m.t:.9f} s is not after its "
-                                f"last, t = {self.last_t_ns[topic] * 1e-9:.9f} s)")
+            self.log(
+                "warning",
+                f"rejected measurement at step {m.step}: out-of-order measurement from "
+                f"{sensor.name} (duplicated or out-of-order: t = {m.t:.9f} s is not after its "
+                f"last, t = {self.last_t_ns[topic] * 1e-9:.9f} s)",
+            )
             return []
         self.last_t_ns[topic] = m.t_ns
         if not flt.initialised or self.gated_in_a_row >= self.stack.reinit_after_gated:
@@ -67,12 +72,16 @@ class FilterStage:
         """Initialise from m: the first measurement, or after ``reinit_after_gated`` gated ones in a row (the
         prediction lost the target, e.g. across a long data gap: every later measurement would be gated too)."""
         if not (np.all(np.isfinite(m.z)) and np.all(np.isfinite(m.R))):
-            self.log("warning", f"rejected non-finite measurement at step {m.step} while (re)starting; waiting for "
-                                "the next")
+            self.log(
+                "warning", f"rejected non-finite measurement at step {m.step} while (re)starting; waiting for the next"
+            )
             return []
         if self.stack.filter.initialised:
-            self.log("warning", f"{self.gated_in_a_row} measurements in a row were gated: the filter lost lock and "
-                                f"restarts from the measurement of step {m.step}")
+            self.log(
+                "warning",
+                f"{self.gated_in_a_row} measurements in a row were gated: the filter lost lock and "
+                f"restarts from the measurement of step {m.step}",
+            )
         self.gated_in_a_row = 0
         x0, P0 = self.stack.initialise(m.z, m.R, sensor, m.t)
         self.stack.filter.initialise(x0, P0, m.t)
@@ -80,8 +89,17 @@ class FilterStage:
 
     def _estimate(self, m: Measurement, nis: float) -> tuple[str, Estimate]:
         flt = self.stack.filter
-        return self.topic, Estimate(m.step, m.t_ns, flt.dynamics.frame, self.name, flt.labels, flt.x.copy(),
-                                    flt.P.copy(), nis, flt.diagnostics())
+        return self.topic, Estimate(
+            m.step,
+            m.t_ns,
+            flt.dynamics.frame,
+            self.name,
+            flt.labels,
+            flt.x.copy(),
+            flt.P.copy(),
+            nis,
+            flt.diagnostics(),
+        )
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
@@ -90,9 +108,13 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
     unknown = [s for s in inputs if s not in sensors]
     if unknown:
         raise ScenarioError(f"'filters.{name}.sensors' names unknown sensor(s) {unknown}; allowed: {sorted(sensors)}")
-    return NodeSpec(name, "filter", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={measurement_topic(s): "" for s in inputs},
-                    labels={estimate_topic(name): state_labels(cfg, name)})
+    return NodeSpec(
+        name,
+        "filter",
+        publishes={estimate_topic(name): ESTIMATE_TYPE},
+        subscribes={measurement_topic(s): "" for s in inputs},
+        labels={estimate_topic(name): state_labels(cfg, name)},
+    )
 
 
 FILTER_READS = ("scenario", "seed", "time", "earth", "truth", "sensors", "derived_measurements")
@@ -112,7 +134,15 @@ def _check(cfg: dict, name: str) -> None:
     build_stack(cfg, name)
 
 
-FILTER = NodeKind("filter", "estimator", "bench_engine.stage_node:StageNode",
-                  instances=lambda cfg, names: list(names), spec=_spec, check=_check, stage=FilterStage,
-                  reads=_reads, claims=lambda cfg: list(cfg.get("filters") or {}), takes_unclaimed=True)
-
+FILTER = NodeKind(
+    "filter",
+    "estimator",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, names: list(names),
+    spec=_spec,
+    check=_check,
+    stage=FilterStage,
+    reads=_reads,
+    claims=lambda cfg: list(cfg.get("filters") or {}),
+    takes_unclaimed=True,
+)

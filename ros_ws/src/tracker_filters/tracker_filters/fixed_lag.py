@@ -15,6 +15,7 @@ fixed-lag smoothing with a delay of at least ``lag_s``. The transitions come fro
 dynamics model. The last ``lag_s`` seconds of a run are not published (the node never learns that the run
 ended; the offline ``rts`` estimator smooths them).
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -37,8 +38,9 @@ class FixedLagConfig(Settings):
     """One entry of ``fixed_lag_smoothers``."""
 
     source: str = setting(doc="the filter (an entry of filters) whose estimates it smooths")
-    lag_s: float = setting(unit="s", doc="each step's estimate is published once this much later data is in",
-                           check=POSITIVE)
+    lag_s: float = setting(
+        unit="s", doc="each step's estimate is published once this much later data is in", check=POSITIVE
+    )
 
 
 def read_fixed_lag(cfg: dict) -> dict[str, FixedLagConfig]:
@@ -50,8 +52,12 @@ def read_fixed_lag(cfg: dict) -> dict[str, FixedLagConfig]:
     return out
 
 
-FIXED_LAG_SMOOTHERS = SectionReader(SECTION, dict[str, FixedLagConfig], "fixed-lag smoothers of filters' "
-                                    "estimates in the graph (node kind fixed_lag: estimators)", read_fixed_lag)
+FIXED_LAG_SMOOTHERS = SectionReader(
+    SECTION,
+    dict[str, FixedLagConfig],
+    "fixed-lag smoothers of filters' estimates in the graph (node kind fixed_lag: estimators)",
+    read_fixed_lag,
+)
 
 
 class FixedLagSmoother:
@@ -70,12 +76,19 @@ class FixedLagSmoother:
         if self.window and e.t_ns <= self.window[-1].t_ns:
             self.log("warning", f"ignored an estimate of step {e.step} that is not newer than the last")
             return []
-        from tracker_filters.smoothing import rts_gain   # scipy: not for every node reading the kind
+        from tracker_filters.smoothing import rts_gain  # scipy: not for every node reading the kind
+
         if self.window:
             last = self.window[-1]
             x, P, dt = np.asarray(last.x, dtype=float), np.asarray(last.P, dtype=float), (e.t_ns - last.t_ns) * 1e-9
-            self.gains.append(rts_gain(x, P, np.asarray(self.dynamics.transition_matrix(x, dt), dtype=float),
-                                       np.asarray(self.dynamics.process_noise(x, dt), dtype=float)))
+            self.gains.append(
+                rts_gain(
+                    x,
+                    P,
+                    np.asarray(self.dynamics.transition_matrix(x, dt), dtype=float),
+                    np.asarray(self.dynamics.process_noise(x, dt), dtype=float),
+                )
+            )
         self.window.append(e)
         out = []
         while len(self.window) > 1 and (self.window[-1].t_ns - self.window[0].t_ns) * 1e-9 >= self.conf.lag_s:
@@ -88,23 +101,44 @@ class FixedLagSmoother:
         """RTS backward pass (tracker_filters.smoothing.rts_step) from the newest estimate of the window to the
         oldest."""
         from tracker_filters.smoothing import rts_step  # scipy.linalg: not for every node reading the kind
+
         items = list(self.window)
         x_s, P_s = np.asarray(items[-1].x, dtype=float), np.asarray(items[-1].P, dtype=float)
         for e, gain in zip(reversed(items[:-1]), reversed(self.gains)):
             x_s, P_s = rts_step(np.asarray(e.x, dtype=float), np.asarray(e.P, dtype=float), gain, x_s, P_s)
         oldest = items[0]
-        return Estimate(oldest.step, oldest.t_ns, oldest.frame_id, self.name, list(oldest.labels), x_s,
-                        P_s, oldest.nis, {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9})
+        return Estimate(
+            oldest.step,
+            oldest.t_ns,
+            oldest.frame_id,
+            self.name,
+            list(oldest.labels),
+            x_s,
+            P_s,
+            oldest.nis,
+            {"lag_s": (items[-1].t_ns - oldest.t_ns) * 1e-9},
+        )
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = read_fixed_lag(cfg)[name]
-    return NodeSpec(name, "fixed_lag", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={estimate_topic(conf.source): ""},
-                    labels={estimate_topic(name): state_labels(cfg, conf.source)})
+    return NodeSpec(
+        name,
+        "fixed_lag",
+        publishes={estimate_topic(name): ESTIMATE_TYPE},
+        subscribes={estimate_topic(conf.source): ""},
+        labels={estimate_topic(name): state_labels(cfg, conf.source)},
+    )
 
 
-FIXED_LAG = NodeKind("fixed_lag", "estimator", "bench_engine.stage_node:StageNode",
-                     instances=lambda cfg, names: list(names), spec=_spec,
-                     check=lambda cfg, name: FixedLagSmoother(cfg, name), stage=FixedLagSmoother, order=1,
-                     claims=lambda cfg: list(read_fixed_lag(cfg)))
+FIXED_LAG = NodeKind(
+    "fixed_lag",
+    "estimator",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, names: list(names),
+    spec=_spec,
+    check=lambda cfg, name: FixedLagSmoother(cfg, name),
+    stage=FixedLagSmoother,
+    order=1,
+    claims=lambda cfg: list(read_fixed_lag(cfg)),
+)

@@ -13,6 +13,7 @@ speed in any direction). ``circular_orbit_velocity_prior`` (circular-orbit speed
 r) and the isotropic moment match (v_c^2 / 3 per axis) are the alternatives; none of them changes the start-up
 inconsistency, which comes from the measurement geometry, not the velocity prior (relinearisation.py).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,10 +32,15 @@ def _velocity_covariance(velocity_sigma: float | np.ndarray) -> np.ndarray:
     raise ValueError(f"velocity_sigma must be a positive scalar, (3,) sigmas or a 3x3 covariance, got {s!r}")
 
 
-def initial_state_from_scan(z: np.ndarray, R: np.ndarray, model, t: float,
-                            velocity_sigma: float | np.ndarray,
-                            velocity_mean: np.ndarray | None = None,
-                            method: str = "unscented") -> tuple[np.ndarray, np.ndarray]:
+def initial_state_from_scan(
+    z: np.ndarray,
+    R: np.ndarray,
+    model,
+    t: float,
+    velocity_sigma: float | np.ndarray,
+    velocity_mean: np.ndarray | None = None,
+    method: str = "unscented",
+) -> tuple[np.ndarray, np.ndarray]:
     """(x0 (6,), P0 (6, 6)) in ECI at time t from one radar measurement z with noise covariance R.
 
     ``model`` is a radar measurement model offering ``position_from_measurement(z, t)`` and
@@ -50,8 +56,9 @@ def initial_state_from_scan(z: np.ndarray, R: np.ndarray, model, t: float,
     return x0, P0
 
 
-def scan_position(z: np.ndarray, R: np.ndarray, model, t: float,
-                  method: str = "unscented") -> tuple[np.ndarray, np.ndarray]:
+def scan_position(
+    z: np.ndarray, R: np.ndarray, model, t: float, method: str = "unscented"
+) -> tuple[np.ndarray, np.ndarray]:
     """ECI position (3,) and its covariance (3, 3) implied by one scan z (range, azimuth, elevation, ...)."""
     z3 = np.asarray(z, dtype=float)[0:3]
     R3 = np.asarray(R, dtype=float)[0:3, 0:3]
@@ -66,8 +73,9 @@ def scan_position(z: np.ndarray, R: np.ndarray, model, t: float,
     raise ValueError(f"method must be 'unscented' or 'jacobian', got {method!r}")
 
 
-def circular_orbit_velocity_prior(r_eci: np.ndarray, radial_sigma: float = 100.0,
-                                  mu: float = MU_EARTH) -> tuple[np.ndarray, np.ndarray]:
+def circular_orbit_velocity_prior(
+    r_eci: np.ndarray, radial_sigma: float = 100.0, mu: float = MU_EARTH
+) -> tuple[np.ndarray, np.ndarray]:
     """Zero-mean Gaussian moment match of "circular-orbit speed, unknown direction normal to r".
 
     A velocity of magnitude v_c = sqrt(mu / |r|) spread uniformly over the circle normal to r has mean 0
@@ -78,4 +86,4 @@ def circular_orbit_velocity_prior(r_eci: np.ndarray, radial_sigma: float = 100.0
     u = r / np.linalg.norm(r)
     vc2 = mu / np.linalg.norm(r)
     uu = np.outer(u, u)
-    return np.zeros(3), 0.5 * vc2 * (np.eye(3) - uu) + radial_sigma ** 2 * uu
+    return np.zeros(3), 0.5 * vc2 * (np.eye(3) - uu) + radial_sigma**2 * uu

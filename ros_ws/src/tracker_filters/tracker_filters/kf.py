@@ -6,6 +6,7 @@ budgets (scripts/bench_filters.py measures them). For the same reason the per-st
 ``ndarray.dot`` rather than the ``@`` operator (the matmul ufunc's dispatch): the same BLAS call and the same
 result, with less overhead on small operands.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -49,8 +50,9 @@ def gain_and_nis(C: np.ndarray, S: np.ndarray, nu: np.ndarray) -> tuple[np.ndarr
     return sol[:, 0:n].T, float(nu.dot(sol[:, n]))
 
 
-def joseph_update(x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray,
-                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def joseph_update(
+    x: np.ndarray, P: np.ndarray, nu: np.ndarray, H: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Kalman measurement update with innovation nu and measurement matrix H (paper eq. 20).
 
     The covariance uses the Joseph form P = (I - K H) P (I - K H)^T + K R K^T, which stays symmetric

@@ -28,6 +28,7 @@ for P_D < 1 (never below the information-reduction-factor bound, by Jensen's ine
 
 No rclpy, no scenario: arrays and models (bench_models.models) only.
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -65,16 +66,22 @@ def pcrb_recursion(J0: np.ndarray, transitions: np.ndarray, noises: np.ndarray, 
             try:
                 Jk = np.linalg.inv(Q[k] + F[k] @ np.linalg.inv(J[k]) @ F[k].T)
             except np.linalg.LinAlgError as err:
-                raise ValueError("the PCRB with process noise needs an invertible prior information "
-                                 "(a state part the prior leaves unknown)") from err
+                raise ValueError(
+                    "the PCRB with process noise needs an invertible prior information "
+                    "(a state part the prior leaves unknown)"
+                ) from err
         Jk = Jk + informations[k]
         J[k + 1] = 0.5 * (Jk + Jk.T)
     return J
 
 
-def pcrb_along_truth(dynamics: DynamicsModel, times: np.ndarray, states: np.ndarray,
-                     scans: Sequence[Sequence[tuple[MeasurementModel, np.ndarray]]],
-                     J0: np.ndarray) -> np.ndarray:
+def pcrb_along_truth(
+    dynamics: DynamicsModel,
+    times: np.ndarray,
+    states: np.ndarray,
+    scans: Sequence[Sequence[tuple[MeasurementModel, np.ndarray]]],
+    J0: np.ndarray,
+) -> np.ndarray:
     """Bound covariances J_k^{-1} (K, n, n) at ``times`` (K,) along the true ``states`` (K, n, in the
     dynamics' layout), with ``dynamics``' transition matrix (or, for a time-varying model, its
     ``transition_matrices(times, states)``) and process noise between consecutive times, and

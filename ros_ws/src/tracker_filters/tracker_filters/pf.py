@@ -21,6 +21,7 @@ layout of the model protocol. With numpy, broadcasting along long contiguous row
 cheaper than along rows of n = 6, and ``A @ Y`` than ``X @ A.T`` with a transposed 6×6 A; with N = 10 000
 this layout is what keeps a step of the "pf" within its budget (scripts/bench_formation_filters.py).
 """
+
 from __future__ import annotations
 
 from abc import abstractmethod
@@ -159,8 +160,7 @@ class ParticleFilterBase(Filter):
         return self._cols, self._logw, self._n_eff, self._resampled, self._cloud_mean, self._cloud_cov
 
     def _restore_cloud(self, state: tuple) -> None:
-        (self._cols, self._logw, self._n_eff, self._resampled,
-         self._cloud_mean, self._cloud_cov) = state
+        (self._cols, self._logw, self._n_eff, self._resampled, self._cloud_mean, self._cloud_cov) = state
 
     def _draw_cloud(self, mean: np.ndarray, cov: np.ndarray) -> None:
         """Replace the cloud by N equally weighted draws from N(mean, cov); N_eff = N."""
@@ -203,7 +203,8 @@ class ParticleFilterBase(Filter):
         if not np.isfinite(top):
             self._warnings.append(
                 f"{self.name}: every particle weight vanished (likelihood underflow/overflow or NaN) at "
-                f"t={self.t} s; cloud re-drawn from the predicted mean and covariance, measurement not used")
+                f"t={self.t} s; cloud re-drawn from the predicted mean and covariance, measurement not used"
+            )
             self._draw_cloud(self.x, self.P)
             return
         logw -= top + np.log(np.sum(np.exp(logw - top)))
@@ -379,8 +380,16 @@ class RegularisedParticleFilter(ParticleFilterBase):
         self._set_moments()
         return nis
 
-    def _proposal_means(self, centres: np.ndarray, means: np.ndarray, z: np.ndarray, model: MeasurementModel,
-                        H: np.ndarray, K: np.ndarray, L_sigma: np.ndarray) -> np.ndarray:
+    def _proposal_means(
+        self,
+        centres: np.ndarray,
+        means: np.ndarray,
+        z: np.ndarray,
+        model: MeasurementModel,
+        H: np.ndarray,
+        K: np.ndarray,
+        L_sigma: np.ndarray,
+    ) -> np.ndarray:
         """Gauss–Newton passes m ← c + K (z − h(m) + H (m − c)) with the shared H, K (iterated EKF form).
 
         Each further pass is first tried on an evenly strided probe of PROBE_SIZE particles (columns) and
@@ -390,14 +399,21 @@ class RegularisedParticleFilter(ParticleFilterBase):
         self._passes = 0
         for _ in range(self.iterations):
             step = self._gauss_newton(centres[:, probe], means[:, probe], z, model, H, K) - means[:, probe]
-            if np.max(mahalanobis_sq(step, L_sigma)) <= PASS_TOLERANCE ** 2:
+            if np.max(mahalanobis_sq(step, L_sigma)) <= PASS_TOLERANCE**2:
                 break
             means = self._gauss_newton(centres, means, z, model, H, K)
             self._passes += 1
         return means
 
-    def _gauss_newton(self, centres: np.ndarray, means: np.ndarray, z: np.ndarray, model: MeasurementModel,
-                      H: np.ndarray, K: np.ndarray) -> np.ndarray:
+    def _gauss_newton(
+        self,
+        centres: np.ndarray,
+        means: np.ndarray,
+        z: np.ndarray,
+        model: MeasurementModel,
+        H: np.ndarray,
+        K: np.ndarray,
+    ) -> np.ndarray:
         """One pass on columns: c + K (z − h(m) + H (m − c))."""
         nu = columns(model.residual(z, model.h(means.T, self.t)))
         return centres + K @ (nu + H @ (means - centres))

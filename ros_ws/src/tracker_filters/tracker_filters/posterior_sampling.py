@@ -20,6 +20,7 @@ proposal covers the posterior: the moments are trustworthy when it is in the hun
 Cost: every iteration propagates ``n_samples`` states through every scan with ``dynamics.propagate`` on
 (M, n) batches and evaluates ``model.h`` on them: the cost grows as M x (number of scans).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -70,28 +71,40 @@ def weighted_moments(X: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return mean, 0.5 * (cov + cov.T)
 
 
-def importance_sample(batch: PassBatch, mean: np.ndarray, cov: np.ndarray, n_samples: int,
-                      rng: np.random.Generator, dof: float = 5.0,
-                      scale: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def importance_sample(
+    batch: PassBatch,
+    mean: np.ndarray,
+    cov: np.ndarray,
+    n_samples: int,
+    rng: np.random.Generator,
+    dof: float = 5.0,
+    scale: float = 2.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One importance-sampling pass from t_dof(mean, scale^2 cov): (X0 (M, n), X_last (M, n), weights (M,))."""
     n = mean.shape[0]
     g = rng.standard_normal((n_samples, n))
     stretch = np.sqrt(dof / rng.chisquare(dof, n_samples))
     X0 = mean + scale * (g @ cholesky_lower(cov).T) * stretch[:, None]
-    d2 = np.einsum("ij,ij->i", g, g) * stretch ** 2  # Mahalanobis distance^2 in the proposal's metric
+    d2 = np.einsum("ij,ij->i", g, g) * stretch**2  # Mahalanobis distance^2 in the proposal's metric
     cost, X = batch_cost(batch, X0)
     log_w = -0.5 * cost + 0.5 * (dof + n) * np.log1p(d2 / dof)
     w = np.exp(log_w - log_w.max())
     return X0, X, w / w.sum()
 
 
-def adaptive_posterior(batch: PassBatch, guess: np.ndarray, n_samples: int, iterations: int,
-                       rng: np.random.Generator, dof: float = 5.0, scale: float = 2.0) -> Posterior:
+def adaptive_posterior(
+    batch: PassBatch,
+    guess: np.ndarray,
+    n_samples: int,
+    iterations: int,
+    rng: np.random.Generator,
+    dof: float = 5.0,
+    scale: float = 2.0,
+) -> Posterior:
     """Posterior moments at the last scan: Gauss-Newton MAP from ``guess`` (a state at t0), then
     ``iterations`` adaptive importance-sampling passes (module docstring)."""
     if n_samples < 10 * len(guess) or iterations < 1:
-        raise ValueError(f"need n_samples >= {10 * len(guess)} and iterations >= 1, "
-                         f"got {n_samples} and {iterations}")
+        raise ValueError(f"need n_samples >= {10 * len(guess)} and iterations >= 1, got {n_samples} and {iterations}")
     best, last_step, _ = batch.minimise(guess)
     mean0 = best.x0 + last_step
     cov0 = cholesky_solve(cholesky_lower(best.info), np.eye(len(mean0)))

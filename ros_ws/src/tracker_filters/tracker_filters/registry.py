@@ -4,6 +4,7 @@ Filters are registered in the entry-point group ``tracking_bench.estimators`` (n
 class takes the dynamics model first and its tuning parameters as keyword arguments, and raises ValueError
 for an invalid parameter value.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -11,6 +12,7 @@ import inspect
 from bench_engine import plugins
 from tracker_filters.filter_base import Filter
 from bench_models.models import DynamicsModel
+
 
 def filter_parameters(name: str) -> list[str]:
     """Names of the keyword parameters filter ``name`` accepts (beyond the dynamics model)."""
@@ -28,8 +30,7 @@ def make_filter(name: str, dynamics: DynamicsModel, **params) -> Filter:
     allowed = filter_parameters(name)
     unknown = sorted(set(params) - set(allowed))
     if unknown:
-        raise ValueError(f"{name}: unknown parameter(s) {', '.join(unknown)}; "
-                         f"allowed: {', '.join(allowed) or 'none'}")
+        raise ValueError(f"{name}: unknown parameter(s) {', '.join(unknown)}; allowed: {', '.join(allowed) or 'none'}")
     _check_types(name, cls, params)
     try:
         return cls(dynamics, **params)

@@ -41,6 +41,7 @@ and even the batch solution's Laplace covariance is overconfident). Earlier re-s
 worse, and a larger g saves work at some cost later in the pass. scripts/montecarlo.py and
 scripts/leo_posterior_study.py measure both.
 """
+
 from __future__ import annotations
 
 import math
@@ -107,13 +108,19 @@ class _ModelScans:
     @classmethod
     def of(cls, scans: list[Scan], index: list[int]) -> _ModelScans:
         picked = [scans[j] for j in index]
-        return cls(picked[0].model, np.array(index), np.array([s.t for s in picked]),
-                   np.array([s.z for s in picked]), np.array([s.W for s in picked]))
+        return cls(
+            picked[0].model,
+            np.array(index),
+            np.array([s.t for s in picked]),
+            np.array([s.z for s in picked]),
+            np.array([s.W for s in picked]),
+        )
 
     def extended(self, more: _ModelScans) -> _ModelScans:
         """These scans followed by ``more`` (same model)."""
-        return _ModelScans(self.model, *(np.concatenate((getattr(self, k), getattr(more, k)))
-                                         for k in ("index", "t", "z", "W")))
+        return _ModelScans(
+            self.model, *(np.concatenate((getattr(self, k), getattr(more, k))) for k in ("index", "t", "z", "W"))
+        )
 
 
 class PassBatch:
@@ -124,8 +131,9 @@ class PassBatch:
     over the scans with the DynamicsModel / MeasurementModel methods. Both give the same answer.
     """
 
-    def __init__(self, dynamics: DynamicsModel, m0: np.ndarray, P0: np.ndarray, t0: float,
-                 vectorised: bool = True) -> None:
+    def __init__(
+        self, dynamics: DynamicsModel, m0: np.ndarray, P0: np.ndarray, t0: float, vectorised: bool = True
+    ) -> None:
         self.dynamics = dynamics
         self.m0 = np.array(m0, dtype=float)
         self.W0 = whitening(np.asarray(P0, dtype=float))
@@ -150,8 +158,7 @@ class PassBatch:
         """Propagate x0 through every scan time; cost, normal equations and the state at the last scan."""
         x0 = np.array(x0, dtype=float)
         prior = self.W0 @ (self.m0 - x0)
-        lin = Linearisation(x0, float(prior @ prior), self.W0.T @ self.W0, self.W0.T @ prior, x0,
-                            np.eye(x0.shape[0]))
+        lin = Linearisation(x0, float(prior @ prior), self.W0.T @ self.W0, self.W0.T @ prior, x0, np.eye(x0.shape[0]))
         if self.scans and self._has_series():
             self._add_series(lin)
         else:
@@ -160,9 +167,11 @@ class PassBatch:
 
     def _has_series(self) -> bool:
         """Whether the dynamics and every scan's model have the batched methods ``_add_series`` calls."""
-        return (self.vectorised and hasattr(self.dynamics, "trajectory")
-                and all(hasattr(g.model, "h_series") and hasattr(g.model, "jacobian_series")
-                        for g in self._stack()[1]))
+        return (
+            self.vectorised
+            and hasattr(self.dynamics, "trajectory")
+            and all(hasattr(g.model, "h_series") and hasattr(g.model, "jacobian_series") for g in self._stack()[1])
+        )
 
     def _add_loop(self, lin: Linearisation) -> None:
         """Add every scan's terms to ``lin``, one scan at a time (propagate and transition_matrix per step)."""
@@ -256,8 +265,10 @@ class Relinearising:
         if not (isinstance(first, (int, np.integer)) and first >= 1):
             raise ValueError(f"relinearise_from must be a positive number of scans, got {first}")
         if growth and np.any(self.dynamics.process_noise(np.zeros(len(self.dynamics.labels)), 1.0) != 0.0):
-            raise ValueError("relinearise needs a deterministic process model (zero process noise, e.g. "
-                             "sigma_accel: 0): the batch re-solve has no process noise in it")
+            raise ValueError(
+                "relinearise needs a deterministic process model (zero process noise, e.g. "
+                "sigma_accel: 0): the batch re-solve has no process noise in it"
+            )
         self.relinearise = float(growth)
         self.relinearise_from = int(first)
         self._batch: PassBatch | None = None
@@ -291,5 +302,8 @@ class Relinearising:
         if not np.all(np.isfinite(x)):
             return [f"{self.name}: batch re-linearisation gave a non-finite state; recursive estimate kept"]
         self.x, self.P = x, P
-        return [f"{self.name}: covariance lost positive-definiteness in the batch re-linearisation; repaired"] \
-            if repaired else []
+        return (
+            [f"{self.name}: covariance lost positive-definiteness in the batch re-linearisation; repaired"]
+            if repaired
+            else []
+        )

@@ -4,6 +4,7 @@ All three are unbiased: the expected number of offspring of particle i is N·w_i
 variance of that number (multinomial > residual, systematic; Douc & Cappé 2005). Vectorised with
 ``np.searchsorted`` on the cumulative weights, O(N log N).
 """
+
 from __future__ import annotations
 
 from typing import Callable

@@ -6,6 +6,7 @@ gamma = sqrt(n + lambda), with weights
     W0_m = lambda / (n + lambda),   W0_c = W0_m + 1 - alpha^2 + beta,   Wi_m = Wi_c = 1 / (2 (n + lambda)).
 sqrt(P) is the lower Cholesky factor.
 """
+
 from __future__ import annotations
 
 import math

@@ -12,6 +12,7 @@ Kirubarajan, "Estimation with Applications to Tracking and Navigation", 2001, eq
 ``smooth_estimates`` takes the transitions from a filter's dynamics model between consecutive estimates (the
 offline ``rts`` estimator, bench_eval.offline, and the in-graph fixed-lag smoother, fixed_lag.py).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,9 @@ from scipy.linalg import cho_factor, cho_solve
 from bench_models.models import DynamicsModel
 
 
-def smooth_estimates(dynamics: DynamicsModel, dts: np.ndarray, xs: np.ndarray, Ps: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def smooth_estimates(
+    dynamics: DynamicsModel, dts: np.ndarray, xs: np.ndarray, Ps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """RTS-smoothed means (K, n) and covariances (K, n, n) of a filter's estimates ``xs`` (K, n), ``Ps``
     (K, n, n), with the transitions F_k = ``dynamics.transition_matrix(x_k|k, dt_k)`` and Q_k =
     ``dynamics.process_noise(x_k|k, dt_k)`` over ``dts`` (K - 1,), the seconds from each estimate to the next
@@ -53,8 +55,9 @@ def rts_gain(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tupl
     return F @ x, P_pred, C
 
 
-def rts_step(x: np.ndarray, P: np.ndarray, gain: tuple[np.ndarray, ...], x_next: np.ndarray, P_next: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
+def rts_step(
+    x: np.ndarray, P: np.ndarray, gain: tuple[np.ndarray, ...], x_next: np.ndarray, P_next: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(x_k|N, P_k|N) from the filtered x_k|k, P_k|k, the step's :func:`rts_gain` and the smoothed k+1."""
     Fx, P_pred, C = gain
     P_s = P + C @ (P_next - P_pred) @ C.T

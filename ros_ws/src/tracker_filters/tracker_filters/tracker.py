@@ -19,6 +19,7 @@ number. With a hard association (one detection, or none, per track) the tracker 
 set holding only the target's measurement it gives the filter's estimates bit for bit. A probabilistic
 associator (JPDA) returns soft weights; it comes with a probabilistic update in ``update_track``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -26,8 +27,15 @@ from typing import Callable
 
 import numpy as np
 
-from tracker_filters.association import (NO_DETECTION, Association, DataAssociator, GlobalNearestNeighbour,
-                                         Hypotheses, MahalanobisHypothesiser, measurement_prediction)
+from tracker_filters.association import (
+    NO_DETECTION,
+    Association,
+    DataAssociator,
+    GlobalNearestNeighbour,
+    Hypotheses,
+    MahalanobisHypothesiser,
+    measurement_prediction,
+)
 from tracker_filters.filter_base import Filter, StepResult
 
 Initialise = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -67,9 +75,15 @@ class Tracker:
 
     max_tracks = 1
 
-    def __init__(self, new_filter: Callable[[], Filter], initialise: Initialise, model,
-                 gate_probability: float = 0.999, associator: DataAssociator | None = None,
-                 max_misses: int | None = None) -> None:
+    def __init__(
+        self,
+        new_filter: Callable[[], Filter],
+        initialise: Initialise,
+        model,
+        gate_probability: float = 0.999,
+        associator: DataAssociator | None = None,
+        max_misses: int | None = None,
+    ) -> None:
         if max_misses is not None and max_misses < 1:
             raise ValueError(f"max_misses must be >= 1 or None, got {max_misses}")
         self.new_filter, self.initialise, self.model = new_filter, initialise, model
@@ -117,16 +131,19 @@ class Tracker:
             report.deleted = len(self.tracks) - len(kept)
             self.tracks = kept
 
-    def update_track(self, track: Track, association: Association, t: float, Z: np.ndarray,
-                     R: np.ndarray) -> StepResult | None:
+    def update_track(
+        self, track: Track, association: Association, t: float, Z: np.ndarray, R: np.ndarray
+    ) -> StepResult | None:
         """Update one track with its association; None when it coasts (missed).
 
         A hard association updates through ``Filter.process`` with the chosen detection. Soft weights (PDA,
         JPDA) need a probabilistic update: pairing a soft associator with this tracker is a configuration error,
         reported as such; a tracker for such an associator overrides this method."""
         if not association.is_hard:
-            raise TypeError(f"{type(self).__name__} updates with hard associations only, but the associator "
-                            "returned soft weights: use a tracker with a probabilistic update_track")
+            raise TypeError(
+                f"{type(self).__name__} updates with hard associations only, but the associator "
+                "returned soft weights: use a tracker with a probabilistic update_track"
+            )
         j = association.detection
         if j == NO_DETECTION:
             return None

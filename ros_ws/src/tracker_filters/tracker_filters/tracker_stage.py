@@ -15,6 +15,7 @@ scores it like a filter. NIS is the update's (NaN when the track coasted); the d
 (1 when a detection updated the track or started it, else 0), ``candidates`` (detections in the set),
 ``gated`` (detections in the track's gate) and the filter's own.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,14 +36,16 @@ SECTION = "trackers"
 class TrackerConfig(Settings):
     """One entry of ``trackers`` (the module docstring)."""
 
-    filter: str = setting(doc="an entry of the filters section: each track's filter (type, dynamics, initialiser, "
-                              "parameters)")
-    detections: str = setting(doc="a cluttered sensor (an entry of cluttered_sensors); its measurement model is "
-                                  "used")
-    gate_probability: float = setting(0.999, check=Check(lambda v: 0.0 < v < 1.0, "in (0, 1)"),
-                                      doc="P_G of the chi-square gate")
-    max_misses: int | None = setting(None, check=at_least(1), doc="delete the track after this many consecutive "
-                                                                  "misses (null: never)")
+    filter: str = setting(
+        doc="an entry of the filters section: each track's filter (type, dynamics, initialiser, parameters)"
+    )
+    detections: str = setting(doc="a cluttered sensor (an entry of cluttered_sensors); its measurement model is used")
+    gate_probability: float = setting(
+        0.999, check=Check(lambda v: 0.0 < v < 1.0, "in (0, 1)"), doc="P_G of the chi-square gate"
+    )
+    max_misses: int | None = setting(
+        None, check=at_least(1), doc="delete the track after this many consecutive misses (null: never)"
+    )
 
 
 def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
@@ -56,8 +59,9 @@ def read_trackers(cfg: dict) -> dict[str, TrackerConfig]:
     return out
 
 
-TRACKERS = SectionReader(SECTION, dict[str, TrackerConfig], "trackers of sets of detections (node kind tracker: "
-                         "estimators)", read_trackers)
+TRACKERS = SectionReader(
+    SECTION, dict[str, TrackerConfig], "trackers of sets of detections (node kind tracker: estimators)", read_trackers
+)
 
 
 def tracker_config(cfg: dict, name: str) -> TrackerConfig:
@@ -71,6 +75,7 @@ def build_tracker(cfg: dict, name: str):
     """The Tracker of ``trackers.NAME`` over fresh filters of its ``filter`` entry (ScenarioError on any bad
     key)."""
     from tracker_filters.tracker import Tracker  # data association and scipy: only where a tracker is built
+
     conf = tracker_config(cfg, name)
     sensor = build_cluttered(cfg, conf.detections).sensor
     stack = build_stack(cfg, conf.filter)
@@ -80,8 +85,13 @@ def build_tracker(cfg: dict, name: str):
         flt.name = name
         return flt
 
-    return Tracker(new_filter, lambda z, R, t: stack.initialise(z, R, sensor, t), sensor.model,
-                   conf.gate_probability, max_misses=conf.max_misses)
+    return Tracker(
+        new_filter,
+        lambda z, R, t: stack.initialise(z, R, sensor, t),
+        sensor.model,
+        conf.gate_probability,
+        max_misses=conf.max_misses,
+    )
 
 
 class TrackerStage:
@@ -97,7 +107,7 @@ class TrackerStage:
         for reason in report.rejected:
             self.log("warning", f"step {d.step}: update rejected: {reason}")
         for result in report.results:
-            for warning in (result.warnings if result is not None else []):
+            for warning in result.warnings if result is not None else []:
                 self.log("warning", warning)
         if report.deleted:
             self.log("info", f"step {d.step}: track deleted after {self.tracker.max_misses} consecutive misses")
@@ -108,22 +118,53 @@ class TrackerStage:
         flt = self.tracker.tracks[0].filter
         result = report.results[0] if report.results and not report.started else None
         updated = result is not None and result.accepted
-        gated = float(report.hypotheses.gated[0].sum()) if report.hypotheses is not None and not report.started \
+        gated = (
+            float(report.hypotheses.gated[0].sum())
+            if report.hypotheses is not None and not report.started
             else float("nan")
-        diagnostics = {"associated": 1.0 if (report.started or updated) else 0.0,
-                       "candidates": float(len(d.Z)), "gated": gated, **flt.diagnostics()}
-        return [(self.topic, Estimate(d.step, d.t_ns, flt.dynamics.frame, self.name, flt.labels, flt.x.copy(),
-                                      flt.P.copy(), result.nis if updated else float("nan"), diagnostics))]
+        )
+        diagnostics = {
+            "associated": 1.0 if (report.started or updated) else 0.0,
+            "candidates": float(len(d.Z)),
+            "gated": gated,
+            **flt.diagnostics(),
+        }
+        return [
+            (
+                self.topic,
+                Estimate(
+                    d.step,
+                    d.t_ns,
+                    flt.dynamics.frame,
+                    self.name,
+                    flt.labels,
+                    flt.x.copy(),
+                    flt.P.copy(),
+                    result.nis if updated else float("nan"),
+                    diagnostics,
+                ),
+            )
+        ]
 
 
 def _spec(cfg: dict, name: str) -> NodeSpec:
     conf = tracker_config(cfg, name)
-    return NodeSpec(name, "tracker", publishes={estimate_topic(name): ESTIMATE_TYPE},
-                    subscribes={detections_topic(conf.detections): DETECTION_SET_TYPE},
-                    labels={estimate_topic(name): state_labels(cfg, conf.filter)})
+    return NodeSpec(
+        name,
+        "tracker",
+        publishes={estimate_topic(name): ESTIMATE_TYPE},
+        subscribes={detections_topic(conf.detections): DETECTION_SET_TYPE},
+        labels={estimate_topic(name): state_labels(cfg, conf.filter)},
+    )
 
 
-TRACKER = NodeKind("tracker", "estimator", "bench_engine.stage_node:StageNode",
-                   instances=lambda cfg, names: list(names), spec=_spec,
-                   check=lambda cfg, name: build_tracker(cfg, name), stage=TrackerStage,
-                   claims=lambda cfg: list(read_trackers(cfg)))
+TRACKER = NodeKind(
+    "tracker",
+    "estimator",
+    "bench_engine.stage_node:StageNode",
+    instances=lambda cfg, names: list(names),
+    spec=_spec,
+    check=lambda cfg, name: build_tracker(cfg, name),
+    stage=TrackerStage,
+    claims=lambda cfg: list(read_trackers(cfg)),
+)

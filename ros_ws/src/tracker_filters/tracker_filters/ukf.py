@@ -11,6 +11,7 @@ propagated points (as eq. 28 literally reads) would leave Q out of P_xy. P_yy is
 ``relinearise`` (a growth factor > 1; 0 = off, the paper's filter): Gauss-Newton re-solves of all scans since
 the first on a geometric schedule (relinearisation.py), for deterministic process models.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,15 @@ class UnscentedKalmanFilter(Relinearising, Filter):
 
     name = "ukf"
 
-    def __init__(self, dynamics: DynamicsModel, alpha: float = 1.0, beta: float = 2.0,
-                 kappa: float = 0.0, relinearise: float = 0.0, relinearise_from: int = 100) -> None:
+    def __init__(
+        self,
+        dynamics: DynamicsModel,
+        alpha: float = 1.0,
+        beta: float = 2.0,
+        kappa: float = 0.0,
+        relinearise: float = 0.0,
+        relinearise_from: int = 100,
+    ) -> None:
         super().__init__(dynamics)
         self.points = ScaledSigmaPoints(len(dynamics.labels), alpha, beta, kappa)
         self._setup_relinearisation(relinearise, relinearise_from)

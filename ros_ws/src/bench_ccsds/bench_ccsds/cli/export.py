@@ -7,6 +7,7 @@ Examples:
   .venv/bin/python scripts/export.py runs/iss/bag --out runs/iss/ccsds
   .venv/bin/python scripts/export.py runs/demo/leo_radar/bag --out runs/ccsds --estimators ukf --no-truth
 """
+
 from __future__ import annotations
 
 import sys
@@ -16,9 +17,11 @@ from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run
 from bench_ccsds.export import export_bag
 from bench_ccsds.kvn import CcsdsError
 
-EPILOG = exit_codes(c0="the messages were written (the summary lists each file, and what was not exported)",
-                    c2="bad input: a directory that is not a bag recorded by this bench, a damaged bag, an estimator "
-                       "the bag has no estimates of, or an output directory that cannot be written")
+EPILOG = exit_codes(
+    c0="the messages were written (the summary lists each file, and what was not exported)",
+    c2="bad input: a directory that is not a bag recorded by this bench, a damaged bag, an estimator "
+    "the bag has no estimates of, or an output directory that cannot be written",
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,8 +35,9 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or args.bag.resolve().parent / "ccsds"
     check_output(out)
     with writing(out):
-        result = export_bag(args.bag, out, args.estimators.split(",") if args.estimators else None,
-                            truth=not args.no_truth)
+        result = export_bag(
+            args.bag, out, args.estimators.split(",") if args.estimators else None, truth=not args.no_truth
+        )
     print(result.summary())
     return 0
 

@@ -10,6 +10,7 @@ Examples:
   .venv/bin/python scripts/import_tdm.py radar.tdm --scenario leo_radar --variant iss --reference truth.oem \\
       --estimators ekf,ukf --out runs/tdm-ref
 """
+
 from __future__ import annotations
 
 import os
@@ -32,9 +33,10 @@ EPILOG = exit_codes(
     c0="the TDM was replayed and the estimators' run scored",
     c1="a node failed (named, with the tail of its log), or the estimators published nothing to score",
     c2="bad input, stopped before any node started: a TDM or OEM that cannot be read (the file and line named), "
-       "data the scenario cannot take (no ground radar, another time system, epochs before time.start), an "
-       "invalid scenario, estimator or --set, or an output directory that cannot be written",
-    c124="the replay did not end within its time limit")
+    "data the scenario cannot take (no ground radar, another time system, epochs before time.start), an "
+    "invalid scenario, estimator or --set, or an output directory that cannot be written",
+    c124="the replay did not end within its time limit",
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,11 +45,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("tdm", type=Path, help="a CCSDS TDM in KVN (RANGE, ANGLE_1/ANGLE_2 AZEL, DOPPLER_INSTANTANEOUS)")
     p.add_argument("--scenario", required=True, help="registered scenario name or YAML path: station, noise, time")
     p.add_argument("--variant", default=None, help="the scenario's variant(s), comma-separated")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override, repeatable (e.g. time.start=0)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override, repeatable (e.g. time.start=0)",
+    )
     p.add_argument("--reference", type=Path, default=None, help="an OEM (TEME, UTC) to score the estimates against")
-    p.add_argument("--sensor", default=None, help="the scenario's ground radar to give the data to (default: the "
-                   "one named like the TDM's PARTICIPANT_1, else the only one)")
+    p.add_argument(
+        "--sensor",
+        default=None,
+        help="the scenario's ground radar to give the data to (default: the "
+        "one named like the TDM's PARTICIPANT_1, else the only one)",
+    )
     p.add_argument("--estimators", default=None, help="comma-separated estimators (default: the scenario's)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/tdm-TIMESTAMP)")
     p.add_argument("--single-process", action="store_true", help="run every node in this one process")
@@ -62,9 +74,15 @@ def main(argv: list[str] | None = None) -> int:
         print(imported.summary(), file=sys.stderr)
         run = recorded_run(imported.bag_dir)
         estimators = args.estimators.split(",") if args.estimators else None
-        plan = prepare_run(run["scenario"]["scenario"], out, estimators, run.get("seed"), source="player",
-                           extra={"replay_bag": str(imported.bag_dir), "ccsds_import": run["ccsds_import"]},
-                           cfg=run["scenario"])
+        plan = prepare_run(
+            run["scenario"]["scenario"],
+            out,
+            estimators,
+            run.get("seed"),
+            source="player",
+            extra={"replay_bag": str(imported.bag_dir), "ccsds_import": run["ccsds_import"]},
+            cfg=run["scenario"],
+        )
     print(f"[import] {args.tdm} -> {plan.bag_dir} with {plan.run['estimators']}", file=sys.stderr)
     code = run_graph(plan, args.domain_id, args.single_process, tag="import")
     if code != 0:

@@ -1,6 +1,7 @@
 """The options of the commands that run batches (scripts/montecarlo.py, scripts/sweep.py): how many runs at a
 time, on which ROS domains or on a Dask cluster, how often a failed task is retried, whether complete runs are
 kept (bench_engine.batch)."""
+
 from __future__ import annotations
 
 import argparse
@@ -12,15 +13,27 @@ MAX_DOMAIN_ID = 101
 def add_batch_arguments(p: argparse.ArgumentParser) -> None:
     """--jobs, --domain-base, --scheduler, --retries and --resume."""
     p.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
-    p.add_argument("--domain-base", type=int, default=None,
-                   help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run reserves a free domain)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
-                        "'local' for a local cluster of --jobs worker processes")
-    p.add_argument("--retries", type=int, default=2,
-                   help="with --scheduler: attempts more for a run whose task fails (default 2)")
-    p.add_argument("--resume", action="store_true",
-                   help="keep the complete runs already in OUT (same configuration and seed), run the others")
+    p.add_argument(
+        "--domain-base",
+        type=int,
+        default=None,
+        help="job j uses ROS_DOMAIN_ID domain-base + j (default: each run reserves a free domain)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster: the scheduler's address (tcp://HOST:8786), or "
+        "'local' for a local cluster of --jobs worker processes",
+    )
+    p.add_argument(
+        "--retries", type=int, default=2, help="with --scheduler: attempts more for a run whose task fails (default 2)"
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the complete runs already in OUT (same configuration and seed), run the others",
+    )
 
 
 def check_batch_arguments(p: argparse.ArgumentParser, args: argparse.Namespace) -> None:

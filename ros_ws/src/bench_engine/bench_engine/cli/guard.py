@@ -10,6 +10,7 @@ and the operating system refusing a file (no such file, a file where a directory
 permission, no space left): all exit code :data:`BAD_INPUT`. A command adds its own (``expected``). Anything
 else is a bug: exit code :data:`BUG`. Argument errors are one line too (:class:`ArgumentParser`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,12 +43,17 @@ def exit_codes(**specific: str) -> str:
     """The ``--help`` epilog listing a command's exit codes: ``specific`` maps ``c0``, ``c1``, … to the text of
     code 0, 1, …; codes 2 (unless given), 70 and 128+N are the same for every command."""
     codes = {int(k[1:]): v for k, v in specific.items()}
-    codes.setdefault(BAD_INPUT, "bad input, stopped before anything ran: an unknown or invalid scenario, "
-                                "parameter or option, a bag that is not one or is damaged, or an output path "
-                                "that cannot be written (a file, read-only, no space left)")
+    codes.setdefault(
+        BAD_INPUT,
+        "bad input, stopped before anything ran: an unknown or invalid scenario, "
+        "parameter or option, a bag that is not one or is damaged, or an output path "
+        "that cannot be written (a file, read-only, no space left)",
+    )
     codes[BUG] = "internal error, a bug: a traceback, then a line saying so (please report it)"
-    lines = [textwrap.fill(text, 110, initial_indent=f"  {code:<6} ", subsequent_indent=" " * 9)
-             for code, text in sorted(codes.items())]
+    lines = [
+        textwrap.fill(text, 110, initial_indent=f"  {code:<6} ", subsequent_indent=" " * 9)
+        for code, text in sorted(codes.items())
+    ]
     lines.append("  128+N  interrupted by signal N")
     return "exit codes:\n" + "\n".join(lines) + "\nEvery failure but a bug is one line on stderr: 'error: …'."
 
@@ -85,8 +91,10 @@ def os_error_line(err: OSError) -> str:
     path = err.filename if err.filename is not None else "a file"
     what = (err.strerror or str(err)).lower() if err.errno is not None else str(err)
     if err.errno in NO_SPACE:
-        return (f"cannot write {path}: {what} (the disk is full or a file size limit is reached): free some "
-                f"space or choose another output directory")
+        return (
+            f"cannot write {path}: {what} (the disk is full or a file size limit is reached): free some "
+            f"space or choose another output directory"
+        )
     if err.errno in NOT_ALLOWED:
         return f"cannot write {path}: {what} (read-only or no permission): choose a writable output directory"
     if err.errno in IN_THE_WAY:
@@ -161,14 +169,17 @@ def _expected_code(err: BaseException, expected: Mapping[type, int]) -> int | No
             return BAD_INPUT
     if file_error_in(err) is not None:
         return BAD_INPUT
-    if isinstance(err, (FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError,
-                        PermissionError)) and err.errno is None:
+    if (
+        isinstance(err, (FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError, PermissionError))
+        and err.errno is None
+    ):
         return BAD_INPUT  # raised by the bench with a message of its own
     return None
 
 
-def run_main(main: Callable[[list[str] | None], int], argv: list[str] | None = None,
-             expected: Mapping[type, int] | None = None) -> int:
+def run_main(
+    main: Callable[[list[str] | None], int], argv: list[str] | None = None, expected: Mapping[type, int] | None = None
+) -> int:
     """``main(argv)``'s exit code; an expected error (module docstring, and ``expected``: class -> exit code)
     becomes one line on stderr and its code, any other a traceback and a line saying it is a bug (code 70)."""
     try:
@@ -186,8 +197,7 @@ def run_main(main: Callable[[list[str] | None], int], argv: list[str] | None = N
         if code is None:
             traceback.print_exc()
             what = " ".join(f"{type(err).__name__}: {err}".split()).removesuffix(":")
-            print(f"error: internal error (a bug): {what} — please report it with the traceback above",
-                  file=sys.stderr)
+            print(f"error: internal error (a bug): {what} — please report it with the traceback above", file=sys.stderr)
             return BUG
         file_error = file_error_in(err)
         line = os_error_line(file_error) if file_error is not None else str(err)

@@ -4,6 +4,7 @@
 smoothers, star trackers: bench_engine.graph.resolve_estimators). ``--filters`` is its old name: still
 accepted, with a one-line notice.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,15 +24,22 @@ class _OldName(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-def add_estimators_option(p: argparse.ArgumentParser, required: bool = False,
-                          default_text: str = "the scenario's 'estimators'") -> None:
+def add_estimators_option(
+    p: argparse.ArgumentParser, required: bool = False, default_text: str = "the scenario's 'estimators'"
+) -> None:
     """``--estimators`` (and its deprecated name ``--filters``) into ``args.estimators`` (text; see
     :func:`names`)."""
     group = p.add_mutually_exclusive_group(required=required)
     text = "comma-separated estimators to run, of any kind: filters, trackers, smoothers, star trackers"
     group.add_argument("--estimators", metavar="NAMES", help=text if required else f"{text} (default: {default_text})")
-    group.add_argument("--filters", dest="estimators", metavar="NAMES", action=_OldName, new="--estimators",
-                       help="deprecated name of --estimators")
+    group.add_argument(
+        "--filters",
+        dest="estimators",
+        metavar="NAMES",
+        action=_OldName,
+        new="--estimators",
+        help="deprecated name of --estimators",
+    )
 
 
 def names(text: str | None) -> list[str] | None:

@@ -7,6 +7,7 @@ Examples:
   .venv/bin/python scripts/recover_bag.py runs/crashed/bag
   .venv/bin/python scripts/recover_bag.py runs/mc/run_*/bag --force
 """
+
 from __future__ import annotations
 
 import os
@@ -23,8 +24,9 @@ from bench_engine.recovery import needs_recovery, recover
 EPILOG = exit_codes(
     c0="every bag is complete (recovered, or already)",
     c2="a bag could not be recovered (each named, the others are still recovered): not a bag directory, no "
-       ".mcap file, not even the MCAP header readable, or a directory that cannot be written (read-only, no "
-       "space left)")
+    ".mcap file, not even the MCAP header readable, or a directory that cannot be written (read-only, no "
+    "space left)",
+)
 
 
 def set_aside_unreadable_metadata(bag: Path) -> None:
@@ -69,8 +71,11 @@ def main(argv: list[str] | None = None) -> int:
     """Recover the bags of the command line; the exit codes of EPILOG."""
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("bags", nargs="+", type=Path, help="bag directories")
-    p.add_argument("--force", action="store_true",
-                   help="rebuild a bag even if it has a metadata.yaml (e.g. a damaged file with one)")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="rebuild a bag even if it has a metadata.yaml (e.g. a damaged file with one)",
+    )
     args = p.parse_args(argv)
     code = 0
     for bag in args.bags:

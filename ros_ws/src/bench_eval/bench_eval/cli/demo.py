@@ -12,6 +12,7 @@ Example:
   .venv/bin/python scripts/demo.py --out runs/demo
   .venv/bin/python scripts/demo.py --out runs/demo --runs 20
 """
+
 from __future__ import annotations
 
 import json
@@ -36,7 +37,8 @@ EPILOG = exit_codes(
     c0="every study ran and was scored; the report is written",
     c1="a study's run failed (its logs named), or its filters published nothing to score",
     c2="bad input, stopped before any run started: an unknown study, --runs < 1, or an output directory that "
-       "cannot be written (a file, read-only, no space left)")
+    "cannot be written (a file, read-only, no space left)",
+)
 
 
 def run_studies(names: list[str], out: Path, runs: int | None) -> dict[str, list[Path]]:
@@ -61,8 +63,12 @@ def main(argv: list[str] | None = None) -> int:
     studies = plugins.names("studies")
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
     p.add_argument("--out", type=Path, default=Path("runs/demo"), help="output directory (default runs/demo)")
-    p.add_argument("--runs", type=int, default=None,
-                   help="Monte Carlo runs of every study (default: each study's own count, its demo_runs)")
+    p.add_argument(
+        "--runs",
+        type=int,
+        default=None,
+        help="Monte Carlo runs of every study (default: each study's own count, its demo_runs)",
+    )
     p.add_argument("--studies", default=",".join(studies), help=f"comma-separated subset of {studies}")
     args = p.parse_args(argv)
     chosen = [s for s in args.studies.split(",") if s]

@@ -8,6 +8,7 @@ Examples:
 
 DDS stays on this host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST); each run uses its own ROS_DOMAIN_ID.
 """
+
 from __future__ import annotations
 
 from bench_engine import phases

@@ -20,6 +20,7 @@ Examples:
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc
   .venv/bin/python scripts/montecarlo.py leo_radar --runs 400 --scheduler tcp://head:8786 --out /shared/mc --resume
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,8 +34,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BL
 
 from bench_engine import phases  # noqa: E402
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
-from bench_engine.cli.guard import (ArgumentParser, check_writable, exit_codes, is_file_error,  # noqa: E402
-                                    run_main, writing)
+from bench_engine.cli.guard import (
+    ArgumentParser,
+    check_writable,
+    exit_codes,
+    is_file_error,  # noqa: E402
+    run_main,
+    writing,
+)
 from bench_engine.cli.options import add_estimators_option  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
@@ -45,10 +52,11 @@ from bench_eval.scoring import print_summary  # noqa: E402
 EPILOG = exit_codes(
     c0="every run completed; scores and report written",
     c1="a run failed (each failed run is named with its log; the others are scored), none could be scored, or "
-       "the Dask scheduler could not be reached",
+    "the Dask scheduler could not be reached",
     c2="bad input, stopped before any run started: an unknown or invalid scenario (a YAML syntax error names the "
-       "file and line), estimator, variant or --set key or value, run directories already in OUT (without "
-       "--resume), or an output directory that cannot be written (a file, read-only, no space left)")
+    "file and line), estimator, variant or --set key or value, run directories already in OUT (without "
+    "--resume), or an output directory that cannot be written (a file, read-only, no space left)",
+)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -58,8 +66,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add_estimators_option(p)
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/mc-SCENARIO)")
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 (run i uses seed0 + i)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override, repeatable")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override, repeatable",
+    )
     p.add_argument("--variant", help="the scenario's named variants (comma-separated, in order)")
     p.add_argument("--multiprocess", action="store_true", help="one process per node in every run")
     add_batch_arguments(p)
@@ -72,8 +86,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     """Run the Monte Carlo of the command line; the exit codes of EPILOG."""
     args = parse_args(argv)
-    mc = MonteCarlo(args.scenario, args.out or Path(f"runs/mc-{Path(args.scenario).stem}"), args.runs, args.seed0,
-                    args.estimators, args.variant, args.overrides, args.multiprocess)
+    mc = MonteCarlo(
+        args.scenario,
+        args.out or Path(f"runs/mc-{Path(args.scenario).stem}"),
+        args.runs,
+        args.seed0,
+        args.estimators,
+        args.variant,
+        args.overrides,
+        args.multiprocess,
+    )
     phases.mark_process_start("montecarlo", mc.out.resolve())
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
     check_writable(mc.out)  # a file, read-only or full: one line (run_main), before anything starts

@@ -8,6 +8,7 @@ Examples:
   .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --estimators ukf --out runs/replay-ukf
   .venv/bin/python scripts/replay.py runs/demo/leo_radar/bag --estimators ukf --set filters.ukf.params.alpha=0.5
 """
+
 from __future__ import annotations
 
 import os
@@ -34,9 +35,10 @@ EPILOG = exit_codes(
     c0="the replay completed and its bag was scored",
     c1="a node failed (named, with the tail of its log), or the new estimators published nothing to score",
     c2="bad input, stopped before any node started: a directory that is not a bag recorded by this bench, a "
-       "damaged bag, an invalid estimator or --set key or value, a ROS domain held by another run, or an output "
-       "directory that cannot be written (a file, read-only, no space left)",
-    c124="the replay did not end within its time limit")
+    "damaged bag, an invalid estimator or --set key or value, a ROS domain held by another run, or an output "
+    "directory that cannot be written (a file, read-only, no space left)",
+    c124="the replay did not end within its time limit",
+)
 
 
 def recorded_run(bag: Path) -> dict:
@@ -59,11 +61,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("bag", type=Path, help="bag directory recorded by launch.py / montecarlo.py")
     add_estimators_option(p, required=True)
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/replay-TIMESTAMP)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override for the replay (estimators only: the data are fixed), repeatable")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override for the replay (estimators only: the data are fixed), repeatable",
+    )
     p.add_argument("--single-process", action="store_true", help="run every node in this one process")
-    p.add_argument("--domain-id", type=int, default=None,
-                   help="ROS_DOMAIN_ID (default: the first one no other bench run holds)")
+    p.add_argument(
+        "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: the first one no other bench run holds)"
+    )
     p.add_argument("--json", action="store_true", help="print the score as JSON")
     args = p.parse_args(argv)
     out = args.out or Path(f"runs/replay-{time.strftime('%Y%m%d-%H%M%S')}")
@@ -72,8 +81,15 @@ def main(argv: list[str] | None = None) -> int:
         cfg = apply_overrides(recorded["scenario"], args.overrides)
         with writing(out):
             check_output(out)  # before the validation
-            plan = prepare_run(cfg["scenario"], out, names(args.estimators), recorded.get("seed"),
-                               source="player", extra={"replay_bag": str(args.bag.resolve())}, cfg=cfg)
+            plan = prepare_run(
+                cfg["scenario"],
+                out,
+                names(args.estimators),
+                recorded.get("seed"),
+                source="player",
+                extra={"replay_bag": str(args.bag.resolve())},
+                cfg=cfg,
+            )
     except (ScenarioError, BagDamaged) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

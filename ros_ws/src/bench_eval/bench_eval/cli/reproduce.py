@@ -16,6 +16,7 @@ Examples:
   .venv/bin/python scripts/reproduce.py --only speed.filters,speed.graph
   .venv/bin/python scripts/reproduce.py --docs                # the pages' result tables from results/results.json
 """
+
 from __future__ import annotations
 
 import json
@@ -41,7 +42,8 @@ from bench_eval.study import study  # noqa: E402
 EPILOG = exit_codes(
     c0="every chosen table was produced (or was already complete with --resume); the record is written",
     c1="a table's command failed (its log named); the others still ran and the record says which failed",
-    c2="bad input: an unknown table, a declared command that does not validate (--check), no scripts/ folder")
+    c2="bad input: an unknown table, a declared command that does not validate (--check), no scripts/ folder",
+)
 
 
 DECLARED = "docs/tables"
@@ -52,8 +54,9 @@ def declared_tables(root: Path) -> list[rp.Table]:
     """Every registered study's tables, in the studies' registration order, then the repository's own
     (root/DECLARED/*.yaml, in name order)."""
     own = sorted((Path(root) / DECLARED).glob("*.yaml"))
-    return [t for name in plugins.names("studies") for t in study(name).tables] \
-        + [t for path in own for t in rp.read_tables(path, path.stem)]
+    return [t for name in plugins.names("studies") for t in study(name).tables] + [
+        t for path in own for t in rp.read_tables(path, path.stem)
+    ]
 
 
 def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> list[str]:
@@ -67,22 +70,28 @@ def validate(table: rp.Table, root: Path, mini: bool, helps: dict[str, str]) -> 
         res = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, cwd=root)
         helps[table.script] = res.stdout if res.returncode == 0 else ""
     text, args = helps[table.script], rp.arguments(table, mini)
-    wanted = rp.flags(args) + [f for f in (table.out_flag,) if f] + ["--scheduler"] * table.scheduler \
+    wanted = (
+        rp.flags(args)
+        + [f for f in (table.out_flag,) if f]
+        + ["--scheduler"] * table.scheduler
         + ["--resume"] * table.resume
+    )
     problems = [f"{table.name}: {table.script} --help lists no {f}" for f in wanted if f not in text]
     if table.scenario:
         try:
-            cfg = apply_overrides(select_variant(load_scenario(table.scenario), rp.value(args, "--variant")),
-                                  rp.overrides(args))
-            chosen = names(rp.value(args, "--estimators") or rp.value(args, "--filters"))   # --filters: old name
+            cfg = apply_overrides(
+                select_variant(load_scenario(table.scenario), rp.value(args, "--variant")), rp.overrides(args)
+            )
+            chosen = names(rp.value(args, "--estimators") or rp.value(args, "--filters"))  # --filters: old name
             launcher.validate(cfg, resolve_estimators(cfg, chosen), "truth")
         except ScenarioError as err:
             problems.append(f"{table.name}: {table.scenario} rejects its settings: {err}")
     return problems
 
 
-def run_table(table: rp.Table, root: Path, work: Path, head: str, mini: bool, scheduler: str | None,
-              resume: bool) -> dict:
+def run_table(
+    table: rp.Table, root: Path, work: Path, head: str, mini: bool, scheduler: str | None, resume: bool
+) -> dict:
     """Run one table's command; its log and output directory under work/NAME. With --resume, a command that
     resumes keeps the runs already in its output directory if they were made at the same commit with the same
     arguments (work/NAME/made_by.json); otherwise the directory is emptied first, so that no table mixes runs
@@ -107,9 +116,16 @@ def run_table(table: rp.Table, root: Path, work: Path, head: str, mini: bool, sc
         markdown = f"```\n{markdown.rstrip()}\n```\n"
     status = "ok" if ok else f"FAILED (exit {code}; log {out / 'stderr.txt'})"
     print(f"[reproduce] {table.name}: {status} in {wall:.0f} s", file=sys.stderr, flush=True)
-    return {"title": table.title, "status": "ok" if ok else f"failed (exit {code})", "wall_s": round(wall, 1),
-            "load_average": load, "machine": {k: v for k, v in rp.machine().items() if k in ("cpus", "cpu_model")},
-            "identity": ident, "markdown": markdown, "log": str(out / "stderr.txt")}
+    return {
+        "title": table.title,
+        "status": "ok" if ok else f"failed (exit {code})",
+        "wall_s": round(wall, 1),
+        "load_average": load,
+        "machine": {k: v for k, v in rp.machine().items() if k in ("cpus", "cpu_model")},
+        "identity": ident,
+        "markdown": markdown,
+        "log": str(out / "stderr.txt"),
+    }
 
 
 def write_record(results: Path, record: dict, order: list[str]) -> None:
@@ -132,8 +148,10 @@ def copy_figures(table: rp.Table, root: Path, work: Path, entry: dict) -> None:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(source, target)
         elif not target.is_file():
-            raise rp.ExcerptError(f"{table.name}: no figure {figure} from its recorded run in {work}: run the "
-                                  "table again (scripts/reproduce.py --only " + table.name + ")")
+            raise rp.ExcerptError(
+                f"{table.name}: no figure {figure} from its recorded run in {work}: run the "
+                "table again (scripts/reproduce.py --only " + table.name + ")"
+            )
 
 
 def write_pages(root: Path, record_path: Path, tables: list[rp.Table], work: Path) -> str:
@@ -160,10 +178,13 @@ def write_pages(root: Path, record_path: Path, tables: list[rp.Table], work: Pat
             changed.append(str(page.relative_to(root)))
     unshown = sorted(set(by_name) - set(shown))
     if unshown:
-        raise rp.ExcerptError(f"no page shows the declared table(s) {unshown}: add a block "
-                              "<!-- results: TABLE --><!-- /results --> where each belongs")
-    return (f"{len(shown)} generated block(s) from {record_path}; "
-            + (f"changed: {', '.join(changed)}" if changed else "every page unchanged"))
+        raise rp.ExcerptError(
+            f"no page shows the declared table(s) {unshown}: add a block "
+            "<!-- results: TABLE --><!-- /results --> where each belongs"
+        )
+    return f"{len(shown)} generated block(s) from {record_path}; " + (
+        f"changed: {', '.join(changed)}" if changed else "every page unchanged"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -172,16 +193,27 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", help="comma-separated table names (default: every declared table; see --list)")
     p.add_argument("--list", action="store_true", help="print the declared tables and their commands, then exit")
     p.add_argument("--check", action="store_true", help="validate every chosen table's command, run nothing")
-    p.add_argument("--docs", action="store_true",
-                   help="rewrite the generated blocks (<!-- results: TABLE --> ... <!-- /results -->) of README.md and "
-                        "the docs/ pages from the record (results/results.json), run nothing")
+    p.add_argument(
+        "--docs",
+        action="store_true",
+        help="rewrite the generated blocks (<!-- results: TABLE --> ... <!-- /results -->) of README.md and "
+        "the docs/ pages from the record (results/results.json), run nothing",
+    )
     p.add_argument("--mini", action="store_true", help="the miniature: one run per cell, shortened runs")
     p.add_argument("--resume", action="store_true", help="skip tables complete for this commit and arguments")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the commands that take it")
-    p.add_argument("--results", type=Path, default=None,
-                   help="where RESULTS.md and results.json go (default results/, with --mini runs/reproduce-mini)")
-    p.add_argument("--work", type=Path, default=None,
-                   help="the commands' output directories and logs (default runs/reproduce[-mini])")
+    p.add_argument(
+        "--results",
+        type=Path,
+        default=None,
+        help="where RESULTS.md and results.json go (default results/, with --mini runs/reproduce-mini)",
+    )
+    p.add_argument(
+        "--work",
+        type=Path,
+        default=None,
+        help="the commands' output directories and logs (default runs/reproduce[-mini])",
+    )
     p.add_argument("--root", type=Path, default=Path.cwd(), help="the repository (default: the current directory)")
     args = p.parse_args(argv)
     root = args.root.resolve()
@@ -242,8 +274,11 @@ def main(argv: list[str] | None = None) -> int:
         write_record(results, record, names)  # after every table: an interrupted reproduction keeps what it did
     record["wall_s"] = round(time.perf_counter() - start, 1)
     write_record(results, record, names)
-    print(f"[reproduce] {len(tables) - len(failed)}/{len(tables)} table(s) ok in {record['wall_s']:.0f} s; "
-          f"{results / 'RESULTS.md'}" + (f"; failed: {', '.join(failed)}" if failed else ""), file=sys.stderr)
+    print(
+        f"[reproduce] {len(tables) - len(failed)}/{len(tables)} table(s) ok in {record['wall_s']:.0f} s; "
+        f"{results / 'RESULTS.md'}" + (f"; failed: {', '.join(failed)}" if failed else ""),
+        file=sys.stderr,
+    )
     return 1 if failed else 0
 
 

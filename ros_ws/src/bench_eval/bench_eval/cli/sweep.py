@@ -15,6 +15,7 @@ Examples:
   .venv/bin/python scripts/sweep.py formation_cqkf --grid interval --runs 4 --out runs/sweep-interval
   .venv/bin/python scripts/sweep.py formation_cqkf --grid noise --runs 2 --set time.duration=600
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,15 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
-from bench_engine.cli.guard import (ArgumentParser, check_output, check_writable, exit_codes,  # noqa: E402
-                                    is_file_error, run_main, writing)
+from bench_engine.cli.guard import (
+    ArgumentParser,
+    check_output,
+    check_writable,
+    exit_codes,  # noqa: E402
+    is_file_error,
+    run_main,
+    writing,
+)
 from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
@@ -37,10 +45,11 @@ from bench_eval.sweep import SweepRun, load_grid, reusable, validate, write_outp
 EPILOG = exit_codes(
     c0="every run completed and every cell was scored; sweep.json and table.md written",
     c1="a run or a cell's scoring failed (each named; the other cells are reported), or the Dask scheduler could "
-       "not be reached",
+    "not be reached",
     c2="bad input, stopped before any run started: an unknown or invalid scenario (a YAML syntax error names the "
-       "file and line), grid, cell value or --set key or value, runs already in OUT (without --resume), or an "
-       "output directory that cannot be written (a file, read-only, no space left)")
+    "file and line), grid, cell value or --set key or value, runs already in OUT (without --resume), or an "
+    "output directory that cannot be written (a file, read-only, no space left)",
+)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -50,13 +59,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs per cell (default 1)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/sweep-SCENARIO-GRID)")
     p.add_argument("--seed0", type=int, default=1, help="seed of run 0 of every cell (run i uses seed0 + i)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="scenario override applied to every cell after its own, repeatable")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override applied to every cell after its own, repeatable",
+    )
     add_estimators_option(p, default_text="each cell's 'estimators'")
     add_batch_arguments(p)
     p.add_argument("--json", action="store_true", help="print sweep.json instead of the summary")
     args = p.parse_args(argv)
-    if names(args.estimators):   # every cell's selection: the scenario key, set after the cells' own
+    if names(args.estimators):  # every cell's selection: the scenario key, set after the cells' own
         args.overrides.append(f"estimators=[{', '.join(names(args.estimators))}]")
     check_batch_arguments(p, args)
     return args
@@ -80,8 +95,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     check_writable(args.out)  # a file, read-only or full: one line (run_main), before any run starts
-    print(f"[sweep] {grid.scenario}/{grid.name}: {len(grid.cells)} cells x {args.runs} runs "
-          f"({len(done)} reused), {args.jobs} jobs, out {args.out}", file=sys.stderr)
+    print(
+        f"[sweep] {grid.scenario}/{grid.name}: {len(grid.cells)} cells x {args.runs} runs "
+        f"({len(done)} reused), {args.jobs} jobs, out {args.out}",
+        file=sys.stderr,
+    )
     started = time.monotonic()
     sweep_run = SweepRun(grid, args.out, args.runs, args.seed0, done)
     domains = list(range(args.domain_base, args.domain_base + args.jobs)) if args.domain_base is not None else None
@@ -96,8 +114,17 @@ def main(argv: list[str] | None = None) -> int:
     wall = time.monotonic() - started
     command = " ".join([invoked_as()] + (sys.argv[1:] if argv is None else argv))
     with writing(args.out):
-        sweep = write_outputs(sweep_run, {"runs_per_cell": args.runs, "seed0": args.seed0, "jobs": args.jobs,
-                                          "wall_s": round(wall, 1), "runs_reused": len(done), "command": command})
+        sweep = write_outputs(
+            sweep_run,
+            {
+                "runs_per_cell": args.runs,
+                "seed0": args.seed0,
+                "jobs": args.jobs,
+                "wall_s": round(wall, 1),
+                "runs_reused": len(done),
+                "command": command,
+            },
+        )
     print(json.dumps(sweep, indent=1) if args.json else (args.out / "table.md").read_text())
     print(f"[sweep] {len(sweep_run.specs)} runs in {wall:.0f} s; table {args.out / 'table.md'}", file=sys.stderr)
     for r in sweep_run.reruns:

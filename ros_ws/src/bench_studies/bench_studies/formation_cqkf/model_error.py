@@ -9,6 +9,7 @@ cross-track): its RMS and maximum, and the RMS one-step position prediction erro
 the sample intervals T = 1 s and 10 s. For CW+bias the best constant bias (the orbit mean of the CW
 residual) is removed first: a lower bound on what a constant bias can absorb.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -70,18 +71,28 @@ def model_error_rows(label: str, cfg: dict, intervals: tuple[float, ...] = INTER
     rows = []
     for name, model in filter_dynamics(cfg).items():
         residual, extra = model_residual(model, t, states)
-        rows.append({"case": label, "filter": name, "model": filter_key(cfg, name, "dynamics").model,
-                     "rms": dict(zip(AXES, np.sqrt(np.mean(residual ** 2, axis=0)).tolist())),
-                     "max": dict(zip(AXES, np.max(np.abs(residual), axis=0).tolist())),
-                     "prediction_rms_m": {f"{T:g}": prediction_error(model, t, states, extra, T) for T in intervals}})
+        rows.append(
+            {
+                "case": label,
+                "filter": name,
+                "model": filter_key(cfg, name, "dynamics").model,
+                "rms": dict(zip(AXES, np.sqrt(np.mean(residual**2, axis=0)).tolist())),
+                "max": dict(zip(AXES, np.max(np.abs(residual), axis=0).tolist())),
+                "prediction_rms_m": {f"{T:g}": prediction_error(model, t, states, extra, T) for T in intervals},
+            }
+        )
     return rows
 
 
 def markdown(rows: list[dict]) -> str:
     """The model-error table in Markdown (um/s^2 and mm)."""
     intervals = list(rows[0]["prediction_rms_m"]) if rows else []
-    header = (["case", "filter (model)"] + [f"RMS a_{a} [um/s^2]" for a in AXES] + [f"max a_{a} [um/s^2]" for a in AXES]
-              + [f"RMS {T} s prediction [mm]" for T in intervals])
+    header = (
+        ["case", "filter (model)"]
+        + [f"RMS a_{a} [um/s^2]" for a in AXES]
+        + [f"max a_{a} [um/s^2]" for a in AXES]
+        + [f"RMS {T} s prediction [mm]" for T in intervals]
+    )
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in rows:
         cells = [r["case"], f"{r['filter']} ({r['model']})"]

@@ -11,6 +11,7 @@ P_b = P_1 + P_2) and to the range rate rho_dot = b . w / |b| (paper 002 eq. 27) 
 (a) Under the white-jerk model with the filter's q the bound is the fixed-interval smoother's covariance (the
 model is linear-Gaussian), the same gradient applied to the RTS estimate's covariance.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,7 +28,6 @@ from orbit_sim.truth import read_truth
 from radar_sensor.sensor_types import read_sensors
 
 
-
 def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2")) -> BoundSeries:
     """Bound (b) on the baseline [bx by bz bvx bvy bvz] at the truth steps of the fixes' span: P_1 + P_2, each
     satellite's Cramer-Rao bound mapped from its orbit's parameters (module docstring)."""
@@ -42,8 +42,7 @@ def baseline_bound(data: BagData, sensors: tuple[str, str] = ("gnss1", "gnss2"))
         fix_steps = np.array(sorted(data.measurements[name]))
         t = np.array([data.truth[int(k)][0] for k in fix_steps])
         cols = [labels.index(f"{c}{sat + 1}") for c in ORBIT]
-        fit = information(model, data.truth[int(fix_steps[0])][1][cols], ballistic, t,
-                          gnss[name].model.sigma_position)
+        fit = information(model, data.truth[int(fix_steps[0])][1][cols], ballistic, t, gnss[name].model.sigma_position)
         keep = (t_all >= t[0]) & (t_all <= t[-1])
         P.append(fit.states(t_all[keep])[1])
     return BoundSeries(steps[keep], t_all[keep], list(BASELINE), P[0] + P[1])

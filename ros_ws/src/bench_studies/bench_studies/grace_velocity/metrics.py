@@ -13,6 +13,7 @@ position then velocity) and ``pairs`` (name: [second satellite's estimator, firs
 single-satellite estimators). Which steps are scored is not the family's choice: the scorer hands it the runs cut
 to the scenario's scoring window, the same steps for every estimator (bench_eval.window).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,10 +35,15 @@ class RangeRateOptions(Settings):
     """The ``range_rate`` family's keys of the ``scoring`` section."""
 
     kbr: str = setting("kbr", doc="the K-band ranging sensor the range rates are compared with")
-    baseline: list[str] = setting(doc="the baseline's labels: position, then velocity",
-                                  check=Check(lambda v: len(v) == 6, "6 labels (position, velocity)"))
-    pairs: dict = setting({}, doc="NAME: [second, first]: the difference of two estimators' satellite states, "
-                                  "scored as the baseline estimate NAME")
+    baseline: list[str] = setting(
+        doc="the baseline's labels: position, then velocity",
+        check=Check(lambda v: len(v) == 6, "6 labels (position, velocity)"),
+    )
+    pairs: dict = setting(
+        {},
+        doc="NAME: [second, first]: the difference of two estimators' satellite states, "
+        "scored as the baseline estimate NAME",
+    )
 
     def validate(self, path: str) -> None:
         for name, members in self.pairs.items():
@@ -75,8 +81,10 @@ def baseline_states(data: BagData, name: str, options: RangeRateOptions) -> tupl
         if second is None or first is None:
             return None
         common, i2, i1 = np.intersect1d(second.steps, first.steps, return_indices=True)
-        cols = [_columns(e.labels, [lab.replace("b", "", 1) + suffix for lab in options.baseline])
-                for e, suffix in ((second, "2"), (first, "1"))]
+        cols = [
+            _columns(e.labels, [lab.replace("b", "", 1) + suffix for lab in options.baseline])
+            for e, suffix in ((second, "2"), (first, "1"))
+        ]
         if None in cols:
             return None
         return common, second.t[i2], second.x[i2][:, cols[0]] - first.x[i1][:, cols[1]], None
@@ -105,8 +113,12 @@ def residuals(data: BagData, name: str, options: RangeRateOptions) -> dict[str, 
     truth = np.array([data.truth[int(steps[i])][1][truth_cols] for i in keep])
     rr = range_rate(bw[keep, :3], bw[keep, 3:])
     z = np.array([kbr[int(steps[i])][-1] for i in keep])
-    out = {"t": t[keep] - t0, "kbr": rr - z, "truth": rr - range_rate(truth[:, :3], truth[:, 3:]),
-           "velocity": bw[keep, 3:] - truth[:, 3:]}
+    out = {
+        "t": t[keep] - t0,
+        "kbr": rr - z,
+        "truth": rr - range_rate(truth[:, :3], truth[:, 3:]),
+        "velocity": bw[keep, 3:] - truth[:, 3:],
+    }
     if P is not None:
         err = bw[keep] - truth
         out["nees"] = np.einsum("ki,ki->k", err, np.linalg.solve(P[keep], err[..., None])[..., 0])
@@ -114,8 +126,13 @@ def residuals(data: BagData, name: str, options: RangeRateOptions) -> dict[str, 
 
 
 def _stats(x: np.ndarray) -> dict[str, float]:
-    return {"std": float(np.std(x)), "mean": float(np.mean(x)), "max": float(np.max(x)), "min": float(np.min(x)),
-            "rms": float(np.sqrt(np.mean(x * x)))}
+    return {
+        "std": float(np.std(x)),
+        "mean": float(np.mean(x)),
+        "max": float(np.max(x)),
+        "min": float(np.min(x)),
+        "rms": float(np.sqrt(np.mean(x * x))),
+    }
 
 
 def _score_one(per_run: list[dict]) -> dict:
@@ -179,8 +196,11 @@ def range_rate_bounds(data: BagData) -> dict[str, dict[str, np.ndarray]]:
     if _columns(data.truth_labels, BASELINE) is None:
         return {}
     t0 = min(tt for tt, _ in data.truth.values())
-    return {name: {"t": series.t - t0, "sd": range_rate_bound(data, series)}
-            for name, series in (data.bounds or {}).items() if list(series.labels) == BASELINE}
+    return {
+        name: {"t": series.t - t0, "sd": range_rate_bound(data, series)}
+        for name, series in (data.bounds or {}).items()
+        if list(series.labels) == BASELINE
+    }
 
 
 def _series(tracks: Tracks, runs: list[BagData], options: RangeRateOptions) -> dict:

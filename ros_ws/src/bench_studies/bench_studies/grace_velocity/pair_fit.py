@@ -7,6 +7,7 @@ components (bench_studies.grace_velocity.pair_truth).
       offline:
         orbit_fit: {estimator: pair_orbit_fit, source: gnss1, params: {second: gnss2, zonal_degree: 6, drag: true}}
 """
+
 from __future__ import annotations
 
 import multiprocessing
@@ -26,22 +27,30 @@ from orbit_sim.orbit_fit import ForceModel, fit_orbit
 from orbit_sim.truth import build_earth
 from radar_sensor.sensor_types import read_sensors
 
+
 @dataclass(frozen=True, kw_only=True)
 class PairFitParameters(Settings):
     """``pair_orbit_fit``'s params: both satellites' orbits fitted to their GNSS fixes (orbit_sim.orbit_fit)."""
 
     second: str = setting(doc="the follower's GNSS sensor (source: the leader's)")
-    zonal_degree: int = setting(2, check=Check(lambda v: v == 0 or 2 <= v <= max(ZONALS),
-                                               f"0 (two-body) or 2..{max(ZONALS)}"),
-                                doc="zonal harmonics of the fit's gravity field")
+    zonal_degree: int = setting(
+        2,
+        check=Check(lambda v: v == 0 or 2 <= v <= max(ZONALS), f"0 (two-body) or 2..{max(ZONALS)}"),
+        doc="zonal harmonics of the fit's gravity field",
+    )
     drag: bool = setting(False, doc="model drag (and fit each satellite's C_d A / m)")
-    ballistic_guess: float | None = setting(None, unit="m^2/kg", check=POSITIVE,
-                                            doc="the fit's first guess of C_d A / m", default_text="0")
-    empirical_interval_s: float | None = setting(None, unit="s", check=POSITIVE,
-                                                 doc="reduced dynamics: empirical accelerations, piecewise constant "
-                                                     "over this interval (with empirical_sigma)")
-    empirical_sigma: float | None = setting(None, unit="m/s^2", check=POSITIVE,
-                                            doc="their a-priori standard deviation (with empirical_interval_s)")
+    ballistic_guess: float | None = setting(
+        None, unit="m^2/kg", check=POSITIVE, doc="the fit's first guess of C_d A / m", default_text="0"
+    )
+    empirical_interval_s: float | None = setting(
+        None,
+        unit="s",
+        check=POSITIVE,
+        doc="reduced dynamics: empirical accelerations, piecewise constant over this interval (with empirical_sigma)",
+    )
+    empirical_sigma: float | None = setting(
+        None, unit="m/s^2", check=POSITIVE, doc="their a-priori standard deviation (with empirical_interval_s)"
+    )
 
     def validate(self, path: str) -> None:
         if (self.empirical_interval_s is None) != (self.empirical_sigma is None):
@@ -50,16 +59,17 @@ class PairFitParameters(Settings):
 
 def _position_sensors(cfg: dict) -> dict[str, float]:
     """The scenario's sensors that fix a position: name -> sigma_position."""
-    return {name: s.model.sigma_position for name, s in read_sensors(cfg).items()
-            if hasattr(s.model, "sigma_position")}
+    return {name: s.model.sigma_position for name, s in read_sensors(cfg).items() if hasattr(s.model, "sigma_position")}
 
 
 def _pair_fit_check(cfg: dict, source: str, params: PairFitParameters) -> None:
     sensors = _position_sensors(cfg)
     for name in (source, params.second):
         if name not in sensors:
-            raise ScenarioError(f"'scoring.offline' pair_orbit_fit: '{name}' is not a position sensor of the scenario "
-                                "(source and params.second: the leader's and the follower's GNSS)")
+            raise ScenarioError(
+                f"'scoring.offline' pair_orbit_fit: '{name}' is not a position sensor of the scenario "
+                "(source and params.second: the leader's and the follower's GNSS)"
+            )
 
 
 def pair_force_model(cfg: dict, params: PairFitParameters):
@@ -70,8 +80,15 @@ def pair_force_model(cfg: dict, params: PairFitParameters):
     return ForceModel(earth.mu, earth.re, zonals, params.drag, earth.rotation_rate, params.empirical_interval_s)
 
 
-def _fit_and_sample(t: np.ndarray, z: np.ndarray, sigma: float, model, ballistic_guess: float,
-                    empirical_sigma: float | None, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fit_and_sample(
+    t: np.ndarray,
+    z: np.ndarray,
+    sigma: float,
+    model,
+    ballistic_guess: float,
+    empirical_sigma: float | None,
+    at: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """One satellite's orbit fitted to its fixes (orbit_sim.orbit_fit.fit_orbit): its states and covariance at
     the times ``at``."""
     return fit_orbit(t, z, sigma, model, ballistic_guess, empirical_sigma).states(at)
@@ -99,9 +116,12 @@ def _pair_fit_run(data: BagData, source: str, params: PairFitParameters) -> Esti
     fixes = [measurement_series(data, name)[1:] for name in names]
     keep = (all_t >= max(t[0] for t, _ in fixes)) & (all_t <= min(t[-1] for t, _ in fixes))  # the fits' spans
     sigma = _position_sensors(data.scenario)
-    (x1, P1), (x2, P2) = _both([(t, z, sigma[name], model, params.ballistic_guess or 0.0, params.empirical_sigma,
-                                 all_t[keep])
-                                for name, (t, z) in zip(names, fixes)])
+    (x1, P1), (x2, P2) = _both(
+        [
+            (t, z, sigma[name], model, params.ballistic_guess or 0.0, params.empirical_sigma, all_t[keep])
+            for name, (t, z) in zip(names, fixes)
+        ]
+    )
     L = np.zeros((18, 12))  # [leader, follower, follower - leader] from [leader, follower]
     L[:12] = np.eye(12)
     L[12:, :6], L[12:, 6:] = -np.eye(6), np.eye(6)

@@ -9,6 +9,7 @@ to import (every node reads the truth's labels to build the graph); the integrat
       ballistic: [0.0045, 0.0047] # C_d A / m of leader and follower [m^2/kg] (pair_hifi)
       zonal_degree: 6             # J2 .. J6 (pair_hifi)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,17 +31,22 @@ class Pair(Settings):
     """``pair_j2`` / ``pair_hifi``: a leader and a follower on the same orbit, in ECI."""
 
     leader: OrbitElements = setting(doc="the leader's orbit")
-    separation_m: float = setting(unit="m", doc="the follower trails on the same orbit, its mean anomaly lower "
-                                                "by separation / a", check=POSITIVE)
-    ballistic: list[float] = setting([0.0, 0.0], unit="m^2/kg", doc="C_d A / m of leader and follower (pair_hifi; "
-                                                                     "0: no drag)")
-    zonal_degree: int = setting(6, doc="zonal harmonics J2 .. Jn of the gravity field (pair_hifi)",
-                                check=between(2, max(ZONALS), what="in"))
+    separation_m: float = setting(
+        unit="m", doc="the follower trails on the same orbit, its mean anomaly lower by separation / a", check=POSITIVE
+    )
+    ballistic: list[float] = setting(
+        [0.0, 0.0], unit="m^2/kg", doc="C_d A / m of leader and follower (pair_hifi; 0: no drag)"
+    )
+    zonal_degree: int = setting(
+        6, doc="zonal harmonics J2 .. Jn of the gravity field (pair_hifi)", check=between(2, max(ZONALS), what="in")
+    )
 
     def validate(self, path: str) -> None:
         if len(self.ballistic) != 2 or any(b < 0 for b in self.ballistic):
-            raise ScenarioError(f"'{path}.ballistic' must be two values >= 0 (C_d A / m of leader and follower, "
-                                f"m^2/kg), got {self.ballistic!r}")
+            raise ScenarioError(
+                f"'{path}.ballistic' must be two values >= 0 (C_d A / m of leader and follower, "
+                f"m^2/kg), got {self.ballistic!r}"
+            )
 
 
 PAIR = TruthModel(Pair, "bench_studies.grace_velocity.pair_truth:pair_truth", LABELS, "eci")

@@ -2,6 +2,7 @@
 models ``pair_j2`` (two-body + J2) and ``pair_hifi`` (zonal field to ``zonal_degree`` and drag): their keys and
 registration are in pair_settings.py (cheap to import), the integration here.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -23,8 +24,15 @@ stays far below it, at a higher integration cost. tests/test_grace_filters.py me
 reference at rtol 2.3e-14."""
 
 
-def pair_rate(t: float, y: np.ndarray, mu: float, re: float, zonals: dict[int, float], ballistic: tuple[float, float],
-              rotation_rate: float) -> np.ndarray:
+def pair_rate(
+    t: float,
+    y: np.ndarray,
+    mu: float,
+    re: float,
+    zonals: dict[int, float],
+    ballistic: tuple[float, float],
+    rotation_rate: float,
+) -> np.ndarray:
     """d/dt of both satellites' ECI states stacked (12,): zonal gravity plus drag (B = 0: none)."""
     s = y.reshape(2, 6)
     a = zonal_acceleration(s[:, :3], mu, re, zonals)
@@ -47,9 +55,16 @@ def pair_truth(sec: Pair, model: str, earth: Earth, grid: TimeGrid, seed: int = 
     else:
         zonals, ballistic = {2: earth.j2}, [0.0, 0.0]
     times = np.concatenate([[0.0], grid.times()]) if grid.start_ns > 0 else grid.times()
-    sol = solve_ivp(pair_rate, (times[0], times[-1]), np.concatenate([x1, x2]), method="DOP853", t_eval=times,
-                    rtol=RTOL, atol=ATOL,
-                    args=(earth.mu, earth.re, zonals, tuple(float(b) for b in ballistic), earth.rotation_rate))
+    sol = solve_ivp(
+        pair_rate,
+        (times[0], times[-1]),
+        np.concatenate([x1, x2]),
+        method="DOP853",
+        t_eval=times,
+        rtol=RTOL,
+        atol=ATOL,
+        args=(earth.mu, earth.re, zonals, tuple(float(b) for b in ballistic), earth.rotation_rate),
+    )
     if not sol.success:
         raise RuntimeError(f"pair propagation failed: {sol.message}")
     y = sol.y.T

@@ -10,6 +10,7 @@ would have been best (the smallest baseline-velocity RMSE after the start-up) an
 smallest range-rate residual: ``scripts/grace_tune_q.py`` prints all three so the reader can see how much a
 measurement-only choice gives away.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -62,13 +63,17 @@ def _scored(truth, steps: np.ndarray, window: ScoringWindow, arc_s: float | None
     return window.inside(times[steps], t0, times[-1] if arc_s is None else t0 + arc_s)
 
 
-def score_q(cfg: dict, filter_name: str, q: float, items: dict, truth, window: ScoringWindow,
-            kbr: str = "kbr") -> QScore:
+def score_q(
+    cfg: dict, filter_name: str, q: float, items: dict, truth, window: ScoringWindow, kbr: str = "kbr"
+) -> QScore:
     """Run filter ``filter_name`` with density q over recorded measurement items; score it three ways."""
     # no NIS gate while tuning: a q too small would gate most measurements and score only the few it kept
     cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
     stack = build_filter_stack(cfg, filter_name)
-    flt, (source, sensor), = stack.filter, *stack.sensors.items()
+    (
+        flt,
+        (source, sensor),
+    ) = stack.filter, *stack.sensors.items()
     loglik, xs, steps = 0.0, [], []
     for m in items[f"/{source}/measurement"]:
         if not flt.initialised:
@@ -102,9 +107,11 @@ def scan(cfg: dict, filter_name: str, qs: list[float], seed: int) -> list[QScore
 
 def choices(scores: list[QScore]) -> dict[str, QScore]:
     """The q each criterion picks: innovation likelihood (no truth), truth velocity, KBR residual."""
-    return {"innovation likelihood (no truth, no KBR)": max(scores, key=lambda s: s.loglik),
-            "velocity error against the truth": min(scores, key=lambda s: s.velocity_rmse),
-            "range-rate residual against the KBR": min(scores, key=lambda s: s.rr_kbr_std)}
+    return {
+        "innovation likelihood (no truth, no KBR)": max(scores, key=lambda s: s.loglik),
+        "velocity error against the truth": min(scores, key=lambda s: s.velocity_rmse),
+        "range-rate residual against the KBR": min(scores, key=lambda s: s.rr_kbr_std),
+    }
 
 
 # Like-for-like tuning (issue 19 §2): every method's free parameter chosen by one rule that never sees the
@@ -124,8 +131,7 @@ EMPIRICAL_SIGMAS = (1e-7, 1e-6, 1e-5, 1e-4)
 """The reduced-model orbit fit's a-priori sigma of its empirical accelerations [m/s^2]."""
 
 
-def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, window: ScoringWindow,
-                  arc_s: float | None = None) -> float:
+def _rr_truth_rms(steps: np.ndarray, bw: np.ndarray, truth, window: ScoringWindow, arc_s: float | None = None) -> float:
     """RMS of range_rate(estimate) - range_rate(truth) over the steps the scoring window keeps (of the run, or
     of an arc of its first ``arc_s`` seconds)."""
     keep = _scored(truth, steps, window, arc_s)
@@ -138,7 +144,10 @@ def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, window:
     """Range-rate RMS against the truth of the RTS smoothing of ``filter_name`` run with density q (no gate)."""
     cfg = apply_overrides(cfg, [f"filters.{filter_name}.dynamics.q={q}", f"filters.{filter_name}.gate_probability=0"])
     stack = build_filter_stack(cfg, filter_name)
-    flt, (source, sensor), = stack.filter, *stack.sensors.items()
+    (
+        flt,
+        (source, sensor),
+    ) = stack.filter, *stack.sensors.items()
     xs, Ps, steps, ts = [], [], [], []
     for m in items[f"/{source}/measurement"]:
         if not flt.initialised:
@@ -153,8 +162,15 @@ def rts_score(cfg: dict, filter_name: str, q: float, items: dict, truth, window:
     return _rr_truth_rms(np.array(steps), x[:, :6], truth, window)
 
 
-def savgol_score(items: dict, truth, window_s: float, polyorder: int, window: ScoringWindow, source: str = "baseline",
-                 max_gap: float = 300.0) -> float:
+def savgol_score(
+    items: dict,
+    truth,
+    window_s: float,
+    polyorder: int,
+    window: ScoringWindow,
+    source: str = "baseline",
+    max_gap: float = 300.0,
+) -> float:
     """Range-rate RMS against the truth of Savitzky-Golay differentiation of the ``source`` positions (the
     window in samples by tracker_filters.differentiation.savgol_window_length, as bench_eval.offline's savgol)."""
     meas = items[f"/{source}/measurement"]
@@ -164,8 +180,15 @@ def savgol_score(items: dict, truth, window_s: float, polyorder: int, window: Sc
     return _rr_truth_rms(np.array([m.step for m in meas]), np.hstack([z, w]), truth, window)
 
 
-def orbit_fit_score(cfg: dict, params, items: dict, truth, window: ScoringWindow, span_s: float,
-                    sensors: tuple[str, str] = ("gnss1", "gnss2")) -> float:
+def orbit_fit_score(
+    cfg: dict,
+    params,
+    items: dict,
+    truth,
+    window: ScoringWindow,
+    span_s: float,
+    sensors: tuple[str, str] = ("gnss1", "gnss2"),
+) -> float:
     """Range-rate RMS against the truth of the pair's dynamic orbit fit (``params``: pair_fit.py's
     PairFitParameters) to the first ``span_s`` seconds of fixes, over that arc's scoring window."""
     model, gnss = pair_force_model(cfg, params), read_sensors(cfg)
@@ -173,7 +196,8 @@ def orbit_fit_score(cfg: dict, params, items: dict, truth, window: ScoringWindow
     for name in sensors:
         meas = [m for m in items[f"/{name}/measurement"] if m.t - truth.grid.times()[0] <= span_s]
         t, z = np.array([m.t for m in meas]), np.array([m.z for m in meas])
-        fit = fit_orbit(t, z, gnss[name].model.sigma_position, model, params.ballistic_guess or 0.0,
-                        params.empirical_sigma)
+        fit = fit_orbit(
+            t, z, gnss[name].model.sigma_position, model, params.ballistic_guess or 0.0, params.empirical_sigma
+        )
         states.append(fit.states(t, with_covariance=False)[0])
     return _rr_truth_rms(np.array([m.step for m in meas]), states[1] - states[0], truth, window, span_s)

@@ -9,6 +9,7 @@ that step. Range errors are in metres; angle errors are wrapped to (-pi, pi] and
 (:func:`radar_coordinate_rmse`), and the scenario's bounds mapped into the same coordinates
 (leo_radar/radar_bound.py).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -32,9 +33,12 @@ def _rows(z: np.ndarray | Sequence[np.ndarray]) -> np.ndarray:
     return np.concatenate([np.asarray(a, dtype=float) for a in z], axis=0)
 
 
-def radar_coordinate_rmse(z_est: np.ndarray | Sequence[np.ndarray], z_meas: np.ndarray | Sequence[np.ndarray],
-                          z_true: np.ndarray | Sequence[np.ndarray],
-                          angle_indices: Sequence[int] = (1, 2)) -> dict[str, np.ndarray]:
+def radar_coordinate_rmse(
+    z_est: np.ndarray | Sequence[np.ndarray],
+    z_meas: np.ndarray | Sequence[np.ndarray],
+    z_true: np.ndarray | Sequence[np.ndarray],
+    angle_indices: Sequence[int] = (1, 2),
+) -> dict[str, np.ndarray]:
     """RMSE per measurement component of the filter and of the raw measurements (paper 000 Table 3).
 
     ``z_est`` is the filter estimate mapped into measurement space (h(x_est)), ``z_meas`` the raw
@@ -46,7 +50,7 @@ def radar_coordinate_rmse(z_est: np.ndarray | Sequence[np.ndarray], z_meas: np.n
     out = {}
     for name, z in (("filter", z_est), ("measurement", z_meas)):
         e = wrapped_residual(_rows(z), truth, angle_indices)
-        out[name] = np.sqrt(np.nanmean(e ** 2, axis=0))
+        out[name] = np.sqrt(np.nanmean(e**2, axis=0))
     return out
 
 
@@ -100,8 +104,10 @@ def _score(tracks: Tracks, runs: list[BagData], options: NoKeys) -> dict:
         samples = [radar_samples(d, name) for d in runs if name in d.estimates and name in d.run["estimators"]]
         samples = [s for s in samples if s is not None]
         if samples:  # the runs' samples pooled: RMSE over every run and scan
-            radar[name] = RadarSamples(*(np.vstack([getattr(s, k) for s in samples])
-                                         for k in ("z_est", "z_meas", "z_true")), samples[0].angle_indices)
+            radar[name] = RadarSamples(
+                *(np.vstack([getattr(s, k) for s in samples]) for k in ("z_est", "z_meas", "z_true")),
+                samples[0].angle_indices,
+            )
             blocks = [radar_block(s) for s in samples]  # each run's own: the Monte Carlo spread
             per_run[name] = {src: {key: [b[src][key] for b in blocks] for key in blocks[0][src]} for src in blocks[0]}
     scored = score_radar_convergence(tracks, radar)

@@ -11,6 +11,7 @@ first scan, the NEES (6 dof; mean over runs, with the runs' 95 % chi-square band
 A Gaussian filter can only be consistent where the Laplace approximation is; where only the sampled
 posterior is, consistency needs a sample-based estimator.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -72,16 +73,19 @@ def one_run(job: dict) -> dict:
 def summarise(results: list[dict], times: list[float]) -> dict:
     n = len(results)
     names = [k for k in results[0] if k != "ess"]
-    return {"runs": n, "times_s": times, "band": (chi2.ppf([0.025, 0.975], 6 * n) / n).tolist(),
-            "mean_nees": {k: np.mean([r[k] for r in results], axis=0).tolist() for k in names},
-            "median_ess": np.median([r["ess"] for r in results], axis=0).tolist()}
+    return {
+        "runs": n,
+        "times_s": times,
+        "band": (chi2.ppf([0.025, 0.975], 6 * n) / n).tolist(),
+        "mean_nees": {k: np.mean([r[k] for r in results], axis=0).tolist() for k in names},
+        "median_ess": np.median([r["ess"] for r in results], axis=0).tolist(),
+    }
 
 
 def print_table(summary: dict, samples: int) -> None:
     lo, hi = summary["band"]
     names = list(summary["mean_nees"])
-    print(f"mean NEES over {summary['runs']} runs (6 dof; 95 % band [{lo:.2f}, {hi:.2f}]); "
-          f"* = inside the band")
+    print(f"mean NEES over {summary['runs']} runs (6 dof; 95 % band [{lo:.2f}, {hi:.2f}]); * = inside the band")
     print(f"{'t [s]':>6} " + " ".join(f"{n:>26}" for n in names) + f" {'ESS of ' + str(samples):>16}")
     for i, t in enumerate(summary["times_s"]):
         cells = []
@@ -93,12 +97,19 @@ def print_table(summary: dict, samples: int) -> None:
 
 def plot(summary: dict, path: Path) -> Path:
     """Mean NEES of every estimator against time, with the runs' 95 % band (PNG at ``path``)."""
+
     def draw(fig: Figure) -> None:
         ax = fig.subplots()
         ax.axhspan(*summary["band"], color="0.85", label="95 % band")
         for name, values in summary["mean_nees"].items():
             ax.plot(summary["times_s"], values, marker="o", label=name)
-        ax.set(xscale="log", yscale="log", xlabel="time after the first scan [s]", ylabel="mean NEES (6 dof)",
-               title=f"leo_radar: NEES against the exact posterior ({summary['runs']} runs)")
+        ax.set(
+            xscale="log",
+            yscale="log",
+            xlabel="time after the first scan [s]",
+            ylabel="mean NEES (6 dof)",
+            title=f"leo_radar: NEES against the exact posterior ({summary['runs']} runs)",
+        )
         ax.legend(fontsize=8)
+
     return save_plot(path.parent, Plot(path.name, "", draw, (7.0, 4.0)))

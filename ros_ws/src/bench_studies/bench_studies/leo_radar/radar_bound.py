@@ -6,6 +6,7 @@ filter's estimate and the truth are mapped through the filter's radar model h (a
 pooled over runs and scans: ``radar.bounds.NAME.COMPONENT = {rmse, sqrt_bound, ratio}`` (range_m,
 azimuth_mrad, elevation_mrad), ratio = √bound / RMSE (1 = at the bound).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,8 +19,9 @@ RADAR_UNITS = (("range_m", 1.0), ("azimuth_mrad", 1e3), ("elevation_mrad", 1e3))
 """Radar components (range, azimuth, elevation) in measurement order, with the factor from SI to the unit."""
 
 
-def radar_errors_and_bound(data: BagData, filter_name: str, bound: str,
-                           from_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+def radar_errors_and_bound(
+    data: BagData, filter_name: str, bound: str, from_s: float
+) -> tuple[np.ndarray, np.ndarray] | None:
     """(squared errors, bound variances), each (K, 3), of the filter's estimates in its (first) radar's
     coordinates at the scans from ``from_s`` after its first estimate (None when there are none or the bound has
     other components)."""
@@ -36,7 +38,7 @@ def radar_errors_and_bound(data: BagData, filter_name: str, bound: str,
     err = wrapped_residual(model.h_series(est.x[rows], t), model.h_series(x_true, t), model.angle_indices)
     H = model.jacobian_series(x_true, t)
     P = series.P[[index[k] for k in steps]]
-    return err ** 2, np.einsum("kij,kjl,kil->ki", H, P, H)
+    return err**2, np.einsum("kij,kjl,kil->ki", H, P, H)
 
 
 def add_radar_bounds(scored: dict, runs: list[BagData]) -> None:
@@ -57,4 +59,5 @@ def add_radar_bounds(scored: dict, runs: list[BagData]) -> None:
             root = np.sqrt(np.mean(np.vstack([p[1] for p in pairs]), axis=0))
             block["radar"].setdefault("bounds", {})[bound] = {
                 key: {"rmse": float(r * scale), "sqrt_bound": float(b * scale), "ratio": float(b / r) if r else None}
-                for (key, scale), r, b in zip(RADAR_UNITS, rmse, root)}
+                for (key, scale), r, b in zip(RADAR_UNITS, rmse, root)
+            }

@@ -1,4 +1,5 @@
 """The leo_radar report section: paper 000's Tables 2 and 3 next to the bench, NEES, and three figures."""
+
 from __future__ import annotations
 
 from typing import Callable, Mapping
@@ -15,8 +16,7 @@ def _paper_filter(paper: Mapping | None, name: str) -> Mapping:
     return next((v for k, v in filters.items() if k.lower() == name.lower()), {})
 
 
-LEO_QUANTITIES = (("rmse_peak_m", "peak [m]"), ("convergence_time_s", "convergence time [s]"),
-                  ("band_m", "band [m]"))
+LEO_QUANTITIES = (("rmse_peak_m", "peak [m]"), ("convergence_time_s", "convergence time [s]"), ("band_m", "band [m]"))
 
 
 def leo_table2(scored: Mapping, paper: Mapping | None) -> Table:
@@ -30,10 +30,21 @@ def leo_table2(scored: Mapping, paper: Mapping | None) -> Table:
             for key, stat in LEO_QUANTITIES:
                 rows.append([label, stat, name, fmt(b.get(key)), fmt(r.get(key)), difference(b.get(key), r.get(key))])
         key = "rmse_converged_m"
-        rows.append(["position RMSE", "converged [m]", name, fmt(block.get(key)), fmt(ref.get(key)),
-                     difference(block.get(key), ref.get(key))])
-    return Table("Table 2 — position error (bench vs paper)",
-                 ["quantity", "statistic", "filter", "bench", "paper", "difference"], rows)
+        rows.append(
+            [
+                "position RMSE",
+                "converged [m]",
+                name,
+                fmt(block.get(key)),
+                fmt(ref.get(key)),
+                difference(block.get(key), ref.get(key)),
+            ]
+        )
+    return Table(
+        "Table 2 — position error (bench vs paper)",
+        ["quantity", "statistic", "filter", "bench", "paper", "difference"],
+        rows,
+    )
 
 
 def leo_table3(scored: Mapping, paper: Mapping | None) -> Table:
@@ -47,8 +58,11 @@ def leo_table3(scored: Mapping, paper: Mapping | None) -> Table:
             for key in ("range_m", "azimuth_mrad", "elevation_mrad"):
                 b, p = block["radar"][src].get(key), ref.get(src, {}).get(key)
                 rows.append([key, label, fmt(b), fmt(p), difference(b, p)])
-    return Table("Table 3 — RMSE in radar coordinates (bench vs paper)",
-                 ["component", "source", "bench", "paper", "difference"], rows)
+    return Table(
+        "Table 3 — RMSE in radar coordinates (bench vs paper)",
+        ["component", "source", "bench", "paper", "difference"],
+        rows,
+    )
 
 
 def radar_bounds_table(scored: Mapping) -> Table | None:
@@ -57,40 +71,63 @@ def radar_bounds_table(scored: Mapping) -> Table | None:
     rows = []
     for name, block in scored.items():
         for bound, values in ((block.get("radar") or {}).get("bounds") or {}).items():
-            rows += [[key, name, bound, fmt(v["rmse"]), fmt(v["sqrt_bound"]), fmt(v["ratio"])]
-                     for key, v in values.items()]
+            rows += [
+                [key, name, bound, fmt(v["rmse"]), fmt(v["sqrt_bound"]), fmt(v["ratio"])] for key, v in values.items()
+            ]
     if not rows:
         return None
-    return Table("Distance to the bound in radar coordinates (the scans from the bound's from_s on, pooled over "
-                 "runs)", ["component", "filter", "bound", "RMSE", "√bound", "√bound / RMSE"], rows)
+    return Table(
+        "Distance to the bound in radar coordinates (the scans from the bound's from_s on, pooled over runs)",
+        ["component", "filter", "bound", "RMSE", "√bound", "√bound / RMSE"],
+        rows,
+    )
 
 
 def nees_table(scored: Mapping) -> Table:
     """Filter consistency: time-averaged NEES against its chi-square bounds (not reported by the papers)."""
-    rows = [[name, str(b.get("runs")), fmt(b.get("nees_mean")), str(b.get("nees_dof")), fmt(b.get("nees_bounds")),
-             fmt(b.get("nees_fraction_inside"))] for name, b in scored.items() if "nees_mean" in b]
-    return Table("NEES consistency (95 % two-sided chi-square bounds of the run-averaged NEES)",
-                 ["filter", "runs", "mean NEES", "dof", "bounds", "fraction of steps inside"], rows)
+    rows = [
+        [
+            name,
+            str(b.get("runs")),
+            fmt(b.get("nees_mean")),
+            str(b.get("nees_dof")),
+            fmt(b.get("nees_bounds")),
+            fmt(b.get("nees_fraction_inside")),
+        ]
+        for name, b in scored.items()
+        if "nees_mean" in b
+    ]
+    return Table(
+        "NEES consistency (95 % two-sided chi-square bounds of the run-averaged NEES)",
+        ["filter", "runs", "mean NEES", "dof", "bounds", "fraction of steps inside"],
+        rows,
+    )
 
 
 def _draw_rmse(series: Mapping, scored: Mapping, paper: Mapping | None) -> Callable[[Figure], None]:
     def draw(fig: Figure) -> None:
         ax = fig.subplots()
         for name, s in series.items():
-            line, = ax.semilogy(s["t"], s["rmse"], lw=1.0, label=name)
+            (line,) = ax.semilogy(s["t"], s["rmse"], lw=1.0, label=name)
             tc = scored.get(name, {}).get("convergence_time_s")
             if tc is not None:
-                ax.axvline(s["t"][0] + tc, color=line.get_color(), ls=":", lw=1.0,
-                           label=f"{name} converged ({tc:.1f} s)")
+                ax.axvline(
+                    s["t"][0] + tc, color=line.get_color(), ls=":", lw=1.0, label=f"{name} converged ({tc:.1f} s)"
+                )
             level = _paper_filter(paper, name).get("rmse_converged_m")
             if level is not None:
-                ax.axhline(level, color=line.get_color(), ls="--", lw=0.8,
-                           label=f"paper {name} converged ({level:g} m)")
+                ax.axhline(
+                    level, color=line.get_color(), ls="--", lw=0.8, label=f"paper {name} converged ({level:g} m)"
+                )
         draw_bounds(ax, series, "position")
-        ax.set(xlabel="time since first estimate [s]", ylabel="position RMSE [m]",
-               title="Position RMSE over Monte Carlo runs (paper 000 eq. 35)")
+        ax.set(
+            xlabel="time since first estimate [s]",
+            ylabel="position RMSE [m]",
+            title="Position RMSE over Monte Carlo runs (paper 000 eq. 35)",
+        )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
+
     return draw
 
 
@@ -107,6 +144,7 @@ def _draw_axes(series: Mapping) -> Callable[[Figure], None]:
         axs[0].set_title("Per-axis position error (RMSE over runs)")
         axs[0].legend()
         axs[-1].set_xlabel("time since first estimate [s]")
+
     return draw
 
 
@@ -125,6 +163,7 @@ def _draw_nees(series: Mapping) -> Callable[[Figure], None]:
             ax.legend(loc="upper right")
         axs[0].set_title("Run-averaged NEES vs time")
         axs[-1].set_xlabel("time since first estimate [s]")
+
     return draw
 
 
@@ -139,8 +178,14 @@ def leo_sections(scenario: str, scored: Mapping, series: Mapping | None, paper: 
     tables += [t for t in (bounds_table(scored), radar_bounds_table(scored)) if t]
     plots = []
     if series:
-        plots = [Plot(f"{scenario}_rmse.png", "Position RMSE vs time (log scale)", _draw_rmse(series, scored, paper)),
-                 Plot(f"{scenario}_axes.png", "Per-axis error vs time", _draw_axes(series), (9.0, 7.0)),
-                 Plot(f"{scenario}_nees.png", "NEES vs time with the chi-square band", _draw_nees(series),
-                      (9.0, 2.5 + 2.5 * len(series)))]
+        plots = [
+            Plot(f"{scenario}_rmse.png", "Position RMSE vs time (log scale)", _draw_rmse(series, scored, paper)),
+            Plot(f"{scenario}_axes.png", "Per-axis error vs time", _draw_axes(series), (9.0, 7.0)),
+            Plot(
+                f"{scenario}_nees.png",
+                "NEES vs time with the chi-square band",
+                _draw_nees(series),
+                (9.0, 2.5 + 2.5 * len(series)),
+            ),
+        ]
     return [Section(scenario, text, tables, plots)]

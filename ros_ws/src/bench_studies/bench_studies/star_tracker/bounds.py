@@ -9,6 +9,7 @@
         wahba: {bound: wahba, params: {camera: camera}, from_s: 1.0}
         wahba_tracked: {bound: wahba_tracked, params: {tracker: jpdaf_wahba}, from_s: 1.0}
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -53,8 +54,9 @@ def _wahba_run(data: BagData, params: WahbaParameters) -> BoundSeries:
     frames = data.measurements.get(params.camera, {})
     steps = np.array(sorted(frames), dtype=np.int64)
     J = np.array([attitude_information(frames[int(k)], sigma) for k in steps]).reshape(-1, 3, 3)
-    return BoundSeries(steps, np.array([data.truth[int(k)][0] for k in steps]), list(ROTATION),
-                       information_to_covariance(J))
+    return BoundSeries(
+        steps, np.array([data.truth[int(k)][0] for k in steps]), list(ROTATION), information_to_covariance(J)
+    )
 
 
 WAHBA = Bound(run=_wahba_run, check=_wahba_check, params=WahbaParameters)
@@ -65,9 +67,12 @@ class TrackedParameters(Settings):
     """The wahba_tracked bound's ``params``."""
 
     tracker: str = setting(doc="a JPDAF star tracker of the scenario (an entry of star_trackers)")
-    dynamics: str = setting("tracker", choices=("tracker", "truth"),
-                            doc="tracker: the bound under the tracker's motion model, its σ_a and velocity prior; "
-                                "truth: the truth's (the rate is exact: a lower bound for any estimator)")
+    dynamics: str = setting(
+        "tracker",
+        choices=("tracker", "truth"),
+        doc="tracker: the bound under the tracker's motion model, its σ_a and velocity prior; "
+        "truth: the truth's (the rate is exact: a lower bound for any estimator)",
+    )
 
 
 def _tracked_settings(cfg: dict, params: TrackedParameters):
@@ -78,8 +83,9 @@ def _tracked_settings(cfg: dict, params: TrackedParameters):
     bound for any estimator on this truth)."""
     conf = tracker_config(cfg, params.tracker)
     if conf.tracker != "jpdaf":
-        raise ScenarioError(f"'{params.where('tracker')}': '{params.tracker}' must be a JPDAF (tracker: jpdaf), "
-                            f"got {conf.tracker}")
+        raise ScenarioError(
+            f"'{params.where('tracker')}': '{params.tracker}' must be a JPDAF (tracker: jpdaf), got {conf.tracker}"
+        )
     return conf, camera_config(cfg, conf.camera), params.dynamics
 
 
@@ -87,8 +93,9 @@ def _tracked_check(cfg: dict, params: TrackedParameters) -> None:
     _tracked_settings(cfg, params)
 
 
-def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mount_rate: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _tracker_model(
+    conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mount_rate: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F, Q) of each frame interval (K − 1, 4, 4) and the start covariance P_0 of a JPDAF star tracker
     (pipeline.JPDAFTracking), with the truth's body rate ``rates`` (K − 1, 3) over each interval (what its gyro
     gives it) and the LVLH mount's boresight rate: ``aid: rate``, constant velocity with its σ_a on what the rate
@@ -102,8 +109,8 @@ def _tracker_model(conf, sigma_px: float, dts: np.ndarray, rates: np.ndarray, mo
         F[i], Q[i] = jpdaf_motion(conf.motion, conf.aid, conf.sigma_a, float(w[2]), jitter).transition(float(dt))
         if conf.aid == "jitter":
             F[i] = F[i] @ image_turn(-jitter * dt)
-    velocity = sigma_px ** 2 if conf.aid == "rate" else 1.0
-    return F, Q, np.diag([sigma_px ** 2, velocity, sigma_px ** 2, velocity])
+    velocity = sigma_px**2 if conf.aid == "rate" else 1.0
+    return F, Q, np.diag([sigma_px**2, velocity, sigma_px**2, velocity])
 
 
 def _tracked_run(data: BagData, params: TrackedParameters) -> BoundSeries:
@@ -128,9 +135,8 @@ def _tracked_run(data: BagData, params: TrackedParameters) -> BoundSeries:
         H = CENTROID
     else:
         F, Q = np.broadcast_to(np.eye(2), (max(len(t) - 1, 0), 2, 2)), np.zeros((max(len(t) - 1, 0), 2, 2))
-        P0, H = sigma_px ** 2 * np.eye(2), np.eye(2)
-    P = (tracked_attitude_covariance(frames, chains, F, Q, P0, sigma_px, ifov, H) if len(steps)
-         else np.zeros((0, 3, 3)))
+        P0, H = sigma_px**2 * np.eye(2), np.eye(2)
+    P = tracked_attitude_covariance(frames, chains, F, Q, P0, sigma_px, ifov, H) if len(steps) else np.zeros((0, 3, 3))
     return BoundSeries(steps, t, list(ROTATION), P)
 
 

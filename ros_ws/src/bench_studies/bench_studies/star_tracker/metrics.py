@@ -20,6 +20,7 @@ q_est conj(q_true), in the camera frame: bench_models.states):
 Options (``scoring`` section): ``camera`` (the star camera whose truth topic is read, default "camera"),
 ``skip_s`` (frames before it are not scored, default 0).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -63,7 +64,7 @@ def _dt(data: BagData) -> float:
 
 def _rms(values) -> float:
     values = np.asarray(values, dtype=float)
-    return float(np.sqrt(np.mean(values ** 2))) if values.size else float("nan")
+    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
 
 
 def _stars(data: BagData, camera: str, names: list[str]) -> dict[str, dict[int, object]]:
@@ -72,8 +73,10 @@ def _stars(data: BagData, camera: str, names: list[str]) -> dict[str, dict[int, 
     reader = BagReader(bag)
     topics = {f"/{camera}/star_truth": "truth", **{f"/{n}/stars": n for n in names}}
     present = [t for t in reader.topics() if t in topics]
-    return {topics[topic]: {step: tab.row(i) for i, step in enumerate(tab["step"].tolist())}
-            for topic, tab in reader.tables(present).items()}
+    return {
+        topics[topic]: {step: tab.row(i) for i, step in enumerate(tab["step"].tolist())}
+        for topic, tab in reader.tables(present).items()
+    }
 
 
 def _identification(stars: dict, name: str, skip_steps: int) -> tuple[float, float, float]:
@@ -92,8 +95,9 @@ def _identification(stars: dict, name: str, skip_steps: int) -> tuple[float, flo
         wrong += int(np.sum((sid >= 0) & (sid != tid)))
         used = np.isfinite(np.asarray(msg.x)) & (sid >= 0) & (sid == tid)
         if used.any():
-            d = np.hypot(np.asarray(msg.x)[used] - np.asarray(ref.x)[used],
-                         np.asarray(msg.y)[used] - np.asarray(ref.y)[used])
+            d = np.hypot(
+                np.asarray(msg.x)[used] - np.asarray(ref.x)[used], np.asarray(msg.y)[used] - np.asarray(ref.y)[used]
+            )
             dpos.append(d)
     rate = right / true_stars if true_stars else float("nan")
     centroid = _rms(np.concatenate(dpos)) / ARCSEC if dpos else float("nan")
@@ -107,22 +111,42 @@ def _run_block(track, data: BagData, name: str, stars: dict, options: StarAttitu
     angle = np.linalg.norm(e, axis=1)
     nees = [float(ei @ np.linalg.solve(Pi, ei)) for ei, Pi in zip(e, P) if np.all(np.isfinite(Pi))]
     rate, false_ids, centroid = _identification(stars, name, int(round(options.skip_s / dt)))
-    last = {k: float(v[np.isfinite(v)][-1]) if np.isfinite(v).any() else float("nan")
-            for k, v in est.diagnostics.items()}
-    return {"rms_arcsec": _rms(angle) / ARCSEC, "cross_arcsec": _rms(np.hypot(e[:, 0], e[:, 1])) / ARCSEC,
-            "roll_arcsec": _rms(e[:, 2]) / ARCSEC, "max_arcsec": float(angle.max() / ARCSEC) if len(angle) else float("nan"),
-            "nees": float(np.mean(nees)) if nees else float("nan"),
-            "solved": len(est.steps) / frames if frames else float("nan"),
-            "first_fix_s": float(est.t[0] - t0) if len(est.t) else float("nan"),
-            "lost_in_space": last.get("lost_in_space", float("nan")),
-            "reacquisitions": last.get("reacquisitions", float("nan")),
-            "filter_resets": last.get("filter_resets", float("nan")),
-            "identification_rate": rate, "false_ids": false_ids, "centroid_arcsec": centroid,
-            "series": (np.round((t - t0) / dt).astype(int), angle / ARCSEC)}
+    last = {
+        k: float(v[np.isfinite(v)][-1]) if np.isfinite(v).any() else float("nan") for k, v in est.diagnostics.items()
+    }
+    return {
+        "rms_arcsec": _rms(angle) / ARCSEC,
+        "cross_arcsec": _rms(np.hypot(e[:, 0], e[:, 1])) / ARCSEC,
+        "roll_arcsec": _rms(e[:, 2]) / ARCSEC,
+        "max_arcsec": float(angle.max() / ARCSEC) if len(angle) else float("nan"),
+        "nees": float(np.mean(nees)) if nees else float("nan"),
+        "solved": len(est.steps) / frames if frames else float("nan"),
+        "first_fix_s": float(est.t[0] - t0) if len(est.t) else float("nan"),
+        "lost_in_space": last.get("lost_in_space", float("nan")),
+        "reacquisitions": last.get("reacquisitions", float("nan")),
+        "filter_resets": last.get("filter_resets", float("nan")),
+        "identification_rate": rate,
+        "false_ids": false_ids,
+        "centroid_arcsec": centroid,
+        "series": (np.round((t - t0) / dt).astype(int), angle / ARCSEC),
+    }
 
 
-KEYS = ("rms_arcsec", "cross_arcsec", "roll_arcsec", "max_arcsec", "nees", "solved", "first_fix_s", "lost_in_space",
-        "reacquisitions", "filter_resets", "identification_rate", "false_ids", "centroid_arcsec")
+KEYS = (
+    "rms_arcsec",
+    "cross_arcsec",
+    "roll_arcsec",
+    "max_arcsec",
+    "nees",
+    "solved",
+    "first_fix_s",
+    "lost_in_space",
+    "reacquisitions",
+    "filter_resets",
+    "identification_rate",
+    "false_ids",
+    "centroid_arcsec",
+)
 
 
 def _per_run(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict[str, list[dict]]:
@@ -142,8 +166,11 @@ def scenario_case(cfg: dict) -> dict:
     """The scenario's case as the paper's tables name it: the truth's boresight and jitter, the camera's
     sigma_px (None without a camera named ``camera``)."""
     truth, cameras = read_truth(cfg).options, read_cameras(cfg)
-    return {"boresight": truth.boresight, "jitter_deg_s": truth.jitter_deg_s,
-            "sigma_px": cameras["camera"].sigma_px if "camera" in cameras else None}
+    return {
+        "boresight": truth.boresight,
+        "jitter_deg_s": truth.jitter_deg_s,
+        "sigma_px": cameras["camera"].sigma_px if "camera" in cameras else None,
+    }
 
 
 def score(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> dict:
@@ -166,8 +193,10 @@ def score(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) -> 
         if sna is None or not block.get("rms_arcsec") or not sna.get("rms_arcsec"):
             continue
         block["gain_pct"] = 100.0 * (sna["rms_arcsec"] - block["rms_arcsec"]) / sna["rms_arcsec"]
-        block["gain_pct_runs"] = [None if a is None or b is None else 100.0 * (b - a) / b
-                                  for a, b in zip(block["rms_arcsec_runs"], sna["rms_arcsec_runs"])]
+        block["gain_pct_runs"] = [
+            None if a is None or b is None else 100.0 * (b - a) / b
+            for a, b in zip(block["rms_arcsec_runs"], sna["rms_arcsec_runs"])
+        ]
     return scored
 
 
@@ -185,8 +214,11 @@ def series(tracks: Tracks, runs: list[BagData], options: StarAttitudeOptions) ->
             for k, a in zip(*b["series"]):
                 per_frame.setdefault(int(k), []).append(float(a))
         frames = sorted(per_frame)
-        out[name] = {"frame": frames, "t": [k * dt + offset for k in frames],
-                     "error_arcsec": [_rms(per_frame[k]) for k in frames]}
+        out[name] = {
+            "frame": frames,
+            "t": [k * dt + offset for k in frames],
+            "error_arcsec": [_rms(per_frame[k]) for k in frames],
+        }
     return out
 
 
