@@ -24,6 +24,18 @@ from tracker_filters.builders import build_filter_stack
 LEVEL = 0.05
 POSITION = ("x", "y", "z")
 
+TRUTHLESS = "innovations (no truth)"
+"""The ``metric`` of a score without truth (bench_eval.scoring): no registered family, bench_eval.consistency's
+scores instead."""
+
+
+def score_without_truth(scenario: str, runs: list, with_series: bool):
+    """A run without truth (an imported TDM without reference, bench_ccsds): scored by what needs none, the
+    innovations, post-fit residuals and the estimators' own convergence (innovation_scores); with
+    ``with_series``, paired with no series, as bench_eval.scoring.score_bags returns them."""
+    result = {"scenario": scenario, "runs": len(runs), "metric": TRUTHLESS, "estimators": innovation_scores(runs)}
+    return (result, {}) if with_series else result
+
 
 def innovation_scores(runs: list) -> dict[str, dict]:
     """{estimator: {"innovations": {...}}} for every run filter with estimates in ``runs`` (loaded bags:

@@ -11,8 +11,9 @@ time series its plots need.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +30,7 @@ class Metric:
     """A metric family: ``options``, the Settings class of its keys in the ``scoring`` section (beside
     ``metric``, ``offline`` and ``bounds``); ``score(tracks, runs, options) -> JSON-ready dict per estimator``;
     ``series(tracks, runs, options) -> plot series per estimator``; and optionally ``summary(one estimator's
-    scores) -> parts`` the scorer's one-line summary shows (bench_eval.scoring.print_summary) beside the generic
+    scores) -> parts`` the scorer's one-line summary shows (bench_eval.summary.print_summary) beside the generic
     ones."""
 
     options: type

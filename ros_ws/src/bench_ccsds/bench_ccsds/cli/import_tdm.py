@@ -21,13 +21,14 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: see bench_engine.launcher
 
+from bench_ccsds.ingest import import_tdm  # noqa: E402
+from bench_ccsds.kvn import CcsdsError  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.config import apply_overrides, load_scenario, select_variant  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 from bench_eval.cli.replay import recorded_run  # noqa: E402
-from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
-from bench_ccsds.ingest import import_tdm  # noqa: E402
-from bench_ccsds.kvn import CcsdsError  # noqa: E402
+from bench_eval.scoring import NothingToScore  # noqa: E402
+from bench_eval.summary import score_run  # noqa: E402
 
 EPILOG = exit_codes(
     c0="the TDM was replayed and the estimators' run scored",

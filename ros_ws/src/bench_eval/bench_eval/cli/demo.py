@@ -26,12 +26,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads
 
 from bench_engine import plugins  # noqa: E402
 from bench_engine.batch import RunSpec, run_batch  # noqa: E402
-from bench_engine.config import load_scenario  # noqa: E402
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
+from bench_engine.config import load_scenario  # noqa: E402
 from bench_eval.errors import NothingToScore  # noqa: E402
 from bench_eval.report import write_report  # noqa: E402
-from bench_eval.scoring import print_summary, score_bags  # noqa: E402
+from bench_eval.scoring import score_bags  # noqa: E402
 from bench_eval.study import study  # noqa: E402
+from bench_eval.summary import print_summary  # noqa: E402
 
 EPILOG = exit_codes(
     c0="every study ran and was scored; the report is written",
@@ -44,7 +45,8 @@ EPILOG = exit_codes(
 def run_studies(names: list[str], out: Path, runs: int | None) -> dict[str, list[Path]]:
     """Run every chosen study's seeds 1..n (n = ``runs``, else its ``demo_runs``; a single run with a process per
     node, more with each run's nodes in one process) in one batch, two at a time, the longest simulated run
-    first: a study's single long run then overlaps the other studies' short ones instead of running alone. Returns each study's bag directories."""
+    first: a study's single long run then overlaps the other studies' short ones instead of running alone. Returns each
+    study's bag directories."""
     specs: dict[str, list[RunSpec]] = {}
     for name in names:
         n = runs or study(name).demo_runs

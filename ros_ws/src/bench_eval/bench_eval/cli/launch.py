@@ -15,7 +15,8 @@ from bench_engine import phases
 from bench_engine.cli.guard import ArgumentParser, exit_codes, run_main
 from bench_engine.process import exit_now
 from bench_engine.run import RUN_EXIT_CODES, add_run_arguments, launch
-from bench_eval.scoring import NothingToScore, score_run
+from bench_eval.scoring import NothingToScore
+from bench_eval.summary import score_run
 
 EPILOG = exit_codes(**{**RUN_EXIT_CODES, "c1": RUN_EXIT_CODES["c1"] + ", or the estimators published nothing to score"})
 

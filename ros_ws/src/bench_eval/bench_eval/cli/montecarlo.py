@@ -34,20 +34,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BL
 
 from bench_engine import phases  # noqa: E402
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
-from bench_engine.cli.guard import (
-    ArgumentParser,
-    check_writable,
-    exit_codes,
-    is_file_error,  # noqa: E402
-    run_main,
-    writing,
-)
+from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, is_file_error, run_main, writing  # noqa: E402
 from bench_engine.cli.options import add_estimators_option  # noqa: E402
 from bench_engine.config import ScenarioError  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
 from bench_eval.errors import NothingToScore  # noqa: E402
 from bench_eval.montecarlo import MonteCarlo, run_montecarlo  # noqa: E402
-from bench_eval.scoring import print_summary  # noqa: E402
+from bench_eval.summary import print_summary  # noqa: E402
 
 EPILOG = exit_codes(
     c0="every run completed; scores and report written",

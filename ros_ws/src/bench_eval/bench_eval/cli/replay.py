@@ -29,7 +29,8 @@ from bench_engine.cli.options import add_estimators_option, names  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides  # noqa: E402
 from bench_engine.launcher import prepare_run, run_graph  # noqa: E402
 from bench_engine.process import exit_now  # noqa: E402
-from bench_eval.scoring import NothingToScore, score_run  # noqa: E402
+from bench_eval.scoring import NothingToScore  # noqa: E402
+from bench_eval.summary import score_run  # noqa: E402
 
 EPILOG = exit_codes(
     c0="the replay completed and its bag was scored",

@@ -26,7 +26,8 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads: one BLAS thread per worker (--jobs)
 
 from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing  # noqa: E402
-from bench_eval.scoring import NothingToScore, print_summary, score_bags  # noqa: E402
+from bench_eval.scoring import NothingToScore, score_bags  # noqa: E402
+from bench_eval.summary import print_summary  # noqa: E402
 
 EPILOG = exit_codes(
     c0="the bags were scored",

@@ -12,8 +12,8 @@ that step. Range errors are in metres; angle errors are wrapped to (-pi, pi] and
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -118,7 +118,7 @@ def _score(tracks: Tracks, runs: list[BagData], options: NoKeys) -> dict:
 
 
 def _summary(block: dict) -> list[str]:
-    """The radar block in the scorer's one-line summary (bench_eval.scoring.print_summary)."""
+    """The radar block in the scorer's one-line summary (bench_eval.summary.print_summary)."""
     if "radar" not in block:
         return []
     f, m = block["radar"]["filter"], block["radar"]["measurement"]
