@@ -5,7 +5,7 @@ PY := .venv/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export OPENBLAS_NUM_THREADS := 1
 
-.PHONY: setup demo test test-portable docs bench clean
+.PHONY: setup demo test test-portable lint format docs bench clean
 
 setup:
 	@bash scripts/setup_env.sh
@@ -24,6 +24,15 @@ PORTABLE_KERNELS := NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SP
 
 test-portable: setup
 	$(PORTABLE_KERNELS) $(PY) -m pytest -q -n auto --dist load tests/test_bag_regression.py -k "seeded_run or kernels"
+
+# The linter and the formatter (ruff.toml) over the whole tree: `make lint` checks (CI), `make format` rewrites.
+lint: setup
+	.venv/bin/ruff check .
+	.venv/bin/ruff format --check .
+
+format: setup
+	.venv/bin/ruff check --fix .
+	.venv/bin/ruff format .
 
 docs: setup
 	$(PY) -m sphinx -b html -E -n -W --keep-going -q -j auto docs docs/_build/html

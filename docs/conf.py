@@ -42,7 +42,18 @@ html_static_path: list[str] = []
 # Every reference is checked (nitpicky), except to what lies outside the bench: the standard library, numpy,
 # scipy and the other libraries its signatures name have no inventory here (the site is built offline).
 nitpicky = True
-BENCH = r"(bench_ccsds|bench_engine|bench_eval|bench_models|bench_studies|orbit_sim|radar_sensor|star_tracker|tracker_filters)"
+PACKAGES = (
+    "bench_ccsds",
+    "bench_engine",
+    "bench_eval",
+    "bench_models",
+    "bench_studies",
+    "orbit_sim",
+    "radar_sensor",
+    "star_tracker",
+    "tracker_filters",
+)
+BENCH = "(" + "|".join(PACKAGES) + ")"
 nitpick_ignore_regex = [(r"py:.*", rf"(?!{BENCH}\b).*")]
 
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}

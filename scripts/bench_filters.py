@@ -24,10 +24,10 @@ import time
 
 import numpy as np
 
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.radar import GroundRadarModel
 from orbit_sim.cowell import propagate
 from orbit_sim.kepler import kepler_to_cartesian
-from bench_models.radar import GroundRadarModel
-from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.registry import filter_names, make_filter
 
 TARGETS_US = {"ekf": 100.0, "ukf": 300.0}

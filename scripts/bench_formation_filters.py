@@ -20,10 +20,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the
 import numpy as np  # noqa: E402
 
 from bench_models.isl import RangeAzElModel  # noqa: E402
+from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
 from tracker_filters.cqkf import CubatureQuadratureKF  # noqa: E402
 from tracker_filters.filter_base import Filter  # noqa: E402
 from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter  # noqa: E402
-from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics  # noqa: E402
 
 N_MEAN_MOTION = 2.0 * np.pi / 7200.0
 R = np.diag([0.02**2, np.radians(0.01) ** 2, np.radians(0.01) ** 2])

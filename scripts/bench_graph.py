@@ -21,7 +21,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-
 from bench_engine import yamlio
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

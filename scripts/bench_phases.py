@@ -142,7 +142,7 @@ def montecarlo(scenario: str, runs: int, jobs: int, extra: list[str], tmp: Path)
         if r["who"] != "montecarlo" and r["run"]:
             by_run.setdefault(r["run"], []).append(r)
     per_run = []
-    for run, recs in sorted(by_run.items()):
+    for _run, recs in sorted(by_run.items()):
         begin = _first(recs, "run_spawn", "batch")
         per_run.append(run_phases(recs, begin, _first(recs, "run_exited", "batch"), None))
     steppings = [json.loads((Path(run) / "timing.json").read_text())["stepping_s"] for run in by_run]

@@ -77,8 +77,8 @@ def main() -> None:
         batch = PassBatch(dynamics, m0, P0, t0, **options)
         for t, z in scans[:n]:
             batch.add(t, z, R, model)
-        lin, _ = best_time(lambda: batch.linearise(x_t0), args.repeats)
-        sol, (_, _, passes) = best_time(lambda: batch.solve(x_t0), args.repeats)
+        lin, _ = best_time(lambda b=batch: b.linearise(x_t0), args.repeats)
+        sol, (_, _, passes) = best_time(lambda b=batch: b.solve(x_t0), args.repeats)
         print(f"{n:>6}{lin * 1e3:>14.1f}{lin / n * 1e6:>9.1f}{sol * 1e3:>10.1f}{passes:>8}")
 
 

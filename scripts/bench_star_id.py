@@ -20,7 +20,8 @@ With ``--tracking N`` it also runs the per-frame core (star_tracker.pipeline) af
 sequence at 10 frames/s of a camera fixed in LVLH on the 30°/700 km orbit (zenith boresight: straight drift;
 ``--boresight normal``: rotation about the boresight) with boresight jitter ±J °/s held for 10 frames, the
 same noise, P_D and false stars, through SNA and JPDAF (constant velocity for the drift, coordinated turn for
-the rotation; ``--aid``) × TRIAD and all-star (Wahba) attitude on identical frames, and prints per configuration the median and p90 ms per frame, the frames solved, the lost-in-space
+the rotation; ``--aid``) × TRIAD and all-star (Wahba) attitude on identical frames, and prints per configuration the
+median and p90 ms per frame, the frames solved, the lost-in-space
 re-acquisitions, the misidentified centroids, the RMS attitude error (arcsec) and the JPDAF's filter restarts
 (pipeline step 3).
 

@@ -23,9 +23,9 @@ import time
 import numpy as np
 
 from bench_engine.config import load_scenario, select_variant
-from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, measurement_topic, resolve_estimators
 from bench_engine.inprocess import run_in_process
+from bench_engine.scenario import scenario_seed
 from star_tracker.camera_stage import STAR_CAMERA, read_cameras
 from star_tracker.tracker_stage import StarTrackerStage, read_trackers
 

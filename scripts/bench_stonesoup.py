@@ -89,7 +89,7 @@ def bench_leo(duration: float, seed: int, bearings: bool) -> dict[str, tuple[flo
         stack = build_filter_stack(cfg, name)
         flt, model = stack.filter, stack.sensors["radar"].model
         flt.initialise(first.x, first.P, scans[0].t)
-        ours = timed(lambda m: flt.process(m.t, m.z, m.R, model), scans[1:])
+        ours = timed(lambda m, flt=flt, model=model: flt.process(m.t, m.z, m.R, model), scans[1:])
         peer = StoneSoupFilter(kind, flt.dynamics, alpha=1.0, beta=2.0, kappa=0.0)
         peer.initialise(first.x, first.P, scans[0].t)
         dets = [detection(model, m.t, m.z, m.R, peer.ndim_state, bearings) for m in scans[1:]]

@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
 """Mutation testing of the bench's core equations: does the test suite notice when an equation is wrong?
 
+Longer than 500 lines: most of it is the table of mutations (MUTATIONS, one entry per equation), kept beside
+the runner that applies it.
+
 Each mutation is a hand-picked, plausible slip in one equation (a sign, a missing term, a transposed factor, a
 check weakened), written as (file, the exact original snippet, the mutated snippet, the tests that should
 catch it). For each one the script makes a scratch copy of the code (ros_ws/src, tests, scripts, pytest.ini;
@@ -13,7 +16,7 @@ fail, no mutation result would mean anything, and the script stops.
     .venv/bin/python scripts/mutate.py --list              # the mutations and their tests, nothing run
     .venv/bin/python scripts/mutate.py --only kf_update_sign,pyramid_no_handedness
     .venv/bin/python scripts/mutate.py --rev HEAD          # the committed tree instead of the working tree
-    .venv/bin/python scripts/mutate.py --only cubature_radius --tests tests/test_cqkf.py::test_the_cqkf_is_consistent_on_formation_cqkf_nonlinear_scenario
+    .venv/bin/python scripts/mutate.py --only cubature_radius --tests tests/test_cqkf.py   # other tests
 
 Exit status: 0 when every mutation run was caught; 1 when one survived (or its snippet is gone or ambiguous,
 or its run errored); 2 on bad arguments or when the unmutated tests fail. With ``--list``: 0 when every listed
@@ -203,8 +206,8 @@ MUTATIONS = [
     Mutation(
         "fixed_lag_publishes_filtered",
         FIXED_LAG,
-        "list(oldest.labels), x_s,",
-        "list(oldest.labels), oldest.x,",
+        "list(oldest.labels),\n            x_s,\n",
+        "list(oldest.labels),\n            oldest.x,\n",
         SMOOTHING_TESTS,
         "fixed-lag node publishes the filtered mean instead of the smoothed one",
     ),

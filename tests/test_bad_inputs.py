@@ -23,19 +23,18 @@ import os
 import resource
 import shutil
 import subprocess
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
 
 import pytest
 import yaml
+from graph_helpers import script
 
 from bench_engine.cli.guard import BAD_INPUT, BUG, os_error_line, run_main, writing
 from bench_eval import offline_cache
-
-from graph_helpers import script
 
 FULL_DISK_BYTES = 1000
 """Less than any run configuration (launch, montecarlo, replay), a recovered bag, a report's plot, and the
@@ -46,7 +45,7 @@ FULL_DISK_BYTES = 1000
 class Case:
     id: str
     command: str
-    args: Callable[["Inputs"], list[str]]
+    args: Callable[[Inputs], list[str]]
     code: int
     says: str
     """A fragment of the one line on stderr."""

@@ -10,9 +10,9 @@ import numpy as np
 from graph_helpers import SHORT_PASS, read_bag, script
 from rclpy.serialization import deserialize_message, serialize_message
 
-from bench_msgs.msg import RangeAzEl
 from bench_engine.bag_reader import BagReader
 from bench_engine.bag_writer import BagWriter
+from bench_msgs.msg import RangeAzEl
 
 NAN_STEP, INF_STEP, LATE_STEP = 50, 51, 60
 

@@ -39,16 +39,16 @@ import sys
 import tempfile
 from pathlib import Path
 
+import bag_values
 import numpy as np
 import pytest
 import scipy.linalg  # noqa: F401 - loads scipy's own OpenBLAS, for threadpoolctl to see both
 import threadpoolctl
+from graph_helpers import script
 from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__  # what np.show_runtime() reports
 
-import bag_values
 from bench_engine.config import load_scenario
 from bench_eval.scoring import scoring_options
-from graph_helpers import script
 
 RTOL = 1.0e-6
 """Tolerance of every float, in units of its column's scale (module docstring)."""

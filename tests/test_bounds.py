@@ -16,13 +16,13 @@ import pytest
 from scipy.stats import chi2
 
 from bench_engine.config import ScenarioError, load_scenario
-from bench_eval.bounds import PCRB, score_bound, BoundSeries
-from bench_eval.scoring import score_bags, scoring_options
 from bench_eval import metrics
+from bench_eval.bounds import PCRB, BoundSeries, score_bound
+from bench_eval.inprocess_runs import bag_data
 from bench_eval.report import bound_curves, bounds_table
+from bench_eval.scoring import score_bags, scoring_options
 from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.relative_dynamics import CWDynamics
-from bench_eval.inprocess_runs import bag_data
 from bench_models.truth_dynamics import RelativeOrbitDynamics, truth_dynamics
 from orbit_sim import cowell, gravity, relative
 from star_tracker.attitude import error_vector, rotation_matrix

@@ -26,13 +26,13 @@ import jpype
 import numpy as np
 import orekit_jpype
 import pytest
+from graph_helpers import read_bag, script, stamp
 from jpype import JImplements, JOverride
 
 from bench_ccsds.epochs import run_time
 from bench_ccsds.export import export_bag
-from bench_eval.cli.replay import recorded_run
 from bench_ccsds.kvn import epoch_text
-from graph_helpers import read_bag, script, stamp
+from bench_eval.cli.replay import recorded_run
 from orbit_sim.frames import gmst82, julian_date
 
 DATA = Path(__file__).parent / "data" / "orekit"
@@ -216,7 +216,7 @@ def test_orekit_teme_to_gtod_is_the_bench_gmst_rotation(orekit):
         dt_.datetime(2019, 12, 9, 16, 38, 29, 363424),
         dt_.datetime(2031, 3, 1, 5),
     ):
-        epoch = epoch.replace(tzinfo=dt_.timezone.utc)
+        epoch = epoch.replace(tzinfo=dt_.UTC)
         jd, fraction = julian_date(epoch)
         ns = round((jd - 2440587.5) * 86400e9) + round(fraction * 86400e9)
         transform = orekit.teme.getTransformTo(orekit.gtod, orekit.date(ns))

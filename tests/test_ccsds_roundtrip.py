@@ -15,9 +15,9 @@ import json
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script, stamp
 
 from bench_ccsds.export import export_bag
-from graph_helpers import read_bag, script, stamp
 
 DURATION = ["--set", "time.duration=20"]  # 201 steps: the first scan, the first re-solve (100 scans) and after
 

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from graph_helpers import digests, script
 
 import bench_engine.batch_run as batch_run
 from bench_engine.batch_run import NODE_RETRIES, RunSpec, killed_from_outside, run_one
-from graph_helpers import digests, script
 
 RUNS = int(os.environ.get("BENCH_CHAOS_RUNS", "3"))
 KILLS = int(os.environ.get("BENCH_CHAOS_KILLS", "2"))

@@ -6,10 +6,10 @@ import pytest
 
 from bench_engine.config import ScenarioError, Section, apply_overrides, load_scenario, select_variant
 from bench_engine.graph import build_graph
-from tracker_filters.filter_settings import filter_config
 from bench_engine.launcher import validate
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
+from tracker_filters.filter_settings import filter_config
 
 
 def test_override_parses_yaml_values_and_creates_sections() -> None:

@@ -9,12 +9,12 @@ from bench_eval.inprocess_runs import bag_data
 from bench_eval.metrics import nees_summary
 from bench_eval.scoring import track_of
 from bench_models.isl import RelativePositionModel
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
+from bench_models.relative_dynamics import CWBiasDynamics
+from orbit_sim.angles import wrapped_residual
 from tracker_filters.cqkf import CubatureQuadratureKF, weighted_measurement_mean
 from tracker_filters.cubature import cubature_quadrature_points, radial_rule
 from tracker_filters.kf import KalmanFilter
-from bench_models.linear_models import ConstantVelocity, PositionMeasurement
-from orbit_sim.angles import wrapped_residual
-from bench_models.relative_dynamics import CWBiasDynamics
 
 
 def random_gaussian(n, seed):

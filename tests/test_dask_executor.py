@@ -19,12 +19,12 @@ from pathlib import Path
 import cloudpickle
 import pytest
 from dask.distributed import LocalCluster
+from graph_helpers import SHORT_PASS, digests, script
+from test_sweep import scenario_with
 
 from bench_engine.batch import RunSpec, complete, run_batch
 from bench_engine.executors import run_dask, run_task
 from bench_eval.montecarlo import MonteCarlo
-from graph_helpers import SHORT_PASS, digests, script
-from test_sweep import scenario_with
 
 RUNS = ["--runs", "2", "--jobs", "2", *SHORT_PASS]
 

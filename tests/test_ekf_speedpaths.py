@@ -6,13 +6,13 @@ Each is checked against the slower formulation it replaces (equal results) or ag
 import numpy as np
 import pytest
 
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.radar import GroundRadarModel
 from orbit_sim.cowell import propagate
 from orbit_sim.frames import ecef_to_eci, enu_rotation
 from orbit_sim.kepler import kepler_to_cartesian
-from bench_models.radar import GroundRadarModel
 from tracker_filters.ekf import SecondOrderEKF, second_order_moments
 from tracker_filters.kf import gain_and_nis, joseph_update
-from bench_models.orbit_dynamics import OrbitJ2Dynamics
 
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)
 THETA0 = np.radians(40.0)
@@ -63,7 +63,10 @@ def test_derivatives_match_central_differences_of_h(model):
         y, H, block = model.derivatives(x, t)
         m = block.shape[-1]
         steps = np.array([1.0, 1.0, 1.0, 1e-2, 1e-2, 1e-2])
-        h = lambda dx: model.residual(model.derivatives(x + dx, t)[0], y)  # noqa: E731 (wrapped about y)
+
+        def h(dx, x=x, t=t, y=y):
+            return model.residual(model.derivatives(x + dx, t)[0], y)
+
         E = np.eye(6) * steps
         H_fd = np.column_stack([(h(E[k]) - h(-E[k])) / (2 * steps[k]) for k in range(6)])
         scale = np.abs(H_fd).max(axis=1, keepdims=True)

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script, stamp
 
 from bench_engine.views import SUFFIXES
-from graph_helpers import read_bag, script, stamp
 
 STEPS = 61
 N = 2000

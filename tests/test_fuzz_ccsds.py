@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import script
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -30,7 +31,6 @@ from bench_ccsds.kvn import CcsdsError, utc_ns
 from bench_ccsds.oem import Segment, read_oem, write_oem
 from bench_ccsds.tdm import TdmSegment, read_tdm, write_tdm
 from bench_engine.config import ScenarioError, load_scenario, select_variant
-from graph_helpers import script
 
 EXAMPLES = int(os.environ.get("BENCH_FUZZ_EXAMPLES", "40"))
 CAMPAIGN = "BENCH_FUZZ_EXAMPLES" in os.environ
@@ -40,7 +40,7 @@ FUZZ = settings(
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
-T0 = utc_ns(dt_.datetime(2019, 12, 9, 16, 38, 29, 363424, tzinfo=dt_.timezone.utc))
+T0 = utc_ns(dt_.datetime(2019, 12, 9, 16, 38, 29, 363424, tzinfo=dt_.UTC))
 START = T0 + 5_724_900_000_000
 HOSTILE_LINES = [
     "META_START",

@@ -47,16 +47,18 @@ import sys
 import time
 import tracemalloc
 import zlib
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, Callable
+from typing import Any
 
 import lz4.frame
 import numpy as np
 import pytest
 import zstandard
+from graph_helpers import script
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.data_stream import ReadDataStream
@@ -67,13 +69,12 @@ from mcap.writer import CompressionType, Writer
 
 import bench_engine.mcap_records as bag_module
 from bench_engine import cdr
+from bench_engine.bag_errors import BagDamaged, BagError, BagUnrecoverable, BagUnsupported, MessageDamaged
 from bench_engine.bag_reader import BagReader
 from bench_engine.bag_writer import BagWriter
-from bench_engine.mcap_records import MAX_CHUNK_BYTES, RecordScan
-from bench_engine.bag_errors import BagDamaged, BagError, BagUnrecoverable, BagUnsupported, MessageDamaged
 from bench_engine.columns import NoColumnarLayout, table
+from bench_engine.mcap_records import MAX_CHUNK_BYTES, RecordScan
 from bench_engine.recovery import recover
-from graph_helpers import script
 
 EXAMPLES = int(os.environ.get("BENCH_FUZZ_EXAMPLES", "40"))
 CAMPAIGN = "BENCH_FUZZ_EXAMPLES" in os.environ

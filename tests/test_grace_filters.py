@@ -24,11 +24,11 @@ from bench_eval.window import ScoringWindow
 from bench_models.labelled import ComponentModel
 from bench_models.white_jerk import F_AXIS, WhiteJerkDynamics, axis_noise
 from bench_studies.grace_velocity.metrics import RANGE_RATE, range_rate
-from orbit_sim import gravity
-from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
 from bench_studies.grace_velocity.pair_truth import pair_rate
 from bench_studies.grace_velocity.report import grace_velocity_sections
 from bench_studies.grace_velocity.tuning import SAVGOL_DEGREES, SAVGOL_WINDOWS_S
+from orbit_sim import gravity
+from orbit_sim.geopotential import ZONALS, drag_acceleration, legendre, zonal_acceleration
 from orbit_sim.truth import build_earth, build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters import registry

@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script, stamp
 
 from bench_engine.config import apply_overrides, load_scenario, select_variant
 from bench_engine.inprocess import run_in_process
 from bench_engine.views import SUFFIXES
-from graph_helpers import read_bag, script, stamp
 
 STEPS = 1441
 SIGMA_GNSS = 0.02
@@ -144,7 +143,7 @@ def test_scores_have_their_known_answers(graph_run) -> None:
     # noise sqrt(2) sigma per axis; the range rate sees the along-baseline component only
     expected = np.sqrt(2) * SIGMA_GNSS * np.sqrt(130.0) / 120.0
     assert scores["newton"]["rr_truth"]["std"] == pytest.approx(expected, rel=0.1)
-    for name, block in scores.items():
+    for block in scores.values():
         assert abs(block["rr_kbr"]["std"] - block["rr_truth"]["std"]) < 0.05 * block["rr_truth"]["std"] + 2e-6
     # the filters on each satellite see the same fixes as kf_a's baseline: their difference is no better
     assert scores["kf_pair"]["rr_truth"]["std"] > 0.5 * scores["kf_a"]["rr_truth"]["std"]

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from bench_engine.config import ScenarioError
+from bench_engine.settings import read
 from bench_engine.stage import Measurement
 from bench_models.labelled import ComponentModel, RangeRateModel, UnboundModel
 from bench_studies.grace_velocity.metrics import range_rate
-from bench_engine.settings import read
 from radar_sensor.sensor import build_sensor
 from tracker_filters.derived import DerivedConfig, DifferenceStage, DifferentiatedStage
 from tracker_filters.differentiation import newton_weights

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script
 
 from bench_engine.config import load_scenario
 from bench_engine.inprocess import run_in_process
-from graph_helpers import read_bag, script
 
 CASES = {"leo_radar": ["ekf", "ukf"], "formation_cqkf": ["ss", "cwb"]}
 

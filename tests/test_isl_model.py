@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from orbit_sim.relative import to_convention
 from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.models import MeasurementModel
+from orbit_sim.relative import to_convention
 
 CONVENTIONS = ("radial_along_normal", "along_radial")
 

@@ -6,15 +6,15 @@ from scipy.integrate import trapezoid
 from scipy.optimize import least_squares
 from scipy.stats import chi2
 
-from orbit_sim.frames import ecef_to_eci, enu_rotation
-from orbit_sim.kepler import kepler_to_cartesian
-from bench_models.radar import GroundRadarModel
-from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF, second_order_moments
-from tracker_filters.kf import KalmanFilter
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.radar import GroundRadarModel
 from orbit_sim.cowell import propagate
+from orbit_sim.frames import ecef_to_eci, enu_rotation
+from orbit_sim.kepler import kepler_to_cartesian
+from tracker_filters.ekf import ExtendedKalmanFilter, SecondOrderEKF, second_order_moments
 from tracker_filters.initialisation import initial_state_from_scan
+from tracker_filters.kf import KalmanFilter
 from tracker_filters.registry import filter_names, make_filter
 from tracker_filters.relinearisation import PassBatch
 from tracker_filters.sigma_points import ScaledSigmaPoints

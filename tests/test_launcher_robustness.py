@@ -10,14 +10,14 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import pytest
+from graph_helpers import ROOT, SHORT_PASS, launch_in_background, node_pid, read_bag, script, wait_for_stepping
 
 from bench_engine import launcher
 from bench_engine.domains import reserve
-from graph_helpers import ROOT, SHORT_PASS, launch_in_background, node_pid, read_bag, script, wait_for_stepping
 
 
 @pytest.mark.parametrize(

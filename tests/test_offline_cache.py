@@ -19,13 +19,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import script
 
 from bench_engine import plugins
 from bench_engine.settings import replaced
 from bench_eval import offline_cache, scoring
 from bench_eval.offline_cache import CacheWarning
 from bench_eval.scoring import OfflineRun, load_bag, run_offline, score_bags, scoring_options
-from graph_helpers import script
 
 OFFLINE = ("ss_rts", "cw_rts", "cwb_rts")
 

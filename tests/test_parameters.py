@@ -9,13 +9,14 @@ import re
 
 import pytest
 import rclpy
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from rclpy.node import Node
 
+from bench_engine import plugins
 from bench_engine.config import ScenarioError, load_scenario
 from bench_engine.graph import build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import YAML_SUFFIX, flatten, node_parameters, node_settings, parameters_file, unflatten
-from bench_engine import plugins
 from bench_engine.scenario import coerce_scenario
 from bench_engine.settings_reference import entries
 

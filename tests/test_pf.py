@@ -9,13 +9,13 @@ from bench_eval.inprocess_runs import bag_data
 from bench_eval.metrics import nees_summary
 from bench_eval.scoring import track_of
 from bench_models.isl import RangeAzElModel
-from tracker_filters.kf import KalmanFilter
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
-from orbit_sim.angles import wrap_angle, wrapped_residual
-from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
 from bench_models.relative_dynamics import CWDynamics
+from orbit_sim.angles import wrap_angle, wrapped_residual
 from orbit_sim.relative import from_convention
 from tracker_filters.builders import build_filter_stack
+from tracker_filters.kf import KalmanFilter
+from tracker_filters.pf import RegularisedParticleFilter, SIRParticleFilter
 
 FILTERS = (SIRParticleFilter, RegularisedParticleFilter)
 DYN = ConstantVelocity(0.5, ndim=2)

@@ -10,11 +10,11 @@ import pytest
 
 from bench_engine.config import load_scenario
 from bench_engine.inprocess import run_in_process
+from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from orbit_sim.truth import build_truth
 from radar_sensor.sensor import build_sensor
 from tracker_filters.builders import build_filter_stack
 from tracker_filters.kf import KalmanFilter
-from bench_models.linear_models import ConstantVelocity, PositionMeasurement
 from tracker_filters.posterior_sampling import adaptive_posterior, batch_cost, weighted_moments
 from tracker_filters.relinearisation import PassBatch
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from bench_models.radar import GroundRadarModel
 from orbit_sim.cowell import propagate
 from orbit_sim.frames import ecef_to_eci, enu_rotation, geodetic_to_ecef
 from orbit_sim.kepler import kepler_to_cartesian
 from orbit_sim.passes import look_angles
-from bench_models.radar import GroundRadarModel
 from tracker_filters.initialisation import circular_orbit_velocity_prior, initial_state_from_scan
 
 STATION = (np.radians(78.15306), np.radians(16.02889), 445.0)

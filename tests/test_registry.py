@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from graph_helpers import read_bag, script
 
 EXAMPLE = Path(__file__).resolve().parent / "plugin_example"

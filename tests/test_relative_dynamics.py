@@ -10,8 +10,6 @@ import pytest
 from scipy.integrate import solve_ivp, trapezoid
 from scipy.optimize import least_squares
 
-from orbit_sim import cowell, gravity, hill, kepler, relative
-from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from bench_models.models import DynamicsModel
 from bench_models.relative_dynamics import (
     CWBiasDynamics,
@@ -21,6 +19,8 @@ from bench_models.relative_dynamics import (
     van_loan,
     wna_block,
 )
+from orbit_sim import cowell, gravity, hill, kepler, relative
+from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 
 A_REF = 7100e3
 N_REF = np.sqrt(MU_EARTH / A_REF**3)

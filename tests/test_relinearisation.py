@@ -7,11 +7,11 @@ The filters' own re-solve tests (Kalman-filter equality, least-squares minimum) 
 import numpy as np
 import pytest
 
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.radar import GroundRadarModel
 from orbit_sim.cowell import propagate
 from orbit_sim.kepler import kepler_to_cartesian
-from bench_models.radar import GroundRadarModel
 from tracker_filters.initialisation import initial_state_from_scan
-from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from tracker_filters.relinearisation import PassBatch
 
 CHAMP = kepler_to_cartesian(

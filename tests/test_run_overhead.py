@@ -6,18 +6,18 @@ killed; the phase benchmark (scripts/bench_phases.py) prints every phase. Nothin
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from graph_helpers import ROOT, SHORT_PASS, digests, read_bag, script
 
 from bench_engine import phases
 from bench_engine.batch import run_batch
 from bench_engine.launcher import NO_FORK_ENV
 from bench_engine.preload import WARM_ENV
 from bench_eval.montecarlo import MonteCarlo
-from graph_helpers import ROOT, SHORT_PASS, digests, read_bag, script
 
 PHASE_ROWS = (
     "interpreter + imports",

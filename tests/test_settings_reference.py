@@ -17,7 +17,7 @@ import pytest
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, load_scenario, merge
 from bench_engine.scenario import EngineKeys, check_top_level, section_readers
-from bench_engine.settings import REQUIRED, Settings, SectionReader, coerce, default_of, read, setting
+from bench_engine.settings import REQUIRED, SectionReader, Settings, coerce, default_of, read, setting
 from bench_engine.settings_reference import _yaml_value, entries, markdown
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -123,7 +123,7 @@ def _entries_of(cfg: dict, path: str) -> list:
             continue
         names = iter(match.groups())
         clauses = [c.split(" = ") for c in e.when.split(", ")] if e.when else []
-        concrete = [(re.sub("<name>", lambda _: next(names, "<name>"), k), v) for k, v in clauses]
+        concrete = [(re.sub("<name>", lambda _, names=names: next(names, "<name>"), k), v) for k, v in clauses]
         if all(str(_raw(cfg, k.rsplit(".", 1)[0]).get(k.rsplit(".", 1)[1])) == v for k, v in concrete):
             out.append(e)
     return out

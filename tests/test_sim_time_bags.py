@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from graph_helpers import launch_in_background, node_pid, script, wait_for_stepping
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Chunk, ChunkIndex, Message
@@ -21,12 +22,11 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 
 from bench_engine.bag_reader import BagReader
-from bench_engine.sim_clock import SimClock, StampRule, leading_stamp_ns, stamp_rule
 from bench_engine.msg_schema import message_class
 from bench_engine.recorder_node import WALL_DURATION_KEY, WALL_START_KEY
+from bench_engine.sim_clock import SimClock, StampRule, leading_stamp_ns, stamp_rule
 from bench_engine.views import SUFFIXES
 from bench_eval.scoring import load_bag
-from graph_helpers import launch_in_background, node_pid, script, wait_for_stepping
 
 START_NS = 4_320_800_000_000  # leo_radar's time.start
 DT_NS = 100_000_000

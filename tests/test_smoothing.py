@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import script
 from scipy.linalg import block_diag, expm
 
 from bench_engine.config import apply_overrides, load_scenario
 from bench_engine.stage import Estimate
 from bench_models.labelled import ComponentModel
 from bench_models.white_jerk import WhiteJerkDynamics
-from graph_helpers import script
 from tracker_filters import registry
 from tracker_filters.fixed_lag import FixedLagSmoother
 from tracker_filters.smoothing import rts_smoother, smooth_estimates

@@ -15,17 +15,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
+from rcl_interfaces.msg import ParameterType
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from bench_msgs.msg import RangeAzEl, StateEstimate
-from rcl_interfaces.msg import ParameterType
 from bench_engine.config import apply_overrides, load_scenario
 from bench_engine.domains import reserve
 from bench_engine.inprocess import run_in_process
 from bench_engine.launcher import _file_parameters, prepare_run
 from bench_engine.parameters import node_parameters, parameters_file
 from bench_engine.stage_node import StageNode
+from bench_msgs.msg import RangeAzEl, StateEstimate
 from radar_sensor.messages import RANGE_AZ_EL
 
 FILTER_NODE = Path(sys.executable).parent.parent / "lib" / "tracker_filters" / "filter_node"
@@ -123,9 +123,9 @@ def test_a_standalone_ukf_on_a_foreign_best_effort_topic_equals_the_in_process_r
     for i, item in enumerate(measurements[1:], start=1):
         pub.publish(_message(item))
         if item.t_ns in expected_by_t:
-            assert _spin_until(executor, lambda: len(received) == len([e for e in expected if e.t_ns <= item.t_ns])), (
-                f"no estimate for measurement {i}"
-            )
+            assert _spin_until(
+                executor, lambda t_ns=item.t_ns: len(received) == len([e for e in expected if e.t_ns <= t_ns])
+            ), f"no estimate for measurement {i}"
         if i == MALFORMED_AFTER:
             pub.publish(b"\x00\x01\x00\x00" + b"\xff" * 9)  # CDR bytes that are no RangeAzEl
         if i == DUPLICATE_AFTER:

@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from graph_helpers import read_bag, script, stamp
 from scipy.spatial.transform import Rotation
 
 from bench_engine import views
 from bench_engine.batch import RunSpec, reusable_run
 from bench_engine.config import ScenarioError
-from graph_helpers import read_bag, script, stamp
 
 
 def counts(bag_dir: Path) -> dict[str, int]:

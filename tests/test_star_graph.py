@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script, stamp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -23,7 +24,6 @@ from star_tracker.catalogue import ARCSEC, load_catalogue
 from star_tracker.sky_motion import CircularOrbit, orbit_truth
 from star_tracker.star_camera import catalogue_of
 from star_tracker.tracker_stage import StarTrackerStage
-from graph_helpers import read_bag, script, stamp
 
 TRACKERS = ["sna_triad", "sna_wahba", "jpdaf_triad", "jpdaf_wahba"]
 

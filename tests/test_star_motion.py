@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import quad_vec
 from scipy.linalg import expm
 
-from star_tracker.motion import B, H, ConstantVelocity, CoordinatedTurn, turn_matrix, turn_noise, van_loan
+from star_tracker.motion import B, ConstantVelocity, CoordinatedTurn, H, turn_matrix, turn_noise, van_loan
 
 
 def test_constant_velocity_discrete_is_the_papers_eq_15():
@@ -74,7 +74,7 @@ def test_a_star_circling_the_boresight_is_propagated_exactly_by_the_turn_model()
 
     F, _ = CoordinatedTurn(w, 0.0).transition(dt)
     x = state(0.0)
-    for n in range(1, 50):
+    for _ in range(49):
         x = F @ x
     np.testing.assert_allclose(x, state(49 * dt), atol=1e-8)
 

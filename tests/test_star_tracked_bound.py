@@ -16,12 +16,12 @@ from scipy.stats import chi2
 
 from bench_engine.config import load_scenario, select_variant
 from bench_eval.bounds import score_bounds
-from bench_eval.scoring import scoring_options, track_of
 from bench_eval.inprocess_runs import bag_data
+from bench_eval.scoring import scoring_options, track_of
 from bench_studies.star_tracker.report import ARCSEC, attitude_bounds
 from star_tracker.attitude import rotation_matrix
 from star_tracker.attitude_bound import attitude_information, centroid_jacobians
-from star_tracker.motion import H, ConstantVelocity
+from star_tracker.motion import ConstantVelocity, H
 from star_tracker.tracked_bound import star_chains, tracked_attitude_covariance
 
 SIGMA_PX, IFOV, DT = 0.14, 3.4e-4, 0.1

@@ -29,10 +29,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from stonesoup.models.measurement.linear import LinearGaussian
-from stonesoup.models.transition.linear import (
-    CombinedLinearGaussianTransitionModel,
-    ConstantVelocity as SSConstantVelocity,
-)
+from stonesoup.models.transition.linear import CombinedLinearGaussianTransitionModel
+from stonesoup.models.transition.linear import ConstantVelocity as SSConstantVelocity
 from stonesoup.predictor.kalman import KalmanPredictor
 from stonesoup.types.array import StateVector
 from stonesoup.types.detection import Detection

@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from graph_helpers import SCRIPTS, script
 
-from bench_engine.config import ScenarioError, apply_overrides, load_scenario, scenario_path
 from bench_engine.batch import crosstalk
+from bench_engine.config import ScenarioError, apply_overrides, load_scenario, scenario_path
 from bench_eval import sweep
 from bench_studies.formation_cqkf import model_error
 from bench_studies.formation_cqkf.report import paired_ordering, paper004_case
-from graph_helpers import SCRIPTS, script
 
 COMPONENT_ROWS = ("δx [m]", "δy [m]", "δz [m]", "δvx [mm/s]", "δvy [mm/s]", "δvz [mm/s]")
 

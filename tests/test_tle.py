@@ -30,7 +30,7 @@ ISS = (
     "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
     "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482",
 )
-UTC = dt_.timezone.utc
+UTC = dt_.UTC
 
 
 def verification_cases() -> list[tuple[str, str, tuple[float, float, float], list[list[str]]]]:
@@ -88,7 +88,7 @@ def test_the_deliberately_bad_cases_are_refused():
         with pytest.raises(TleError, match="checksum"):
             read_tle([line1, line2], "SGP4-VER.TLE")
     failing = {"22312": "eccentricity", "28350": "eccentricity", "28872": "decayed", "29141": "decayed"}
-    for line1, line2, (start, stop, step), rows in CASES:
+    for line1, line2, (start, stop, step), _rows in CASES:
         if line1[2:7].strip() in failing:
             tle = read_tle([line1, line2], "SGP4-VER.TLE")
             with pytest.raises(TleError, match=failing[line1[2:7].strip()]) as err:

@@ -11,7 +11,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from bench_msgs.msg import DetectionSet as DetectionSetMsg
 
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario
 from bench_engine.graph import resolve_estimators
@@ -20,6 +19,7 @@ from bench_engine.launcher import validate
 from bench_engine.stage import DetectionSet, Measurement
 from bench_models.isl import RangeAzElModel
 from bench_models.linear_models import ConstantVelocity, PositionMeasurement
+from bench_msgs.msg import DetectionSet as DetectionSetMsg
 from radar_sensor.clutter import build_cluttered
 from radar_sensor.messages import DETECTION_SET
 from tracker_filters.association import (
@@ -256,7 +256,9 @@ def test_the_tracker_is_its_filter_on_the_clean_sensor_measurements():
 
 
 def test_a_track_coasts_on_a_miss_is_deleted_and_restarts_from_a_free_detection():
-    prior = lambda z, R, t: (np.array([z[0], 0.0]), np.eye(2))
+    def prior(z, R, t):
+        return np.array([z[0], 0.0]), np.eye(2)
+
     tracker = Tracker(cv_filter, prior, PositionMeasurement(1), 0.99, max_misses=2)
     R1 = np.ones((1, 1, 1))
     report = tracker.step(0.0, np.array([[0.0]]), R1)

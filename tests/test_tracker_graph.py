@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from graph_helpers import read_bag, script, stamp
 
 from bench_engine.config import load_scenario
 from bench_engine.inprocess import run_in_process
-from graph_helpers import read_bag, script, stamp
 
 SCENARIO = Path(__file__).parent / "data" / "tracker_formation.yaml"
 SIGMA = 0.0316227766  # m, the relative-position noise of both sensors

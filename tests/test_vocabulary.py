@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from graph_helpers import script
 
 from bench_engine import settings
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario
@@ -17,7 +18,6 @@ from bench_engine.graph import build_graph, resolve_estimators
 from bench_engine.launcher import validate
 from bench_engine.scenario import check_top_level, upgrade_run_config
 from bench_eval.scoring import load_bag, score_bags
-from graph_helpers import script
 
 DATA = Path(__file__).parent / "data"
 FORMATION = str(DATA / "tracker_formation.yaml")

@@ -5,12 +5,14 @@ for every package of ``api_packages`` (found under
 ``api_source/PACKAGE/PACKAGE``): an ``automodule`` per module, in name order. Left out: the commands
 (``*.cli.*``, documented by their ``--help`` and the commands reference) and every module that imports a ROS
 client library or a cross-check's test-only library at its top level, directly or through another module of the
-bench (the node shells, the Stone Soup and tetra3rs cross-checks): the reference is of the functional core. A page is rewritten only when its text changes.
+bench (the node shells, the Stone Soup and tetra3rs cross-checks): the reference is of the functional core. A page is
+rewritten only when its text changes.
 
 The bench's docstrings are plain text with reStructuredText's inline literals and roles. Before autodoc parses
 one, ``plain_layout`` makes its layout valid reStructuredText without changing its words: ``|x|`` (an absolute
 value, not a substitution) and a stray ``*`` escaped, and a blank line where a list starts under a paragraph or
-ends above one, where an indented continuation starts or where one ends. So a docstring written for ``help()`` renders without warnings.
+ends above one, where an indented continuation starts or where one ends. So a docstring written for ``help()`` renders
+without warnings.
 """
 
 from __future__ import annotations

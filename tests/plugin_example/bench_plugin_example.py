@@ -1,7 +1,9 @@
 """A throw-away package that extends the bench from outside, as tests/test_registry.py installs it.
 
-It registers (entry points, see entry_points.txt beside this file): a range-only sensor type, an estimator (an EKF with covariance
-inflation), a metric family (the final position error), two node kinds that make a three-stage pipeline sensor -> relay -> smoother, and the scenario
+It registers (entry points, see entry_points.txt beside this file): a range-only sensor type, an estimator (an EKF with
+covariance
+inflation), a metric family (the final position error), two node kinds that make a three-stage pipeline sensor -> relay
+-> smoother, and the scenario
 sections those kinds read. Nothing of the bench is edited to run them.
 """
 

@@ -16,12 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench_ccsds.kvn import NS_PER_DAY, epoch_text, utc_ns
 from bench_engine.timegrid import build_time
 from orbit_sim.frames import GMST_RATE, JD_UNIX_EPOCH, gmst82
 from orbit_sim.truth import build_earth
-from bench_ccsds.kvn import NS_PER_DAY, epoch_text, utc_ns
 
-NOMINAL_FROM = dt_.datetime(2000, 1, 1, 12, tzinfo=dt_.timezone.utc)
+NOMINAL_FROM = dt_.datetime(2000, 1, 1, 12, tzinfo=dt_.UTC)
 """The nominal epoch is the first instant from here on whose GMST is the scenario's theta0."""
 FRAMES = {"eci": "TEME"}
 """The bench's frame names that CCSDS names (REF_FRAME): eci is TEME on the calendar (module docstring). lvlh (a

@@ -28,16 +28,16 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_ccsds.epochs import TIME_SYSTEM, RunTime, ccsds_frame, run_time
+from bench_ccsds.kvn import epoch_text
+from bench_ccsds.oem import Segment, write_oem
+from bench_ccsds.tdm import TdmSegment, write_tdm
 from bench_engine.bag_reader import BagReader
 from bench_engine.config import ScenarioError
 from bench_engine.graph import ESTIMATE, ESTIMATE_TYPE, MEASUREMENT, TRUTH_TOPIC, topic_owner
 from bench_engine.labels import ORBIT
 from bench_engine.stage import codec
 from bench_eval.cli.replay import recorded_run
-from bench_ccsds.epochs import TIME_SYSTEM, RunTime, ccsds_frame, run_time
-from bench_ccsds.kvn import epoch_text
-from bench_ccsds.oem import Segment, write_oem
-from bench_ccsds.tdm import TdmSegment, write_tdm
 
 ORIGINATOR = "TRACKING-BENCH"
 ACCELERATION = ("ax", "ay", "az")

@@ -28,22 +28,22 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_ccsds.epochs import FRAMES, TIME_SYSTEM, run_time
+from bench_ccsds.kvn import CcsdsError, epoch_text
+from bench_ccsds.oem import read_oem
+from bench_ccsds.tdm import TdmSegment, read_tdm
 from bench_engine import yamlio
 from bench_engine.bag_writer import BagWriter
 from bench_engine.cdr import lite_class, serialize
 from bench_engine.config import ScenarioError
-from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, measurement_topic
 from bench_engine.labels import ORBIT
+from bench_engine.scenario import scenario_seed
 from bench_engine.sim_clock import SimClock
 from bench_engine.stage import Measurement, TruthSample, codec
 from bench_engine.timegrid import build_time
 from radar_sensor.sensor import build_sensor
 from radar_sensor.sensor_types import sensor_names
-from bench_ccsds.epochs import FRAMES, TIME_SYSTEM, run_time
-from bench_ccsds.kvn import CcsdsError, epoch_text
-from bench_ccsds.oem import read_oem
-from bench_ccsds.tdm import TdmSegment, read_tdm
 
 RADAR_KEYWORDS = ("RANGE", "ANGLE_1", "ANGLE_2")
 RANGE_RATE = "DOPPLER_INSTANTANEOUS"

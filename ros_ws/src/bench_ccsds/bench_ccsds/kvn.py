@@ -65,7 +65,7 @@ def epoch_text(utc_ns: int) -> str:
 
 def utc_ns(epoch: dt_.datetime) -> int:
     """A timezone-aware datetime -> UTC nanoseconds since 1970 (exact: a datetime holds microseconds)."""
-    delta = epoch.astimezone(dt_.timezone.utc) - dt_.datetime(1970, 1, 1, tzinfo=dt_.timezone.utc)
+    delta = epoch.astimezone(dt_.UTC) - dt_.datetime(1970, 1, 1, tzinfo=dt_.UTC)
     return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1000
 
 

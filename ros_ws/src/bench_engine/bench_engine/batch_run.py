@@ -24,10 +24,10 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from multiprocessing import forkserver
 from pathlib import Path
-from typing import Callable
 
 from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC

@@ -1,5 +1,8 @@
 """ROS shell shared by every node of the bench: parameters, topics, QoS, readiness barrier, acks, shutdown.
 
+Longer than 500 lines: the node class and the ways of running nodes (in process, as node processes, standalone)
+share one readiness, done and shutdown protocol, which reads best in one place.
+
 A node's core is configured by the node's ROS parameters alone (bench_engine.parameters: the part of the
 scenario its kind reads, one read-only parameter per scenario key, e.g. ``filters.ukf.params.alpha``), plus the
 shell's own parameters (:data:`SHELL_PARAMETERS`: its kind and the QoS of its data topics). Its data topics are
@@ -32,8 +35,8 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Callable, Iterable
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
@@ -43,17 +46,17 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String, UInt64
 
-from bench_msgs.msg import StepAck
 from bench_engine import phases, shm, yamlio
-from bench_engine.config import ScenarioError
 from bench_engine.cdr import lite_class, serialize
+from bench_engine.config import ScenarioError
 from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph, node_kinds
-from bench_engine.parameters import description, unflatten
 from bench_engine.msg_schema import message_class
+from bench_engine.parameters import description, unflatten
 from bench_engine.process import exit_now, keep_until_exit
 from bench_engine.scenario import upgrade_run_config
 from bench_engine.stage import codec
 from bench_engine.timegrid import build_time
+from bench_msgs.msg import StepAck
 
 DATA_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE

@@ -44,9 +44,10 @@ from __future__ import annotations
 
 import struct
 import sys
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Any, Callable, Iterable
+from functools import cache
+from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
@@ -87,7 +88,7 @@ _LITTLE = sys.byteorder == "little"
 # --- the typestore ----------------------------------------------------------------------------------------
 
 
-@lru_cache(maxsize=None)
+@cache
 def typestore() -> Typestore:
     """This process's typestore: ROS 2 Jazzy's types, then the bench's as they are first used. Its classes are
     the light classes (:func:`lite_class`), so it is the bench's own: to read bags with rosbags' classes, use
@@ -136,7 +137,7 @@ class _Missing:
 _MISSING = _Missing()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _lite(name: str) -> type:
     """The light class of canonical type ``name``, installed as the typestore's class of the type (and of every
     type it nests) before rosbags compiles any of them."""
@@ -156,7 +157,7 @@ def _lite(name: str) -> type:
             default = np.array(getattr(proto, attr), dtype=_dtype(sub[0])).reshape(-1)
             ns[f"_f{i}"] = default.copy
         elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):  # strings
-            ns[f"_f{i}"] = lambda v=list(getattr(proto, attr)): list(v)
+            ns[f"_f{i}"] = lambda v=list(getattr(proto, attr)): list(v)  # noqa: B008 - the default, read once
         else:
             value = getattr(proto, attr)
             if desc[1][0] in ("byte", "char"):
@@ -211,7 +212,7 @@ def _as_char(value: Any) -> int:
     return ord(value) if isinstance(value, str) else int(value)
 
 
-@lru_cache(maxsize=None)
+@cache
 def lite_class(type_name: str) -> type:
     """The light class of ``pkg/msg/Type`` (or ``pkg/Type``): what :func:`serialize` takes and
     :func:`deserialize` returns. Keyword (or positional, in field order) arguments, rclpy's defaults. Cached by
@@ -273,7 +274,7 @@ def _coerce(attr: str, dtype: np.dtype, size: int | None) -> Callable[[Any], np.
     return coerce
 
 
-@lru_cache(maxsize=None)
+@cache
 def _needs_preparing(name: str) -> bool:
     """Whether a type, or a type it nests, has number sequences or byte fields (what rosbags' serialiser cannot
     take as codecs and rclpy's messages give them). Other nested messages may be any object with their
@@ -294,7 +295,7 @@ def _needs_preparing(name: str) -> bool:
     return False
 
 
-@lru_cache(maxsize=None)
+@cache
 def _preparer(name: str) -> Callable[[Any], None]:
     """A function that makes a light message of ``name`` ready for rosbags' serialiser, in place: number
     sequences as contiguous 1-D arrays of their type, byte fields as ints, nested messages that hold such fields
@@ -323,7 +324,7 @@ def _preparer(name: str) -> Callable[[Any], None]:
             ns[f"_L{i}"], ns[f"_c{i}"], ns[f"_p{i}"] = _lite(sub_name), _converter(sub_name), _preparer(sub_name)
             lines += [
                 f"  v = msg.{attr}",
-                f"  if v.__class__ is not list:",
+                "  if v.__class__ is not list:",
                 f"    msg.{attr} = v = list(v)",
                 "  for j, m in enumerate(v):",
                 f"    if m.__class__ is not _L{i}:",
@@ -357,7 +358,7 @@ def _noop(msg: Any) -> None:
     return None
 
 
-@lru_cache(maxsize=None)
+@cache
 def _converter(name: str) -> Callable[[Any], Any]:
     """Any object with the fields of ``name`` (rclpy's message, rosbags', a table row) -> a light message."""
     lite = _lite(name)
@@ -438,7 +439,7 @@ class Field:
     kind: str
     dtype: np.dtype | None = None
     size: int = 0  # fixed array length
-    sub: "MessageType | None" = None  # nested message
+    sub: MessageType | None = None  # nested message
 
 
 @dataclass(frozen=True)
@@ -450,7 +451,7 @@ class MessageType:
     lite: type
 
 
-@lru_cache(maxsize=None)
+@cache
 def compiled(type_name: str) -> MessageType:
     """``pkg/msg/Type``'s fields, from the typestore, for the columnar decoder. Arrays of messages and wide
     strings (no topic the scorer reads has them) raise a TypeError naming the field: read such a type with

@@ -2,7 +2,8 @@
 
 Why: the scorer reads every truth, measurement and estimate of a bag. Decoding them one by one through rclpy's
 generated classes builds several Python objects per message (the message, its header, three ``Time``s), most of
-a bag's load time. The bench's messages have one byte layout per topic: the same frame, labels and vector sizes at every step. So a topic's
+a bag's load time. The bench's messages have one byte layout per topic: the same frame, labels and vector sizes at every
+step. So a topic's
 messages are grouped by layout, and each group's fields are read as strided numpy views of one byte array.
 
 The encoding is the one bench_engine.cdr reads and writes (plain CDR, little endian, field order and types

@@ -11,8 +11,9 @@ the bench (a study's paper.yaml and tables.yaml, a sweep grid) use it directly.
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 import yaml
 
@@ -180,7 +181,7 @@ class Section:
         allowed = list(allowed)
         return self.get(key, str, default, lambda v: v in allowed, f"one of {allowed}")
 
-    def section(self, key: str, default_empty: bool = True) -> "Section":
+    def section(self, key: str, default_empty: bool = True) -> Section:
         self._known.add(key)
         if key not in self.data and not default_empty:
             raise ScenarioError(f"missing section '{self._key(key)}'")

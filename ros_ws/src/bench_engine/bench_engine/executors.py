@@ -20,8 +20,9 @@ import os
 import shutil
 import signal
 import sys
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Any
 
 from dask.distributed import Client, LocalCluster, as_completed
 from tqdm import tqdm

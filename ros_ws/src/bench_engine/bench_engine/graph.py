@@ -14,8 +14,8 @@ paced (bench_engine.lockstep): any acyclic chain of them, e.g. camera -> identif
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError

@@ -15,9 +15,9 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from bench_engine.scenario import scenario_seed
 from bench_engine.graph import CLOCK_TOPIC, Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_settings
+from bench_engine.scenario import scenario_seed
 from bench_engine.stage import Item, Log
 from bench_engine.views import SWITCH as VIEWS_SWITCH
 

@@ -20,12 +20,12 @@ from pathlib import Path
 import setproctitle
 
 from bench_engine import phases, yamlio
+from bench_engine.bag_errors import BagUnrecoverable
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant
 from bench_engine.domains import DomainInUse, Reservation, reserve
 from bench_engine.graph import Graph, build_graph, node_kinds, resolve_estimators
 from bench_engine.parameters import node_parameters, node_settings, parameters_file
 from bench_engine.process import exit_now, keep_until_exit
-from bench_engine.bag_errors import BagUnrecoverable
 from bench_engine.recovery import ensure_complete
 from bench_engine.scenario import check_top_level, coerce_scenario, scenario_seed, section_readers
 
@@ -94,7 +94,7 @@ def validate(cfg: dict, estimators: list[str], source: str) -> None:
             check(settings, spec.name)
 
 
-def write_parameters(plan: "RunPlan") -> None:
+def write_parameters(plan: RunPlan) -> None:
     """One ``ros__parameters`` file per node: its kind and its settings (bench_engine.parameters)."""
     cfg = plan.run["scenario"]
     plan.parameters_file("x").parent.mkdir(exist_ok=True)

@@ -19,7 +19,7 @@ import json
 import os
 import re
 import sys
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 SEPARATOR = "=" * 80
@@ -77,7 +77,7 @@ def interface_file(type_name: str, suffix: str) -> Path:
     raise FileNotFoundError(f"no {package}/msg/{name}{suffix} under share/ of {searched}")
 
 
-@lru_cache(maxsize=None)
+@cache
 def msg_text(type_name: str) -> str:
     """The raw text of a type's installed ``.msg`` file (comments and line endings kept)."""
     return interface_file(type_name, ".msg").read_bytes().decode("utf-8")
@@ -117,7 +117,7 @@ def canonical_type_name(type_name: str) -> str:
     return f"{package}/msg/{name}"
 
 
-@lru_cache(maxsize=None)
+@cache
 def type_hash(type_name: str) -> str:
     """The type's ``RIHS01_...`` hash, read from the type description ``.json`` rosidl installs next to the .msg."""
     description = json.loads(interface_file(type_name, ".json").read_text(encoding="utf-8"))

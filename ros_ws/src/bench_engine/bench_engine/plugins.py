@@ -16,7 +16,7 @@ throw-away package.
 from __future__ import annotations
 
 import importlib
-from functools import lru_cache
+from functools import cache, lru_cache
 from importlib.metadata import entry_points
 
 from bench_engine.errors import ScenarioError
@@ -46,7 +46,7 @@ def _installed_entry_points():
     return entry_points()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _entry_points(group: str) -> dict:
     found = {}
     for ep in _installed_entry_points().select(group=GROUPS[group]):
@@ -59,7 +59,7 @@ def names(group: str) -> list[str]:
     return sorted(_entry_points(group))
 
 
-@lru_cache(maxsize=None)
+@cache
 def load(group: str, name: str) -> object:
     """The component registered as ``name`` in ``group``; ScenarioError naming the registered ones if absent."""
     found = _entry_points(group)
@@ -82,7 +82,7 @@ def registered(group: str) -> dict[str, object]:
     return {name: load(group, name) for name in names(group)}
 
 
-@lru_cache(maxsize=None)
+@cache
 def resolve(reference: str) -> object:
     """The object a ``module:attribute`` string names, imported on first use (a registered component's builder:
     bench_engine.settings.Builder)."""

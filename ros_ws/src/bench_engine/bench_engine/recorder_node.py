@@ -2,7 +2,8 @@
 
 Subscribes with ``raw=True`` (no deserialisation) to every topic the graph's nodes publish. On ``/sim/done``
 it drains what is still in flight and closes the bag as soon as every topic holds the final count the source
-announced on ``/sim/totals`` (without them, once the other nodes have left and nothing arrived for a while); SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
+announced on ``/sim/totals`` (without them, once the other nodes have left and nothing arrived for a while);
+SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
 FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
 killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
 
@@ -23,12 +24,12 @@ from pathlib import Path
 
 from bench_engine import phases, yamlio
 from bench_engine.bag_writer import BagWriter
-from bench_engine.sim_clock import SimClock
-from bench_msgs.msg import StepAck
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
 from bench_engine.graph import CLOCK_TOPIC, TOTALS_TOPIC
 from bench_engine.msg_schema import message_class
+from bench_engine.sim_clock import SimClock
 from bench_engine.timegrid import build_time
+from bench_msgs.msg import StepAck
 
 FLUSH_SIM_S = 1.0
 """Sim time between two flushes of the bag."""

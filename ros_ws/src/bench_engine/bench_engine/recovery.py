@@ -4,7 +4,8 @@ A recorder killed without running Python code (SIGKILL, a crash of the interpret
 summary and footer, and no ``metadata.yaml``: readers refuse it. The recorder flushes a chunk at least every
 second of sim time (bench_engine.recorder_node), so the file holds every chunk up to the last flush, then
 perhaps a partial record. :func:`recover` reads the records in order up to the first incomplete or damaged one
-(bench_engine.mcap_records.RecordScan: every length checked against the file, every chunk decompressed within its claimed
+(bench_engine.mcap_records.RecordScan: every length checked against the file, every chunk decompressed within its
+claimed
 size and checked against its CRC), and writes a new, complete bag (MCAP with summary, ``metadata.yaml``) with
 every message it found, keeping the damaged file as ``<name>.mcap.truncated``; it reports what it kept and what
 it could not read. Like ``ros2 bag reindex``, but for a file whose tail is missing.

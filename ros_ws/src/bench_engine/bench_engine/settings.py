@@ -32,9 +32,10 @@ import datetime
 import sys
 import types
 import typing
+from collections.abc import Callable, Iterable
 from dataclasses import MISSING, dataclass, field
-from functools import lru_cache
-from typing import Any, Callable, Iterable
+from functools import cache
+from typing import Any
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, Section
@@ -217,7 +218,7 @@ def _is_settings(hint: Any) -> bool:
     return isinstance(hint, type) and issubclass(hint, Settings)
 
 
-@lru_cache(maxsize=None)
+@cache
 def fields_of(cls: type) -> tuple[tuple[dataclasses.Field, Any], ...]:
     """(field, resolved annotation) of a Settings class, in declaration order."""
     hints = typing.get_type_hints(cls)

@@ -13,10 +13,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from itertools import groupby
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from bench_engine.scenario import EngineKeys, section_readers
 from bench_engine.settings import REQUIRED, SectionReader, Shape, choices_of, default_of, fields_of, join, shape

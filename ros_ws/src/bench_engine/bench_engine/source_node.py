@@ -14,7 +14,6 @@ from pathlib import Path
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String, UInt64
 
-from bench_msgs.msg import StepAck
 from bench_engine import phases
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, delivered, node_main, ns_to_stamp
 from bench_engine.cdr import deserialize, lite_class, serialize
@@ -31,6 +30,7 @@ from bench_engine.graph import (
 from bench_engine.lockstep import Pacer
 from bench_engine.timegrid import build_time
 from bench_engine.views import item_publishers, warm
+from bench_msgs.msg import StepAck
 
 warm()  # compiled once where nodes are forked from (bench_engine.views.warm)
 

@@ -97,8 +97,8 @@ def parse_epoch(value: str | dt_.datetime | None, key: str) -> dt_.datetime | No
                 f"'{key}' must be a UTC date and time in ISO 8601, e.g. 2008-09-20T12:25:40.104192Z; got {value!r}"
             ) from None
     if value.tzinfo is None:
-        value = value.replace(tzinfo=dt_.timezone.utc)
-    value = value.astimezone(dt_.timezone.utc)
+        value = value.replace(tzinfo=dt_.UTC)
+    value = value.astimezone(dt_.UTC)
     if not 1972 <= value.year <= 2200:
         raise ScenarioError(
             f"'{key}' is {value.isoformat()}: the bench's UTC dates run from 1972 (integral leap seconds) to 2200"

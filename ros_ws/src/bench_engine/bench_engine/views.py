@@ -1,5 +1,8 @@
 """The standard ROS views of the bench's estimates and truth: what RViz, Foxglove or any ROS tool can show.
 
+Longer than 500 lines: one short builder per standard message (Odometry, poses, attitude, diagnostics, markers)
+and the publishers that attach them to a node; the state layout they read is in bench_engine.view_state.
+
 Every node that publishes estimates (``/NAME/estimate``, bench_msgs/StateEstimate) or the truth (``/NAME/state``,
 bench_msgs/TruthState) also publishes, on topics beside it, the standard messages that view each item, where the
 item's state holds what they need (selected by label, never by position). The topic suffixes are a contract
@@ -51,17 +54,18 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from bench_engine import cdr
 from bench_engine.labels import POSITION, QUATERNION, VELOCITY
+from bench_engine.msg_schema import message_class
 from bench_engine.scenario import EngineKeys
 from bench_engine.settings import read_key
-from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
-from bench_engine.msg_schema import message_class
 from bench_engine.stage import Estimate, Item
+from bench_engine.topics import ESTIMATE, ESTIMATE_TYPE, TRUTH_TYPE, NodeSpec, topic_owner
 from bench_engine.view_state import State, attitude_matrix, block, state_of
 
 ODOMETRY = "odometry"

@@ -34,8 +34,9 @@ models are (e.g. ``wahba``, a star camera's per-frame attitude bound: bench_stud
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 

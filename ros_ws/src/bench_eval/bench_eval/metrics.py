@@ -1,5 +1,8 @@
 """Scoring metrics: Monte Carlo RMSE and its summary, NEES consistency, measurement-space RMSE, error statistics.
 
+Longer than 500 lines: the metric functions and the two families built from them (convergence and errors),
+which use them and nothing else.
+
 Two families of scores are built from them (registered in bench_eval.metric_families):
 - convergence (:func:`score_convergence`): position RMSE over N Monte Carlo runs per time step (paper 000
   eq. 35), summarised by the peak, the time to converge, the band the error "wanders in" after convergence
@@ -20,8 +23,8 @@ ready for ``json.dump(..., allow_nan=False)``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri(k, 1 - q)

@@ -17,8 +17,9 @@ The scorer runs each over every bag and scores its output like another filter's 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -95,7 +96,7 @@ class SavgolParameters(Differentiation):
 
 
 def _differentiation_check(cfg: dict, source: str, params: Differentiation) -> None:
-    names = list((cfg.get("sensors") or {})) + list((cfg.get("derived_measurements") or {}))
+    names = list(cfg.get("sensors") or {}) + list(cfg.get("derived_measurements") or {})
     if source not in names:
         raise ScenarioError(f"'scoring.offline': source '{source}' is not a measurement of the scenario ({names})")
 

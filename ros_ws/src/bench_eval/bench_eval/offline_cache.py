@@ -36,7 +36,7 @@ import platform
 import tempfile
 import warnings
 import zipfile
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -92,7 +92,7 @@ def _imported(source: bytes, module: str, is_package: bool) -> set[str]:
     return names
 
 
-@lru_cache(maxsize=None)
+@cache
 def _package_dirs(top: str) -> tuple[Path, ...]:
     """The directories of a top-level package (found without importing anything below it)."""
     spec = importlib.util.find_spec(top)
@@ -112,7 +112,7 @@ def _source(module: str) -> tuple[Path, bool] | None:
     return None
 
 
-@lru_cache(maxsize=None)
+@cache
 def code_version(module: str) -> str:
     """SHA-256 of the source of ``module`` and of every module it imports, transitively, within the packages
     that register bench components (module docstring), with the versions of Python, numpy and scipy."""
@@ -137,7 +137,7 @@ def code_version(module: str) -> str:
     return digest.hexdigest()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _bag_digest(bag: Path, stamp: tuple) -> str:
     digest = hashlib.sha256()
     for path in [bag / "run_config.yaml", *sorted(bag.glob("*.mcap"))]:

@@ -23,9 +23,9 @@ import platform
 import re
 import subprocess
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 from bench_engine import yamlio
 from bench_engine.config import ScenarioError, Section

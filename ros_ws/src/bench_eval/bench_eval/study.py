@@ -9,9 +9,9 @@ tables of its documentation page with their commands (``tables.yaml``, scripts/r
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping
 
 from bench_engine import plugins, yamlio
 from bench_engine.config import ScenarioError, Section

@@ -34,9 +34,10 @@ import itertools
 import json
 import re
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from bench_engine.batch import RunResult, RunSpec, reusable_run, run_batch
 from bench_engine.config import (
@@ -50,12 +51,12 @@ from bench_engine.config import (
 )
 from bench_engine.graph import resolve_estimators
 from bench_engine.launcher import prepare_run
-from tracker_filters.filter_settings import filter_config, filter_key
 from bench_eval.metrics import json_ready
 from bench_eval.report import Section as ReportSection
 from bench_eval.report import generic_sections, render
 from bench_eval.scoring import score_bags
 from bench_eval.study import study
+from tracker_filters.filter_settings import filter_config, filter_key
 
 PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
 

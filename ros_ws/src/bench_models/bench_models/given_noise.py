@@ -7,7 +7,7 @@ when ``reference_dt`` is 1).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

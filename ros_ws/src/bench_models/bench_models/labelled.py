@@ -9,7 +9,7 @@ binds it to the truth's labels, each filter to its own. An unbound model raises 
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -38,7 +38,7 @@ class ComponentModel:
         self.state_labels = None if state_labels is None else tuple(state_labels)
         self._idx = None if state_labels is None else _indices(self.labels, state_labels, "the measurement")
 
-    def for_state(self, labels: Sequence[str]) -> "ComponentModel":
+    def for_state(self, labels: Sequence[str]) -> ComponentModel:
         return ComponentModel(self.labels, labels)
 
     def _index(self) -> list[int]:
@@ -85,7 +85,7 @@ class RangeRateModel:
             )
         )
 
-    def for_state(self, labels: Sequence[str]) -> "RangeRateModel":
+    def for_state(self, labels: Sequence[str]) -> RangeRateModel:
         return RangeRateModel(self.position, self.velocity, self.labels, labels)
 
     def _parts(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

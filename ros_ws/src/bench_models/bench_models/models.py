@@ -15,7 +15,8 @@ Optional methods, used when a model has them (looked up with ``getattr``/``hasat
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence, runtime_checkable
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -28,7 +29,7 @@ def angle_components(labels: Sequence[str]) -> tuple[int, ...]:
     return tuple(i for i, label in enumerate(labels) if label in angles)
 
 
-def check_angles(model: "MeasurementModel") -> None:
+def check_angles(model: MeasurementModel) -> None:
     """Raise ValueError if a measurement model's ``angle_indices`` are not the angles its labels name."""
     if tuple(model.angle_indices) != angle_components(model.labels):
         raise ValueError(

@@ -39,10 +39,10 @@ import math
 import numpy as np
 
 from bench_engine.labels import ORBIT
+from bench_models.linear_models import white_acceleration_q
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.cowell import rk4, state_rate
 from orbit_sim.gravity import gravity_gradient
-from bench_models.linear_models import white_acceleration_q
 
 VARIATIONAL_RTOL = 1e-12
 VARIATIONAL_ATOL = 1e-9

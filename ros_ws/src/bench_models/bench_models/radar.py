@@ -31,7 +31,7 @@ for rho = |u|, n_u = u / rho, q = u_E^2 + u_N^2 and g = d range_rate / d u = (w 
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -13,15 +13,15 @@ inside the step (relative error O(n T) ~ 1e-3 at T = 1 s); the bias model uses t
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.linalg import expm
 
 from bench_engine.labels import BIAS, ORBIT
+from bench_models.orbit_dynamics import white_acceleration_q
 from orbit_sim.constants import J2_EARTH, MU_EARTH, R_EARTH
 from orbit_sim.hill import cw_matrix
-from bench_models.orbit_dynamics import white_acceleration_q
 
 _CACHE_SIZE = 32
 """Steps T remembered per model (the oldest is dropped beyond that)."""

@@ -14,7 +14,7 @@ the metrics use for RMSE, NEES (against the estimate's covariance of the same er
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -26,10 +26,10 @@ import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
-from orbit_sim import cowell, gravity, relative
-from orbit_sim.truth import build_earth, read_truth
 from bench_models.orbit_dynamics import OrbitJ2Dynamics
 from bench_models.relative_dynamics import CWDynamics
+from orbit_sim import cowell, gravity, relative
+from orbit_sim.truth import build_earth, read_truth
 
 
 class RelativeOrbitDynamics:

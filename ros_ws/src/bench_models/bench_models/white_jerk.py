@@ -15,7 +15,7 @@ knows nothing of gravity, which is what paper 002 wants (a model-free velocity f
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.linalg import expm

@@ -1,1 +1,2 @@
-"""Truth propagation (Kepler, Cowell two-body + J2, relative motion), frames, scenario handling, lock-step pacing and the MCAP recorder."""
+"""Orbits: truth propagation (Kepler, Cowell with J2 or a zonal geopotential, relative motion, SGP4 from a TLE),
+frames and angles, station passes and the batch orbit fit; the truth source node kind."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from .constants import J2_EARTH, MU_EARTH, R_EARTH
 from .gravity import state_derivative
 

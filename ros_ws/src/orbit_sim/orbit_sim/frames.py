@@ -43,9 +43,9 @@ GMST_RATE = 1.002737909350795 * 2.0 * np.pi / 86400.0
 def julian_date(epoch: dt_.datetime) -> tuple[float, float]:
     """A timezone-aware datetime (its UTC reading) -> Julian date as (whole part ending in .5, fraction of the
     day), the split that keeps its microseconds (a single double resolves ~40 µs of a Julian date)."""
-    utc = epoch.astimezone(dt_.timezone.utc)
+    utc = epoch.astimezone(dt_.UTC)
     midnight = utc.replace(hour=0, minute=0, second=0, microsecond=0)
-    days = (midnight - dt_.datetime(1970, 1, 1, tzinfo=dt_.timezone.utc)).days
+    days = (midnight - dt_.datetime(1970, 1, 1, tzinfo=dt_.UTC)).days
     seconds = (utc - midnight) / dt_.timedelta(seconds=1)
     return JD_UNIX_EPOCH + days, seconds / 86400.0
 

@@ -388,7 +388,7 @@ def fit_orbit(
     e = np.zeros((len(t_edges) - 1, 3))
     n_params = 6 + int(model.drag) + n_e
     prior = _prior(n_params, n_e, empirical_sigma)
-    for iteration in range(1, max_iterations + 1):
+    for iteration in range(1, max_iterations + 1):  # noqa: B007 - the count taken is returned
         traj = propagate(x0, ballistic, e, model, t, t_edges)
         N, b = normal_equations(traj, z, sigma, n_params, model.drag)
         p = np.concatenate([x0, [ballistic] if model.drag else [], e.ravel()[:n_e]])

@@ -6,7 +6,8 @@ with the radar azimuth convention atan2(east, north), clockwise from north, in [
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import brentq

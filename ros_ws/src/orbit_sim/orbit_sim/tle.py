@@ -76,7 +76,7 @@ class ElementSet:
         sat = self.satrec()
         days = (sat.jdsatepoch - 2440587.5) + sat.jdsatepochF
         us = round(days * 86400e6)
-        return dt_.datetime(1970, 1, 1, tzinfo=dt_.timezone.utc) + dt_.timedelta(microseconds=us)
+        return dt_.datetime(1970, 1, 1, tzinfo=dt_.UTC) + dt_.timedelta(microseconds=us)
 
     def states(self, epoch: dt_.datetime, times: np.ndarray) -> np.ndarray:
         """TEME states [x y z vx vy vz] (m, m/s), one row per time [s after ``epoch``]; TleError when SGP4 fails

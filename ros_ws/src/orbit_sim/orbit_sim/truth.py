@@ -20,13 +20,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from orbit_sim import cowell, frames, gravity, hill, kepler, relative
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
 from bench_engine.scenario import scenario_seed
 from bench_engine.settings import POSITIVE, Builder, Check, SectionReader, Settings, read, setting, variant
 from bench_engine.timegrid import TimeGrid, build_time
+from orbit_sim import cowell, frames, gravity, hill, kepler, relative
 from orbit_sim.constants import J2_EARTH, MU_EARTH, OMEGA_EARTH, R_EARTH
 
 

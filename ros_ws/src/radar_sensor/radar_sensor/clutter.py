@@ -20,9 +20,9 @@ import numpy as np
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError
+from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.scenario import scenario_seed
 from bench_engine.settings import Check, SectionReader, read_entries, setting
-from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec
 from bench_engine.stage import DetectionSet, Outputs, TruthSample, python_log
 from orbit_sim.truth import build_earth
 from radar_sensor.sensor import every_n_steps

@@ -17,9 +17,9 @@ import numpy as np
 from bench_engine.config import ScenarioError
 from bench_engine.settings import POSITIVE, Settings, between, setting
 from bench_engine.timegrid import build_time
-from orbit_sim.truth import Earth, build_earth
 from bench_models.isl import RangeAzElModel, RelativePositionModel
 from bench_models.radar import GroundRadarModel
+from orbit_sim.truth import Earth, build_earth
 from radar_sensor.sensor_types import Sensor, SensorSettings, SensorType, read_sensors, sensor_type
 
 

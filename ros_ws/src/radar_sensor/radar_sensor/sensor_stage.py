@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench_engine.scenario import scenario_seed
 from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
+from bench_engine.scenario import scenario_seed
 from bench_engine.stage import Measurement, Outputs, TruthSample, python_log
 from radar_sensor.sensor import build_sensor
 from radar_sensor.sensor_types import sensor_names, sensor_type

@@ -3,8 +3,9 @@ them (cheap to import: the graph reads these for every node; the builders are in
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 

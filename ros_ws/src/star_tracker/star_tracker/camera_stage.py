@@ -1,5 +1,6 @@
 """The star camera in the graph: the node kind ``star_camera`` (role sensor) for every entry of the scenario's
-``star_cameras`` section; its core is star_tracker.star_camera. It subscribes the attitude truth (``/truth/state``, labels qw qx qy qz wx wy wz:
+``star_cameras`` section; its core is star_tracker.star_camera. It subscribes the attitude truth (``/truth/state``,
+labels qw qx qy qz wx wy wz:
 truth_model.py) and publishes, per frame,
 
 - ``/NAME/measurement`` (bench_msgs/StarCentroids): the centroids (frames.simulate_frame: noise σ, P_D, false
@@ -32,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError
+from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from bench_engine.scenario import scenario_seed
 from bench_engine.settings import Check, SectionReader, Settings, between, read_entries, setting
-from bench_engine.graph import TRUTH_TOPIC, TRUTH_TYPE, NodeKind, NodeSpec, measurement_topic
 from orbit_sim.truth import read_truth
 from star_tracker.messages import STAR_CENTROIDS_TYPE, star_truth_topic
 

@@ -30,8 +30,8 @@ pinhole-scale errors), and the match radius is ``match_sigmas``·σ_θ + ``floor
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 from scipy.special import bdtrc  # binomial survival function: binom.sf(k, n, p) = bdtrc(k, n, p)
@@ -128,7 +128,7 @@ class _Near:
     caller asks the k-d tree. Nearest by the largest dot product, the same order as the chord distance of
     unit vectors (ties aside)."""
 
-    def __init__(self, identifier: "PyramidIdentifier", a: int) -> None:
+    def __init__(self, identifier: PyramidIdentifier, a: int) -> None:
         self.stars = identifier._near[identifier._near_start[a] : identifier._near_start[a + 1]]
         self.vectors_t = identifier.catalogue.vectors.take(self.stars, axis=0).T  # a is the last column
         self.reach_chord = identifier._reach_chord

@@ -56,16 +56,16 @@ class CircularOrbit:
     def axes(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """r̂, t̂, ĥ (each (K, 3), ICRS) at times t (K,) (s)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        i, O = np.radians(self.inclination_deg), np.radians(self.raan_deg)
+        i, raan = np.radians(self.inclination_deg), np.radians(self.raan_deg)
         u = np.radians(self.arg_latitude0_deg) + self.mean_motion * t
         r = np.column_stack(
             [
-                np.cos(O) * np.cos(u) - np.sin(O) * np.sin(u) * np.cos(i),
-                np.sin(O) * np.cos(u) + np.cos(O) * np.sin(u) * np.cos(i),
+                np.cos(raan) * np.cos(u) - np.sin(raan) * np.sin(u) * np.cos(i),
+                np.sin(raan) * np.cos(u) + np.cos(raan) * np.sin(u) * np.cos(i),
                 np.sin(u) * np.sin(i),
             ]
         )
-        h = np.broadcast_to([np.sin(O) * np.sin(i), -np.cos(O) * np.sin(i), np.cos(i)], r.shape).copy()
+        h = np.broadcast_to([np.sin(raan) * np.sin(i), -np.cos(raan) * np.sin(i), np.cos(i)], r.shape).copy()
         return r, np.cross(h, r), h
 
 

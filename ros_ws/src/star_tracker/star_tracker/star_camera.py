@@ -12,12 +12,12 @@ import numpy as np
 from bench_engine.graph import measurement_topic
 from bench_engine.labels import ANGULAR_RATE, QUATERNION
 from bench_engine.stage import Outputs, TruthSample, python_log
+from orbit_sim.truth import TruthSection
 from star_tracker.attitude import matrix_from_quaternion
 from star_tracker.camera import Camera
 from star_tracker.catalogue import StarCatalogue, load_catalogue
 from star_tracker.frames import FALSE_STAR, simulate_frame
 from star_tracker.messages import StarFrame, star_truth_topic
-from orbit_sim.truth import TruthSection
 from star_tracker.truth_model import orbit_of
 
 

@@ -35,7 +35,7 @@ the study's default has none).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

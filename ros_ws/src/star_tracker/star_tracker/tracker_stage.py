@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError, merge
+from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.labels import QUATERNION
 from bench_engine.settings import Check, SectionReader, Settings, between, read_entries, replaced, setting
-from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic, measurement_topic
 from bench_engine.stage import Estimate, Outputs, python_log
 from star_tracker.camera_stage import camera_config, read_cameras
 from star_tracker.messages import STAR_CENTROIDS_TYPE, StarFrame

@@ -25,8 +25,9 @@ probabilistic update for those tracks (tracker_filters.tracker.Tracker.update_tr
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Protocol, Sequence
+from typing import Protocol
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -156,7 +157,7 @@ class MahalanobisHypothesiser:
         with a NaN/inf value or covariance is outside every gate (d2 = inf)."""
         Z = np.asarray(Z, dtype=float)
         R = np.asarray(R, dtype=float)
-        T, (N, d) = len(predictions), Z.shape
+        T, (_, d) = len(predictions), Z.shape
         valid = np.isfinite(Z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
         if not valid.all():  # score stand-ins, then put the invalid ones out of reach
             hyp = self.hypothesise(
@@ -204,7 +205,7 @@ class Association:
         return bool(self.weights[self.detection + 1] == 1.0)
 
     @staticmethod
-    def hard(detection: int, n_detections: int) -> "Association":
+    def hard(detection: int, n_detections: int) -> Association:
         weights = np.zeros(n_detections + 1)
         weights[detection + 1] = 1.0
         return Association(int(detection), weights)

@@ -8,15 +8,20 @@ merged with ``filters.NAME``, declared and read there); the registered dynamics 
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import Callable
 
 import numpy as np
 
-from orbit_sim import relative
+from bench_engine import plugins
 from bench_engine.config import ScenarioError
 from bench_engine.scenario import scenario_seed
-from bench_engine import plugins
+from bench_models.given_noise import GivenProcessNoise
+from bench_models.models import DynamicsModel, ScanPositionModel
+from bench_models.orbit_dynamics import OrbitJ2Dynamics
+from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
+from bench_models.white_jerk import WhiteJerkDynamics
+from orbit_sim import relative
 from orbit_sim.truth import build_earth, build_truth, reference_orbit
 from radar_sensor.sensor import Sensor, build_sensor
 from radar_sensor.sensor_types import sensor_names
@@ -38,12 +43,7 @@ from tracker_filters.filter_settings import (
     WhiteJerk,
     filter_settings,
 )
-from bench_models.given_noise import GivenProcessNoise
 from tracker_filters.initialisation import initial_state_from_scan
-from bench_models.models import DynamicsModel, ScanPositionModel
-from bench_models.orbit_dynamics import OrbitJ2Dynamics
-from bench_models.relative_dynamics import CWBiasDynamics, CWDynamics, SchweighartSedwickDynamics
-from bench_models.white_jerk import WhiteJerkDynamics
 
 Initialiser = Callable[[np.ndarray, np.ndarray, Sensor, float], tuple[np.ndarray, np.ndarray]]
 """(z, R, sensor, t) -> (x0, P0). An initialiser that needs more of a measurement model than the

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.covariance import ensure_pd
 from tracker_filters.cubature import cubature_quadrature_points
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import cholesky_lower, gain_and_nis
-from bench_models.models import DynamicsModel, MeasurementModel
 
 
 def weighted_measurement_mean(Y: np.ndarray, weights: np.ndarray, angle_indices: list[int]) -> np.ndarray:

@@ -24,8 +24,8 @@ benchmark; requirements.txt installs it as a test dependency).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from datetime import datetime, timedelta
-from typing import Sequence
 
 import numpy as np
 from stonesoup.base import Property

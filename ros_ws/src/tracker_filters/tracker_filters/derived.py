@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError
+from bench_engine.graph import NodeKind, NodeSpec, measurement_topic
 from bench_engine.settings import (
     POSITIVE,
     Check,
@@ -41,7 +42,6 @@ from bench_engine.settings import (
     setting,
     variant,
 )
-from bench_engine.graph import NodeKind, NodeSpec, measurement_topic
 from bench_engine.stage import Measurement, Outputs, python_log
 from bench_models.labelled import ComponentModel
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker_filters.kf import KalmanFilter, joseph_update
 from bench_models.models import DynamicsModel, MeasurementModel
+from tracker_filters.kf import KalmanFilter, joseph_update
 from tracker_filters.relinearisation import Relinearising
 
 

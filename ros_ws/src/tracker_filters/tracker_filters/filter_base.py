@@ -8,15 +8,15 @@ and leaves the filter untouched; a covariance that loses positive-definiteness i
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from scipy.special import chdtri
 
-from tracker_filters.covariance import ensure_pd
 from bench_models.models import DynamicsModel, MeasurementModel
+from tracker_filters.covariance import ensure_pd
 
 
 @dataclass

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass, make_dataclass
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 from bench_engine import plugins
 from bench_engine.config import ScenarioError, merge
+from bench_engine.labels import BIAS, ORBIT
 from bench_engine.settings import (
     NON_NEGATIVE,
     POSITIVE,
@@ -36,9 +37,7 @@ from bench_engine.settings import (
     setting,
     variant,
 )
-from bench_engine.labels import BIAS, ORBIT
 from orbit_sim.relative import CONVENTIONS
-
 
 # --- dynamics models ------------------------------------------------------------------------------------------
 
@@ -228,7 +227,7 @@ class InitSettings(Settings):
 # --- estimator parameters -------------------------------------------------------------------------------------
 
 
-@lru_cache(maxsize=None)
+@cache
 def estimator_parameters(name: str) -> type:
     """The Settings class of registered estimator type ``name``'s parameters: its constructor's keyword
     arguments after the dynamics model, with their annotations and defaults."""

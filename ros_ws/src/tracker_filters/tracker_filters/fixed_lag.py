@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench_engine.config import ScenarioError
-from bench_engine.settings import POSITIVE, SectionReader, Settings, read_entries, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
+from bench_engine.settings import POSITIVE, SectionReader, Settings, read_entries, setting
 from bench_engine.stage import Estimate, Outputs, python_log
 from tracker_filters.filter_settings import state_labels
 from tracker_filters.filter_stage import build_stack

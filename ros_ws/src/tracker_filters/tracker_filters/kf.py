@@ -9,13 +9,13 @@ result, with less overhead on small operands.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 from scipy.linalg import lapack
 
-from tracker_filters.filter_base import Filter
 from bench_models.models import MeasurementModel
+from tracker_filters.filter_base import Filter
 
 
 def cholesky_lower(A: np.ndarray) -> np.ndarray:
@@ -67,7 +67,7 @@ def joseph_update(
     return x + K.dot(nu), IKH.dot(P).dot(IKH.T) + K.dot(R).dot(K.T), nis
 
 
-@lru_cache(maxsize=None)
+@cache
 def _identity(n: int) -> np.ndarray:
     """The n x n identity, read-only (shared by every update)."""
     identity = np.eye(n)

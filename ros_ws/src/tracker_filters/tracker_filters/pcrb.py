@@ -31,7 +31,7 @@ No rclpy, no scenario: arrays and models (bench_models.models) only.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

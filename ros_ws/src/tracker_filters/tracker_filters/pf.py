@@ -30,9 +30,9 @@ import numpy as np
 from scipy.linalg import lapack
 from scipy.special import logsumexp
 
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.covariance import ensure_pd
 from tracker_filters.filter_base import Filter, StepResult
-from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.resampling import RESAMPLERS
 
 PROBE_SIZE = 256

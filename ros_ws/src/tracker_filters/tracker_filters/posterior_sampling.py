@@ -14,7 +14,8 @@ Sampler. Importance sampling from a multivariate Student-t proposal (``dof`` deg
 ``scale`` times a covariance C), weights w_i ~ exp(-J(x0_i) / 2) / q(x0_i), normalised. The proposal
 starts at the Gauss-Newton MAP with the Laplace covariance Lambda^-1 and is moved to the weighted mean and
 covariance of x0 after each iteration with enough effective samples (population Monte Carlo, Cappe,
-Guillin, Marin & Robert 2004); the last iteration's weights give the moments. Its effective sample size 1 / sum w_i^2 tells how well the
+Guillin, Marin & Robert 2004); the last iteration's weights give the moments. Its effective sample size 1 / sum w_i^2
+tells how well the
 proposal covers the posterior: the moments are trustworthy when it is in the hundreds or more.
 
 Cost: every iteration propagates ``n_samples`` states through every scan with ``dynamics.propagate`` on

@@ -10,8 +10,8 @@ from __future__ import annotations
 import inspect
 
 from bench_engine import plugins
-from tracker_filters.filter_base import Filter
 from bench_models.models import DynamicsModel
+from tracker_filters.filter_base import Filter
 
 
 def filter_parameters(name: str) -> list[str]:

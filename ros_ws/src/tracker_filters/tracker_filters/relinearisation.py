@@ -50,9 +50,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.covariance import ensure_pd
 from tracker_filters.kf import cholesky_lower, cholesky_solve
-from bench_models.models import DynamicsModel, MeasurementModel
 
 STEP_TOLERANCE = 1e-2
 """Gauss-Newton stops once the step's squared Mahalanobis length dx^T Lambda dx falls below this (a step

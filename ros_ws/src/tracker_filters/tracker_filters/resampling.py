@@ -7,7 +7,7 @@ variance of that number (multinomial > residual, systematic; Douc & Cappé 2005)
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -10,7 +10,7 @@ sqrt(P) is the lower Cholesky factor.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -10,7 +10,8 @@ For every detection set at time t:
    out-of-order and failed updates rejected and rolled back), or let it coast on a miss (predicted only);
 5. delete a track after ``max_misses`` consecutive misses (None: never);
 6. initiate: when there is no track (none yet, or the last one deleted), a new one from the set's first
-   unassociated detection (the sets arrive in random order) through the filter's initialiser. A detection-based initialiser (``first_scan``) can thus start on
+   unassociated detection (the sets arrive in random order) through the filter's initialiser. A detection-based
+   initialiser (``first_scan``) can thus start on
    clutter; with clutter prefer a prior-based one (``given``, ``truth_scaled``), or set ``max_misses`` so a
    track started on clutter is dropped and started again.
 
@@ -22,8 +23,8 @@ associator (JPDA) returns soft weights; it comes with a probabilistic update in 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 

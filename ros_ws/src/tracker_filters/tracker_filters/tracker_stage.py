@@ -21,8 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bench_engine.config import ScenarioError
-from bench_engine.settings import Check, SectionReader, Settings, at_least, read_entries, setting
 from bench_engine.graph import ESTIMATE_TYPE, NodeKind, NodeSpec, estimate_topic
+from bench_engine.settings import Check, SectionReader, Settings, at_least, read_entries, setting
 from bench_engine.stage import DetectionSet, Estimate, Outputs, python_log
 from radar_sensor.clutter import DETECTION_SET_TYPE, build_cluttered, detections_topic
 from radar_sensor.clutter import names as cluttered_names

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.filter_base import Filter
 from tracker_filters.kf import gain_and_nis
-from bench_models.models import DynamicsModel, MeasurementModel
 from tracker_filters.relinearisation import Relinearising
 from tracker_filters.sigma_points import ScaledSigmaPoints
 

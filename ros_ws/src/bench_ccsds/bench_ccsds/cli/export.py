@@ -13,9 +13,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
 from bench_ccsds.export import export_bag
 from bench_ccsds.kvn import CcsdsError
+from bench_engine.cli.guard import ArgumentParser, check_output, exit_codes, run_main, writing
 
 EPILOG = exit_codes(
     c0="the messages were written (the summary lists each file, and what was not exported)",

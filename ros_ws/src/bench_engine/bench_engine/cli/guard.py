@@ -20,9 +20,9 @@ import signal
 import sys
 import textwrap
 import traceback
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterator, Mapping
 
 from bench_engine.errors import ScenarioError
 

@@ -17,8 +17,8 @@ from pathlib import Path
 import yaml
 
 from bench_engine import yamlio
-from bench_engine.cli.guard import ArgumentParser, exit_codes, file_error_in, os_error_line, run_main
 from bench_engine.bag_errors import BagUnrecoverable
+from bench_engine.cli.guard import ArgumentParser, exit_codes, file_error_in, os_error_line, run_main
 from bench_engine.recovery import needs_recovery, recover
 
 EPILOG = exit_codes(

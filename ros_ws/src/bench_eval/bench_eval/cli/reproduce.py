@@ -30,10 +30,12 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from bench_engine import plugins  # noqa: E402
+from bench_engine import (
+    launcher,  # noqa: E402
+    plugins,  # noqa: E402
+)
 from bench_engine.cli.guard import ArgumentParser, check_writable, exit_codes, run_main, writing  # noqa: E402
 from bench_engine.cli.options import names  # noqa: E402
-from bench_engine import launcher  # noqa: E402
 from bench_engine.config import ScenarioError, apply_overrides, load_scenario, select_variant  # noqa: E402
 from bench_engine.graph import resolve_estimators  # noqa: E402
 from bench_eval import reproduce as rp  # noqa: E402

@@ -28,11 +28,11 @@ from pathlib import Path
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from bench_engine.cli.batch_options import add_batch_arguments, check_batch_arguments  # noqa: E402
-from bench_engine.cli.guard import (
+from bench_engine.cli.guard import (  # noqa: E402
     ArgumentParser,
     check_output,
     check_writable,
-    exit_codes,  # noqa: E402
+    exit_codes,
     is_file_error,
     run_main,
     writing,

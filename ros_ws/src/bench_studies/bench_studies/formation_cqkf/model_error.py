@@ -16,9 +16,9 @@ import numpy as np
 
 from bench_engine.config import ScenarioError, apply_overrides
 from bench_engine.graph import resolve_estimators
+from orbit_sim.truth import build_truth
 from tracker_filters.builders import build_dynamics
 from tracker_filters.filter_settings import filter_key
-from orbit_sim.truth import build_truth
 
 INTERVALS_S = (1.0, 10.0)
 """Sample intervals of the one-step prediction error (the paper's 1 s and 10 s)."""

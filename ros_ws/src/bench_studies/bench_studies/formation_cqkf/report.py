@@ -7,8 +7,8 @@ The paper's numbers come from paper.yaml beside this file.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure

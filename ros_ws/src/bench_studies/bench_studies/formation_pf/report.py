@@ -3,7 +3,7 @@ filters' health, with "diverged" where a filter lost the target instead of a raw
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 from bench_eval.claims import diverged
 from bench_eval.report import Plot, Section, Table, bounds_table, draw_errors_vs_sigma, fmt, paper_note

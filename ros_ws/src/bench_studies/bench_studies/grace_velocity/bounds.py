@@ -18,10 +18,10 @@ import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_engine.labels import ORBIT
+from bench_engine.settings import NoKeys
 from bench_eval.bounds import Bound, BoundSeries
 from bench_eval.scoring import BagData, Estimates
 from bench_studies.grace_velocity.metrics import BASELINE, range_rate_bound, range_rate_sd
-from bench_engine.settings import NoKeys
 from bench_studies.grace_velocity.pair_fit import PairFitParameters, pair_force_model
 from orbit_sim.orbit_fit import information
 from orbit_sim.truth import read_truth

@@ -3,13 +3,13 @@ residual against the truth (which the paper could not measure) and the residuals
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, paper_note, render, thin
+from bench_eval.report import BOUND_STYLE, Plot, Section, Table, bounds_table, fmt, paper_note, render
 from bench_eval.study import load_paper
 from bench_eval.sweep import sweep_intro
 

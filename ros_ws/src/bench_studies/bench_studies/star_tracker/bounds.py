@@ -12,9 +12,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass
+
+import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_engine.labels import ANGULAR_RATE, QUATERNION, ROTATION
@@ -78,7 +78,8 @@ class TrackedParameters(Settings):
 def _tracked_settings(cfg: dict, params: TrackedParameters):
     """(tracker config, camera config, dynamics) of the params: ``tracker``, a JPDAF star tracker of the
     scenario (its motion model, aid and σ_a: _tracker_model); ``dynamics``: ``tracker`` (default: the bound
-    under the trackers' model, its σ_a and velocity prior) or ``truth`` (the truth's: the rate is exact, so a star's centroid is its first position
+    under the trackers' model, its σ_a and velocity prior) or ``truth`` (the truth's: the rate is exact, so a star's
+    centroid is its first position
     carried by the known turn, no residual velocity, Q = 0: the information of n detections is n/σ², a lower
     bound for any estimator on this truth)."""
     conf = tracker_config(cfg, params.tracker)

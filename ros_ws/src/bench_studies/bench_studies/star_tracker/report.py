@@ -4,8 +4,8 @@ JPDAF per cell, mean ± standard error over the runs, next to the paper's)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 from matplotlib.figure import Figure
