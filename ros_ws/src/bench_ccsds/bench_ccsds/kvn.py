@@ -217,3 +217,25 @@ class Cursor:
             if line.key in found:
                 raise self.error(line, f"keyword {line.key} given twice")
             found[line.key] = line
+
+    def message(self, kind: str, versions: tuple[str, ...], read_segment, layout: str) -> list:
+        """A whole message: its version line (``CCSDS_<kind>_VERS``, one of ``versions``), its header (CREATION_DATE
+        and ORIGINATOR required) and at least one segment, each read by ``read_segment(cursor)``; ``layout`` says
+        what a segment holds, for the error of a message without one."""
+        first = self.next("the message header")
+        if first.key != f"CCSDS_{kind}_VERS":
+            raise self.error(first, f"a {kind} starts with CCSDS_{kind}_VERS (is this a {kind} in KVN?)")
+        if first.value not in versions:
+            raise self.error(
+                first, f"CCSDS_{kind}_VERS {first.value!r}: this reader takes versions {', '.join(versions)}"
+            )
+        header = self.keys_until("META_START", ("CREATION_DATE", "ORIGINATOR", "MESSAGE_ID", "COMMENT"))
+        for key in ("CREATION_DATE", "ORIGINATOR"):
+            if key not in header:
+                raise CcsdsError(f"{self.path}: the header lacks {key}")
+        segments = []
+        while self.peek() is not None:
+            segments.append(read_segment(self))
+        if not segments:
+            raise CcsdsError(f"{self.path}: no segment ({layout})")
+        return segments

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_ccsds.kvn import CcsdsError, Cursor, Writer, epoch_text, number, parse_epoch, parse_number, read_lines
+from bench_ccsds.kvn import Cursor, Writer, epoch_text, number, parse_epoch, parse_number, read_lines
 
 VERSION = "2.0"
 REQUIRED = ("OBJECT_NAME", "OBJECT_ID", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM", "START_TIME", "STOP_TIME")
@@ -108,21 +108,7 @@ def read_oem(path: str | Path) -> list[Segment]:
     path = Path(path)
     lines = read_lines(path)
     it = Cursor(path, lines)
-    first = it.next("the message header")
-    if first.key != "CCSDS_OEM_VERS":
-        raise it.error(first, "an OEM starts with CCSDS_OEM_VERS (is this an OEM in KVN?)")
-    if first.value not in ("1.0", "2.0", "3.0"):
-        raise it.error(first, f"CCSDS_OEM_VERS {first.value!r}: this reader takes versions 1.0 to 3.0")
-    header = it.keys_until("META_START", ("CREATION_DATE", "ORIGINATOR", "MESSAGE_ID", "COMMENT"))
-    for key in ("CREATION_DATE", "ORIGINATOR"):
-        if key not in header:
-            raise CcsdsError(f"{path}: the header lacks {key}")
-    segments = []
-    while it.peek() is not None:
-        segments.append(_read_segment(it))
-    if not segments:
-        raise CcsdsError(f"{path}: no segment (META_START ... META_STOP and data lines)")
-    return segments
+    return it.message("OEM", ("1.0", "2.0", "3.0"), _read_segment, "META_START ... META_STOP and data lines")
 
 
 def _read_segment(it: Cursor) -> Segment:

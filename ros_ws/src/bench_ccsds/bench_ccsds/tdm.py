@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_ccsds.kvn import CcsdsError, Cursor, Writer, epoch_text, number, parse_epoch, parse_number, read_lines
+from bench_ccsds.kvn import Cursor, Writer, epoch_text, number, parse_epoch, parse_number, read_lines
 
 VERSION = "2.0"
 SCALE = {"RANGE": 1e3, "ANGLE_1": np.pi / 180.0, "ANGLE_2": np.pi / 180.0, "DOPPLER_INSTANTANEOUS": 1e3}
@@ -79,21 +79,7 @@ def read_tdm(path: str | Path) -> list[TdmSegment]:
     """The segments of a TDM (KVN) file; CcsdsError naming the file and line for anything wrong."""
     path = Path(path)
     it = Cursor(path, read_lines(path))
-    first = it.next("the message header")
-    if first.key != "CCSDS_TDM_VERS":
-        raise it.error(first, "a TDM starts with CCSDS_TDM_VERS (is this a TDM in KVN?)")
-    if first.value not in ("1.0", "2.0"):
-        raise it.error(first, f"CCSDS_TDM_VERS {first.value!r}: this reader takes versions 1.0 and 2.0")
-    header = it.keys_until("META_START", ("CREATION_DATE", "ORIGINATOR", "MESSAGE_ID", "COMMENT"))
-    for key in ("CREATION_DATE", "ORIGINATOR"):
-        if key not in header:
-            raise CcsdsError(f"{path}: the header lacks {key}")
-    segments = []
-    while it.peek() is not None:
-        segments.append(_read_segment(it))
-    if not segments:
-        raise CcsdsError(f"{path}: no segment (META_START ... META_STOP, DATA_START ... DATA_STOP)")
-    return segments
+    return it.message("TDM", ("1.0", "2.0"), _read_segment, "META_START ... META_STOP, DATA_START ... DATA_STOP")
 
 
 def _read_segment(it: Cursor) -> TdmSegment:
