@@ -39,28 +39,6 @@ html_theme = "furo"
 html_title = project
 html_static_path: list[str] = []
 
-# Every reference is checked (nitpicky), except to what lies outside the bench: the standard library, numpy,
-# scipy and the other libraries its signatures name have no inventory here (the site is built offline).
-nitpicky = True
-PACKAGES = (
-    "bench_ccsds",
-    "bench_engine",
-    "bench_eval",
-    "bench_models",
-    "bench_studies",
-    "orbit_sim",
-    "radar_sensor",
-    "star_tracker",
-    "tracker_filters",
-)
-BENCH = "(" + "|".join(PACKAGES) + ")"
-nitpick_ignore_regex = [(r"py:.*", rf"(?!{BENCH}\b).*")]
-
-autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}
-autodoc_member_order = "bysource"
-autodoc_typehints = "none"
-autodoc_preserve_defaults = True
-
 # api_pages: one page per package, every module that imports no ROS client library at its top level.
 api_packages = [
     "bench_engine",
@@ -73,6 +51,18 @@ api_packages = [
     "bench_ccsds",
     "bench_studies",
 ]
+
+# Every reference is checked (nitpicky), except to what lies outside the bench: the standard library, numpy,
+# scipy and the other libraries its signatures name have no inventory here (the site is built offline).
+nitpicky = True
+BENCH = "(" + "|".join(api_packages) + ")"
+nitpick_ignore_regex = [(r"py:.*", rf"(?!{BENCH}\b).*")]
+
+autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"
+autodoc_preserve_defaults = True
+
 api_source = str(ROOT / "ros_ws" / "src")
 
 # run_blocks: the steps run in a scratch copy of the repository's layout (links to .venv, scripts, foxglove,
