@@ -49,6 +49,7 @@ from std_msgs.msg import String, UInt64
 from bench_engine import phases, shm, yamlio
 from bench_engine.cdr import lite_class, serialize
 from bench_engine.config import ScenarioError
+from bench_engine.dds_profile import use_bench_profile
 from bench_engine.graph import ACK_TOPIC, ACK_TYPE, DONE_TOPIC, PACED_ROLES, READY_TOPIC, Graph, build_graph, node_kinds
 from bench_engine.msg_schema import message_class
 from bench_engine.parameters import description, unflatten
@@ -384,6 +385,7 @@ def spin_in_process(
     (spin_nodes with ``teardown=False``), rclpy is not shut down, and exit_now ends the process with none of their
     destructors run. The one thing the teardown did that outlives the process, removing the participant's files
     in /dev/shm, is done here (bench_engine.shm.release_own); its peers, all in this process, need no goodbye."""
+    use_bench_profile()
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     try:
         code = spin_nodes(make_nodes(), executor_kind, teardown=False)
@@ -487,6 +489,7 @@ def node_main(node_class: type[BenchNode], argv: list[str] | None = None) -> int
     parser.add_argument("--config", required=True, help="run_config.yaml written by the launcher")
     parser.add_argument("--executor", default="events", choices=["events", "single"])
     args = parser.parse_args(own)
+    use_bench_profile()
     rclpy.init(args=["node"] + ros_args, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     initialised = time.time()
     try:
