@@ -272,9 +272,10 @@ class BenchNode(Node):
         """Acknowledge step ``step`` with the node's cumulative consumed message ``count`` and its published
         counts per topic (bench_engine.lockstep).
 
-        With a pacing window W > 0 an acknowledgement is sent once the step or the count has advanced by
-        max(1, W // 4) since the last one sent, and otherwise within ACK_FLUSH_S by a timer: the source
-        never waits on a held-back one for long, and the graph carries a quarter of the ack traffic."""
+        With a pacing window W > 0 an acknowledgement is sent once the step or the count has advanced by a
+        quarter of the node's own window (W times its pacing weight: the recorder's spans every topic it
+        records) since the last one sent, and otherwise within ACK_FLUSH_S by a timer: the source never waits
+        on a held-back one for long, and the graph carries a quarter of the ack traffic."""
         if self._ack_every == 1 or (
             step - self._ack_sent[0] >= self._ack_every or count - self._ack_sent[1] >= self._ack_every
         ):
@@ -283,7 +284,7 @@ class BenchNode(Node):
             self._ack_unsent = (step, count)
 
     def _setup_acks(self) -> None:
-        window = build_time(self.cfg).pacing_window
+        window = build_time(self.cfg).pacing_window * self.graph.pacing_weights().get(self.get_name(), 1)
         self._ack_every = max(1, window // 4)
         self._ack_sent: tuple[int, int] = (-1, 0)
         self._ack_unsent: tuple[int, int] | None = None
