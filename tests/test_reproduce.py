@@ -278,3 +278,26 @@ def test_the_commit_is_dirty_for_an_edited_source_not_for_the_record(tmp_path):
     assert rp.commit(tmp_path) == head
     (tmp_path / "code.py").write_text("x = 2\n")
     assert rp.commit(tmp_path).startswith(head + "+dirty-")
+
+
+def test_an_on_demand_table_runs_only_when_named_and_its_result_is_kept(tmp_path, monkeypatch, capsys):
+    (tmp_path / "scripts").mkdir()
+    (tmp_path / "scripts" / "hello.py").write_text("print('| a |\\n|---|\\n| 1 |')\n")
+    (tmp_path / "tables.yaml").write_text(
+        "tables:\n"
+        "- {name: quick, title: Quick, script: hello.py}\n"
+        "- {name: machine, title: Machine, script: hello.py, on_demand: true}\n"
+    )
+    tables = rp.read_tables(tmp_path / "tables.yaml", "speed")
+    assert [t.on_demand for t in tables] == [False, True]
+    monkeypatch.setattr(cli, "declared_tables", lambda root: list(tables))
+    monkeypatch.setattr(rp, "commit", lambda root: "c0ffee")
+    results = tmp_path / "results"
+    argv = ["--results", str(results), "--work", str(tmp_path / "work"), "--root", str(tmp_path)]
+    assert cli.main(argv) == 0
+    assert "speed.machine" in capsys.readouterr().err  # named as not run
+    assert set(json.loads((results / "results.json").read_text())["tables"]) == {"speed.quick"}
+    assert cli.main([*argv, "--only", "speed.machine"]) == 0
+    assert set(json.loads((results / "results.json").read_text())["tables"]) == {"speed.quick", "speed.machine"}
+    assert cli.main(argv) == 0  # the default run again: the on-demand table's result stays in the record
+    assert set(json.loads((results / "results.json").read_text())["tables"]) == {"speed.quick", "speed.machine"}

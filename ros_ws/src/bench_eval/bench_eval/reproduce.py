@@ -66,6 +66,9 @@ class Table:
     figures: tuple[str, ...] = ()
     """Figures the command writes (paths under its output directory) that a page shows under the table, from
     their copies in the repository (``figure_path``)."""
+    on_demand: bool = False
+    """Run only when ``--only`` names it (and in the miniature): a benchmark of the whole machine that takes longer
+    than the other tables together (e.g. five fresh-clone ``make test``); the record keeps its last result."""
 
 
 def read_tables(path: Path, study: str) -> tuple[Table, ...]:
@@ -94,6 +97,7 @@ def read_tables(path: Path, study: str) -> tuple[Table, ...]:
                     mini_set=tuple(str(o) for o in mini.get("set", list, [])),
                     captions=tuple(str(c) for c in s.get("captions", list, [])),
                     figures=tuple(str(f) for f in s.get("figures", list, [])),
+                    on_demand=s.get("on_demand", bool, False),
                 )
             )
             mini.finish()

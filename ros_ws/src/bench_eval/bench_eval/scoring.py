@@ -211,7 +211,7 @@ def load_bags(bags: list[Path | str | BagData], jobs: int = 2) -> list[BagData]:
     if len(paths) <= 2 or jobs <= 1:
         loaded = iter([load_bag(b) for b in paths])
     else:
-        with ProcessPoolExecutor(jobs) as pool:
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("forkserver")) as pool:  # as below
             loaded = iter(list(pool.map(load_bag, paths, chunksize=4)))
     return [b if isinstance(b, BagData) else next(loaded) for b in bags]
 

@@ -4,12 +4,15 @@ own command at the documented run counts, one after the other, locally or on a D
 (--scheduler, passed to the commands that take it). Writes results/RESULTS.md and results/results.json with
 the commit, the machine (CPUs, model, load), and each table's command, wall time, load and Markdown. --resume skips
 a table already complete for the same commit and arguments, and resumes the runs of an interrupted batch.
---mini runs the miniature (one run per cell, shortened runs) into runs/reproduce-mini, to prove every table
+A table declared on_demand (a benchmark of the whole machine, longer than the others together: five fresh-clone
+make test, scoring a 20-run Monte Carlo three ways) runs only when --only names it; the record keeps its last
+result. --mini runs the miniature (one run per cell, shortened runs) into runs/reproduce-mini, to prove every table
 has a working generator; --check only validates every command (script, flags, overrides) without running;
 --docs rewrites the generated blocks of README.md and the docs/ pages from the record.
 
 Examples:
   .venv/bin/python scripts/reproduce.py                       # every table (long: an idle machine helps)
+  .venv/bin/python scripts/reproduce.py --only speed.fresh_clone  # an on-demand table
   .venv/bin/python scripts/reproduce.py --resume --only leo_radar.montecarlo,star_tracker.bound
   .venv/bin/python scripts/reproduce.py --scheduler tcp://HEAD:8786 --work /shared/reproduce
   .venv/bin/python scripts/reproduce.py --mini
@@ -192,7 +195,10 @@ def write_pages(root: Path, record_path: Path, tables: list[rp.Table], work: Pat
 def main(argv: list[str] | None = None) -> int:
     """Validate or run the chosen tables and write the record; the exit codes of EPILOG."""
     p = ArgumentParser(description=__doc__, epilog=EPILOG)
-    p.add_argument("--only", help="comma-separated table names (default: every declared table; see --list)")
+    p.add_argument(
+        "--only",
+        help="comma-separated table names (default: every declared table but the on-demand ones; see --list)",
+    )
     p.add_argument("--list", action="store_true", help="print the declared tables and their commands, then exit")
     p.add_argument("--check", action="store_true", help="validate every chosen table's command, run nothing")
     p.add_argument(
@@ -233,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
         tables = [t for t in tables if t.name in chosen]
     if args.list:
         for t in tables:
-            print(f"{t.name}: {t.title}\n  {' '.join(rp.identity(t, args.mini))}")
+            demand = " (on demand: run when --only names it)" if t.on_demand else ""
+            print(f"{t.name}: {t.title}{demand}\n  {' '.join(rp.identity(t, args.mini))}")
         return 0
     if args.check:
         helps: dict[str, str] = {}
@@ -251,6 +258,11 @@ def main(argv: list[str] | None = None) -> int:
         except rp.ExcerptError as err:
             p.error(str(err))
         return 0
+    if not args.only and not args.mini:
+        waiting = [t.name for t in tables if t.on_demand]
+        tables = [t for t in tables if not t.on_demand]
+        if waiting:
+            print(f"[reproduce] on demand, not run (name them with --only): {', '.join(waiting)}", file=sys.stderr)
     check_writable(results)
     check_writable(work)
     record = rp.read_results(results / "results.json")

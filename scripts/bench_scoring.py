@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""What scoring a Monte Carlo costs, on one core and on every core, and re-scoring it from the cache.
+
+Makes a Monte Carlo's bags (``montecarlo.py SCENARIO --runs N``; or takes them from ``--bags DIR``, a Monte
+Carlo's output directory), then times ``score.py`` on all of them as a user runs it:
+
+  one core         ``--jobs 1 --no-cache`` on one CPU: every bag read, every offline estimator fitted, in turn
+  JOBS jobs        ``--jobs JOBS --no-cache``: the same on JOBS processes (default: every CPU)
+  filling cache    ``--jobs JOBS`` after the bags' offline_cache/ folders are removed: fits and keeps them
+  from cache       ``--jobs JOBS`` again: each offline estimator's result read back (bench_eval.offline_cache)
+
+and prints the wall times with their share of the one-core time. The default is grace_velocity's
+dynamic variant, whose orbit fits make scoring the long part of its Monte Carlo. Nothing is asserted: these
+are measurements.
+
+Example:
+  .venv/bin/python scripts/bench_scoring.py                                # grace_velocity dynamic, 20 runs
+  .venv/bin/python scripts/bench_scoring.py --bags runs/mc-grace --jobs 2
+  .venv/bin/python scripts/bench_scoring.py --scenario leo_radar --variant "" --runs 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_eval.offline_cache import DIRECTORY as CACHE_DIR
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+SCRIPTS = Path(__file__).resolve().parent
+
+
+def run(cmd: list[str], cpus: set[int] | None = None) -> float:
+    """Run a command of scripts/, quietly, on ``cpus`` (default: those of this process); its wall time in s. A
+    failure ends the benchmark with its stderr."""
+    start = time.perf_counter()
+    pin = None if cpus is None else (lambda: os.sched_setaffinity(0, cpus))
+    done = subprocess.run([sys.executable, *cmd], capture_output=True, text=True, preexec_fn=pin)
+    if done.returncode != 0:
+        sys.exit(
+            f"error: {' '.join(Path(c).name if c.endswith('.py') else c for c in cmd)} failed:\n{done.stderr[-2000:]}"
+        )
+    return time.perf_counter() - start
+
+
+def make_bags(args: argparse.Namespace, out: Path) -> float:
+    cmd = [str(SCRIPTS / "montecarlo.py"), args.scenario, "--runs", str(args.runs), "--out", str(out)]
+    cmd += ["--jobs", str(args.jobs)] + (["--variant", args.variant] if args.variant else [])
+    return run(cmd)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scenario", default="grace_velocity")
+    p.add_argument("--variant", default="dynamic", help="the scenario's variants ('' for none; default dynamic)")
+    p.add_argument("--runs", type=int, default=20, help="Monte Carlo runs to make (default 20)")
+    p.add_argument("--bags", type=Path, help="score this Monte Carlo's bags (OUT/run_*/bag) instead of making them")
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: every CPU)")
+    args = p.parse_args(argv)
+    if args.runs < 1 or args.jobs < 1:
+        p.error("--runs and --jobs must be at least 1")
+    with tempfile.TemporaryDirectory() as tmp:
+        mc = args.bags or Path(tmp) / "mc"
+        made = None if args.bags else make_bags(args, mc)
+        bags = sorted(mc.glob("run_*/bag"))
+        if not bags:
+            sys.exit(f"error: {mc}: no Monte Carlo bags (run_*/bag) in it")
+        score = [str(SCRIPTS / "score.py"), *map(str, bags), "--json"]
+        one = run([*score, "--jobs", "1", "--no-cache"], cpus={min(os.sched_getaffinity(0))})
+        parallel = run([*score, "--jobs", str(args.jobs), "--no-cache"])
+        for bag in bags:
+            shutil.rmtree(bag / CACHE_DIR, ignore_errors=True)
+        filling = run([*score, "--jobs", str(args.jobs)])
+        cached = run([*score, "--jobs", str(args.jobs)])
+    variant = f" --variant {args.variant}" if args.variant else ""
+    print(f"score.py on {len(bags)} bags of {args.scenario}{variant}; {os.cpu_count()} CPUs")
+    if made is not None:
+        print(f"(making them: montecarlo.py --runs {args.runs} --jobs {args.jobs}, scored once, {made:.0f} s)")
+    print("| scoring | wall [s] | of one core |\n|---|---|---|")
+    for name, wall in (
+        ("one job on one core, no cache", one),
+        (f"{args.jobs} jobs, no cache", parallel),
+        (f"{args.jobs} jobs, filling the cache", filling),
+        (f"{args.jobs} jobs, from the cache", cached),
+    ):
+        print(f"| {name} | {wall:.1f} | {wall / one:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
