@@ -2,6 +2,7 @@
 declare has a command that validates, in full and in the miniature, and the cheapest one runs end to end into the
 record, which --resume then keeps; every page's generated blocks are the record's."""
 
+import dataclasses
 import json
 import subprocess
 from pathlib import Path
@@ -301,3 +302,12 @@ def test_an_on_demand_table_runs_only_when_named_and_its_result_is_kept(tmp_path
     assert set(json.loads((results / "results.json").read_text())["tables"]) == {"speed.quick", "speed.machine"}
     assert cli.main(argv) == 0  # the default run again: the on-demand table's result stays in the record
     assert set(json.loads((results / "results.json").read_text())["tables"]) == {"speed.quick", "speed.machine"}
+
+
+def test_an_on_demand_tables_block_without_a_record_says_how_to_fill_it():
+    table = rp.Table("speed.machine", "Machine", "hello.py", (), on_demand=True)
+    page = "<!-- results: speed.machine -->\n<!-- /results -->\n"
+    filled = rp.fill_page(page, {"tables": {}}, {table.name: table})
+    assert "reproduce.py --only speed.machine" in filled and rp.block_names(filled) == ["speed.machine"]
+    with pytest.raises(rp.ExcerptError, match="no complete run"):  # any other table must be in the record
+        rp.fill_page(page, {"tables": {}}, {table.name: dataclasses.replace(table, on_demand=False)})

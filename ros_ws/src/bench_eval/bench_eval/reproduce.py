@@ -336,6 +336,11 @@ def page_block(table: Table, entry: Mapping, to_root: str = "") -> str:
     return f"{body}\n\n{source}\n"
 
 
+def not_run_block(table: Table) -> str:
+    """The block of an on-demand table the record does not hold (yet): the command that fills it."""
+    return f"*Not in the record yet: `scripts/reproduce.py --only {table.name}` runs it (on demand).*\n"
+
+
 def block_names(text: str) -> list[str]:
     """The table names of a page's generated blocks, in order."""
     return [m.group("name") for m in BLOCK.finditer(text)]
@@ -343,13 +348,16 @@ def block_names(text: str) -> list[str]:
 
 def fill_page(text: str, record: Mapping, tables: Mapping[str, Table], to_root: str = "") -> str:
     """A page with every generated block rewritten from the record (``to_root`` as in ``page_block``). Raises
-    ExcerptError for a block naming an undeclared table or one the record does not hold complete."""
+    ExcerptError for a block naming an undeclared table or one the record does not hold complete, unless the
+    table is on demand: its block then says how to run it (:func:`not_run_block`)."""
 
     def body(m: re.Match) -> str:
         name = m.group("name")
         if name not in tables:
             raise ExcerptError(f"block names no declared table: {name}")
         entry = record.get("tables", {}).get(name)
+        if (not entry or entry.get("status") != "ok") and tables[name].on_demand:
+            return m.group(1) + not_run_block(tables[name]) + m.group(4)
         if not entry or entry.get("status") != "ok":
             raise ExcerptError(f"block {name}: results/results.json holds no complete run of it")
         try:
