@@ -23,7 +23,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 import orbit_sim
 from bench_engine.bag_metadata import dump_yaml, offered_qos
 from bench_engine.bag_reader import BagReader
-from bench_engine.bag_writer import BagWriter
+from bench_engine.bag_writer import BagWriter, FlushSchedule
 from bench_engine.msg_schema import SEPARATOR, dependencies, message_class, msg_text, schema_text, type_hash
 
 T0_NS = 1_700_000_000_000_000_000
@@ -555,3 +555,44 @@ def test_bag_is_finished_when_main_thread_ends_without_close(tmp_path):
     _, err = child.communicate(timeout=60)
     assert child.returncode == 0, err
     assert _steps_read_by_rosbags(tmp_path / "forgotten") == list(range(500))
+
+
+class _FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _flushed_steps(schedule: FlushSchedule, clock: _FakeClock, wall_per_step: float, steps: int) -> list[int]:
+    flushed = []
+    for k in range(1, steps + 1):
+        clock.now += wall_per_step
+        if schedule.due():
+            flushed.append(k)
+    return flushed
+
+
+def test_a_slow_run_is_flushed_every_steps_steps() -> None:
+    """Steps slower than the wall interval: a flush every ``steps`` steps, the first after ``steps``."""
+    clock = _FakeClock()
+    schedule = FlushSchedule(10, 0.5, clock)
+    clock.now += 60.0  # recording started long before stepping
+    assert _flushed_steps(schedule, clock, 0.2, 45) == [10, 20, 30, 40]
+
+
+def test_a_fast_run_is_flushed_every_wall_interval() -> None:
+    """A lock-step run of ~1 ms steps (2**-10 s: exact in binary), each its own sim second (steps=1): one flush
+    per 0.5 s of wall time, not one per step (the first at the first step, recording having started earlier)."""
+    clock = _FakeClock()
+    schedule = FlushSchedule(1, 0.5, clock)
+    clock.now += 5.0
+    flushed = _flushed_steps(schedule, clock, 2.0**-10, 2000)
+    assert flushed[0] == 1 and np.diff(flushed).tolist() == [512, 512, 512]
+
+
+@pytest.mark.parametrize("steps, wall_s", [(0, 0.5), (1, -1.0), (1, float("nan"))])
+def test_a_flush_schedule_refuses_bad_intervals(steps: int, wall_s: float) -> None:
+    with pytest.raises(ValueError, match="FlushSchedule"):
+        FlushSchedule(steps, wall_s)

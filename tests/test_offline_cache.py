@@ -126,6 +126,33 @@ def test_a_second_scoring_reads_the_offline_results_back(bags, calls):
     assert again == first  # read back exactly
 
 
+def test_pool_workers_hand_cached_results_over_by_file(bags):
+    """Workers of a process pool leave out the arrays a cache file holds; the scorer maps them from the file: the
+    same scores as in one process, exactly (the same files), filling the cache and reading it back."""
+    serial = score_bags(bags, jobs=1)
+    assert score_bags(bags, jobs=2) == serial
+    data = scoring.prepared(bags[0])
+    assert sorted(data.kept) == sorted([*(("offline", n) for n in OFFLINE), ("bounds", "pcrb")])
+    handed = scoring._handed_over(data)
+    assert [handed.estimates[n] for n in OFFLINE] == [None] * 3 and handed.bounds["pcrb"] is None
+    assert handed.estimates[data.run["estimators"][0]] is data.estimates[data.run["estimators"][0]]
+    back = scoring._taken_back(handed, cache=True)
+    for name in OFFLINE:
+        assert isinstance(back.estimates[name].P, np.memmap)
+        np.testing.assert_array_equal(back.estimates[name].P, data.estimates[name].P)
+    assert list(back.estimates) == list(data.estimates)
+
+
+def test_a_cache_file_gone_before_it_is_taken_back_is_computed_again(bags, calls):
+    data = scoring.prepared(bags[0])
+    handed = scoring._handed_over(data)
+    data.kept["offline", "ss_rts"].unlink()
+    calls.clear()
+    back = scoring._taken_back(handed, cache=True)
+    assert calls == ["ss"]
+    np.testing.assert_array_equal(back.estimates["ss_rts"].x, data.estimates["ss_rts"].x)
+
+
 def test_changed_parameters_or_code_miss_the_cache(bags, calls, monkeypatch):
     data = load_bag(bags[0])
     opts = scoring_options(data.scenario)
@@ -194,7 +221,9 @@ def _huge_header() -> bytes:
     return buf.getvalue() + bytes(64)
 
 
-@pytest.mark.parametrize("damage", ["garbage", "truncated", "empty", "pickle", "huge shape", "extra member"])
+@pytest.mark.parametrize(
+    "damage", ["garbage", "truncated", "empty", "pickle", "huge shape", "extra member", "compressed", "moved header"]
+)
 def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, damage):
     data = load_bag(bags[0])
     opts = scoring_options(data.scenario)
@@ -213,9 +242,17 @@ def test_a_damaged_or_hostile_cache_file_is_ignored_with_a_warning(bags, calls, 
         _hostile_npz(file, "x", _pickled_array())
     elif damage == "huge shape":
         _hostile_npz(file, "P", _huge_header())
-    else:
+    elif damage == "extra member":
         with zipfile.ZipFile(file, "a") as z:
             z.writestr("payload.npy", b"x")
+    elif damage == "compressed":  # its arrays cannot be mapped from the file
+        with zipfile.ZipFile(io.BytesIO(good)) as z, zipfile.ZipFile(file, "w", zipfile.ZIP_DEFLATED) as out:
+            for info in z.infolist():
+                out.writestr(info.filename, z.read(info))
+    else:  # the central directory points the first member at bytes that are not its local header
+        end = good.rindex(b"PK\x05\x06")
+        directory = int.from_bytes(good[end + 16 : end + 20], "little")
+        file.write_bytes(good[: directory + 42] + (7).to_bytes(4, "little") + good[directory + 46 :])
     calls.clear()
     again = load_bag(bags[0])
     with pytest.warns(CacheWarning, match=file.name):

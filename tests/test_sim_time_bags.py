@@ -22,8 +22,9 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 
 from bench_engine.bag_reader import BagReader
+from bench_engine.bag_writer import CHUNK_SIZE
 from bench_engine.msg_schema import message_class
-from bench_engine.recorder_node import WALL_DURATION_KEY, WALL_START_KEY
+from bench_engine.recorder_node import FLUSH_SIM_S, FLUSH_WALL_S, WALL_DURATION_KEY, WALL_START_KEY
 from bench_engine.sim_clock import SimClock, StampRule, leading_stamp_ns, stamp_rule
 from bench_engine.views import SUFFIXES
 from bench_eval.scoring import load_bag
@@ -197,6 +198,11 @@ def test_mcap_reader_chunk_indexes_and_statistics_are_in_sim_time(run: Path) -> 
     assert (stats.message_start_time, stats.message_end_time) == (START_NS, max(log_times))
     chunks = _chunks(mcap)
     assert sum(len(messages) for _, messages in chunks) == len(in_file)
+    # chunks end at a flush (at most one per FLUSH_WALL_S of the run's wall span, and one per FLUSH_SIM_S of its
+    # sim time) or when full (CHUNK_SIZE uncompressed), and at the close
+    wall_s = int(_metadata(run / "bag")["custom_data"][WALL_DURATION_KEY]) * 1e-9
+    full = sum(index.uncompressed_size for index, _ in chunks) // CHUNK_SIZE
+    assert len(chunks) <= min(wall_s / FLUSH_WALL_S, DURATION_NS * 1e-9 / FLUSH_SIM_S) + full + 2
     for index, messages in chunks:
         times = [m.log_time for m in messages]
         assert (index.message_start_time, index.message_end_time) == (min(times), max(times))

@@ -3,9 +3,10 @@
 Subscribes with ``raw=True`` (no deserialisation) to every topic the graph's nodes publish. On ``/sim/done``
 it drains what is still in flight and closes the bag as soon as every topic holds the final count the source
 announced on ``/sim/totals`` (without them, once the other nodes have left and nothing arrived for a while);
-SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Every
-FLUSH_SIM_S of sim time (counted in /clock messages) it ends the bag's chunk and writes it out, so a recorder
-killed outright loses at most that much: bench_engine.recovery rebuilds the bag from what is on disk.
+SIGINT/SIGTERM also close it, so an interrupted run leaves a complete, readable bag. Once FLUSH_SIM_S of sim
+time (counted in /clock messages) and FLUSH_WALL_S of wall time have both passed since the last flush
+(bench_engine.bag_writer.FlushSchedule), it ends the bag's chunk and writes it out, so a recorder killed
+outright loses at most the longer of the two: bench_engine.recovery rebuilds the bag from what is on disk.
 
 Log times are sim time (bench_engine.sim_clock.SimClock, decided per topic from its type when it is declared): a
 message's log and publish times are its ``header.stamp`` if its type opens with a std_msgs/Header, a
@@ -23,7 +24,7 @@ from functools import partial
 from pathlib import Path
 
 from bench_engine import phases, yamlio
-from bench_engine.bag_writer import BagWriter
+from bench_engine.bag_writer import BagWriter, FlushSchedule
 from bench_engine.bench_node import DATA_QOS, LATCHED_QOS, BenchNode, node_main
 from bench_engine.graph import CLOCK_TOPIC, TOTALS_TOPIC
 from bench_engine.msg_schema import message_class
@@ -32,7 +33,9 @@ from bench_engine.timegrid import build_time
 from bench_msgs.msg import StepAck
 
 FLUSH_SIM_S = 1.0
-"""Sim time between two flushes of the bag."""
+"""Least sim time between two flushes of the bag."""
+FLUSH_WALL_S = 0.5
+"""Least wall time between two flushes of the bag."""
 STRANDED_POLL_S = 0.5
 """Wall time between two polls of the subscriptions' queues for messages without an executor event."""
 IDLE_AFTER_DONE_S = 0.5
@@ -59,7 +62,7 @@ class RecorderNode(BenchNode):
         grid = build_time(self.cfg)
         self.sim_clock = SimClock(grid.start_ns)
         self._wall_first_ns = self._wall_last_ns = 0  # wall times of the first and the last message
-        self._flush_every = max(1, round(FLUSH_SIM_S / grid.dt))
+        self._flushes = FlushSchedule(max(1, round(FLUSH_SIM_S / grid.dt)), FLUSH_WALL_S)
         self._last_rx = time.monotonic()
         self._drain_started = None
         self.stranded = 0
@@ -87,7 +90,7 @@ class RecorderNode(BenchNode):
             self.consumed += 1
             self.ack(self.consumed, self.consumed)
         self._last_rx = time.monotonic()
-        if topic == CLOCK_TOPIC and self.counts[topic] % self._flush_every == 0:
+        if topic == CLOCK_TOPIC and self._flushes.due():
             self.bag.flush()
         if self._drain_started is not None and self._totals is not None:
             self._close_if_drained()

@@ -36,6 +36,14 @@ Components = Sequence[str | int]
 DEFAULT_TOL_S = 1e-3
 
 
+def covariance_block(P: np.ndarray, index: list[int]) -> np.ndarray:
+    """The block of covariances P (K, n, n) of the components ``index``: a view, not a copy, when they are
+    consecutive (an orbit fit's 12 position and velocity components of its 18)."""
+    if index and index == list(range(index[0], index[-1] + 1)):
+        return P[:, index[0] : index[-1] + 1, index[0] : index[-1] + 1]
+    return P[:, index][:, :, index]
+
+
 @dataclass
 class Track:
     """One filter in one run, aligned to the estimate stamps."""

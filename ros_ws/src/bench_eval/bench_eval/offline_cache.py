@@ -16,9 +16,13 @@ computation runs over the same bag, where KEY is the SHA-256 of:
   imports lazily), and the versions of Python, numpy and scipy. Any edit of that code, even a comment, is a miss:
   a stale result is worse than a recomputed one.
 
-A cache file is read as a hostile file: ``np.load`` without pickles, the archive's members and every member's
-.npy header checked against its declared size before numpy allocates anything, every array's kind and shape
-checked against the others. A file that fails any check is ignored with a warning naming it and the reason (the
+A cache file is read as a hostile file: the archive's members must be stored uncompressed (as ``np.savez``
+writes them), every member's .npy header is checked (a plain number or text dtype, no pickles) and its data
+must lie inside the member, every array's kind and shape is checked against the others. The arrays are then
+mapped read-only from the file (``np.memmap``), not copied: a day of orbit-fit covariances is read only as the
+scorer uses it, and a scoring worker hands the main process the file's name, not its arrays
+(bench_eval.scoring.prepare_runs). Files are only ever replaced whole (below), so a mapped file never changes
+under its reader. A file that fails any check is ignored with a warning naming it and the reason (the
 result is computed again and replaces the file). Files are written atomically (a temporary file, then a
 rename), so a killed scorer leaves the previous file or none. A bag directory that cannot be written (read-only,
 full) is scored without a cache, with a warning.
@@ -33,11 +37,13 @@ import importlib.util
 import json
 import os
 import platform
+import struct
 import tempfile
 import warnings
 import zipfile
 from functools import cache
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 import scipy
@@ -55,6 +61,11 @@ MEMBERS = {
 MAX_BYTES = 1 << 32
 """The largest uncompressed size a cache file may declare (4 GiB: a day of an 18-state estimate at 5 s holds
 ~45 MB); a larger one is refused before it is read."""
+
+
+_LOCAL_HEADER = struct.Struct("<4s5H3L2H")
+"""A zip local file header: signature, five 2-byte and three 4-byte fields, then the file name's and the extra
+field's lengths (PKWARE APPNOTE 4.3.7)."""
 
 
 class CacheWarning(UserWarning):
@@ -206,10 +217,8 @@ def load(file: Path, group: str) -> dict[str, np.ndarray] | None:
                 raise ValueError(f"members {names}, expected {sorted(members)}")
             if sum(info.file_size for info in infos) > MAX_BYTES:
                 raise ValueError(f"it declares more than {MAX_BYTES} bytes of data")
-            for info in infos:
-                _check_header(archive, info)
-        with np.load(file, allow_pickle=False) as z:
-            arrays = {m: z[m] for m in members}
+        with open(file, "rb") as f:
+            arrays = {info.filename[: -len(".npy")]: _mapped(f, file, info) for info in infos}
         bad = [what for ok, what in _checks(arrays) if not ok]
         if bad:
             raise ValueError(f"inconsistent arrays: {', '.join(bad)}")
@@ -239,25 +248,38 @@ def _checks(a: dict[str, np.ndarray]) -> list[tuple[bool, str]]:
     ]
 
 
-def _check_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
-    """A member's .npy header: a plain number or text dtype, and a shape its declared size holds (numpy would
-    otherwise allocate whatever the header claims before reading)."""
-    with archive.open(info) as f:
-        version = np.lib.format.read_magic(f)
-        readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
-        if version not in readers:
-            raise ValueError(f"{info.filename}: .npy format {version} (written: 1.0)")
-        shape, _, dtype = readers[version](f)
+def _mapped(f: BinaryIO, file: Path, info: zipfile.ZipInfo) -> np.ndarray:
+    """A stored member's array, mapped read-only from the file after its .npy header is checked: a plain number
+    or text dtype, and a shape whose data lies inside the member (numpy would otherwise map or allocate
+    whatever the header claims)."""
+    if info.compress_type != zipfile.ZIP_STORED:
+        raise ValueError(f"{info.filename}: compressed (written: stored)")
+    f.seek(info.header_offset)
+    local = f.read(_LOCAL_HEADER.size)
+    if len(local) != _LOCAL_HEADER.size or local[:4] != b"PK\x03\x04":
+        raise ValueError(f"{info.filename}: no local file header at byte {info.header_offset}")
+    name_length, extra_length = _LOCAL_HEADER.unpack(local)[-2:]
+    start = info.header_offset + _LOCAL_HEADER.size + name_length + extra_length
+    f.seek(start)
+    version = np.lib.format.read_magic(f)
+    readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+    if version not in readers:
+        raise ValueError(f"{info.filename}: .npy format {version} (written: 1.0)")
+    shape, fortran, dtype = readers[version](f)
     if dtype.hasobject or dtype.kind not in "iufU":
         raise ValueError(f"{info.filename}: dtype {dtype} is not a plain number or text")
-    if int(np.prod(shape, dtype=object)) * dtype.itemsize > info.file_size:
+    offset = f.tell()
+    if offset - start + int(np.prod(shape, dtype=object)) * dtype.itemsize > info.file_size:
         raise ValueError(f"{info.filename}: shape {shape} does not fit its {info.file_size} bytes")
+    if 0 in shape:
+        return np.zeros(shape, dtype)  # (mmap cannot map nothing)
+    return np.memmap(file, dtype, "r", offset, shape, "F" if fortran else "C")
 
 
-def store(file: Path, result) -> None:
+def store(file: Path, result) -> bool:
     """Write ``result`` (a bench_eval.scoring.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
-    and an Estimates' x and diagnostics) to ``file`` atomically; a warning when the directory cannot be
-    written."""
+    and an Estimates' x and diagnostics) to ``file`` atomically; True once it is there, False with a warning
+    when the directory cannot be written."""
     arrays = {
         "steps": np.asarray(result.steps, dtype=np.int64),
         "t": np.asarray(result.t, dtype=float),
@@ -284,3 +306,5 @@ def store(file: Path, result) -> None:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         _warn(f"could not keep a result in {file.parent} ({err.strerror or err}); scored without a cache")
+        return False
+    return True

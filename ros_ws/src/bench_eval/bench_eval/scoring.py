@@ -7,6 +7,7 @@ Estimates are matched to truth and measurements by lock-step index (``step``), n
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -154,6 +155,10 @@ class BagData:
     results are kept (bench_eval.offline_cache)."""
     offline: list[str] = field(default_factory=list)
     """The offline estimators whose estimates joined ``estimates`` (run_offline)."""
+    kept: dict[tuple[str, str], Path] = field(default_factory=dict)
+    """(group, name) -> the cache file that holds that result of ``estimates`` (group ``offline``) or ``bounds``
+    (bench_eval.offline_cache), for each result read from or written to the cache."""
+    _truth_index: tuple = field(default=(None,), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.run = upgrade_run_config(self.run)  # a bag recorded before 'estimators' says 'filters'
@@ -161,6 +166,30 @@ class BagData:
     @property
     def scenario(self) -> dict:
         return self.run["scenario"]
+
+    def truth_span(self) -> tuple[float, float]:
+        """The times of the first and the last truth sample, s."""
+        t = self._truth_arrays()[1]
+        return float(t.min()), float(t.max())
+
+    def truth_at(self, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(which of ``steps`` have a truth sample (K,) bool, their times (k,) s, their states (k, n)): the truth
+        looked up for many steps at once (its arrays built once per ``truth`` dict, as it is now)."""
+        known, t, states = self._truth_arrays()
+        steps = np.asarray(steps, dtype=np.int64)
+        at = np.minimum(np.searchsorted(known, steps), max(len(known) - 1, 0))
+        covered = known[at] == steps if len(known) else np.zeros(len(steps), bool)
+        return covered, t[at[covered]], states[at[covered]]
+
+    def _truth_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The truth as arrays sorted by step (steps, t, states), built once per ``truth`` dict as it is now."""
+        if self._truth_index[0] is not self.truth or len(self._truth_index[1]) != len(self.truth):
+            known = np.fromiter(self.truth, dtype=np.int64, count=len(self.truth))
+            order = np.argsort(known, kind="stable")
+            t = np.fromiter((tt for tt, _ in self.truth.values()), dtype=float, count=len(known))
+            states = np.array([s for _, s in self.truth.values()], dtype=float).reshape(len(known), -1)
+            self._truth_index = (self.truth, known[order], t[order], states[order])
+        return self._truth_index[1:]
 
 
 def load_bag(bag_dir: Path | str) -> BagData:
@@ -247,11 +276,33 @@ def in_scoring_worker() -> bool:
     return _IN_WORKER
 
 
-def _prepared_in_worker(run: Path | str | BagData, cache: bool = True) -> BagData:
-    """:func:`prepared` in a scoring worker (:func:`in_scoring_worker`)."""
+def _prepared_in_worker(run: Path | str | BagData, cache: bool = True, hand_over: bool = False) -> BagData:
+    """:func:`prepared` in a scoring worker (:func:`in_scoring_worker`); with ``hand_over`` (a worker on this
+    host, which sees the same files) its results that are kept in cache files left out (:func:`_handed_over`)."""
     global _IN_WORKER
     _IN_WORKER = True
-    return prepared(run, cache)
+    data = prepared(run, cache)
+    return _handed_over(data) if hand_over else data
+
+
+def _handed_over(data: BagData) -> BagData:
+    """``data`` without the arrays of its results that cache files hold (``data.kept``; each left as None in its
+    place): the process it goes to maps them from the files (:func:`_taken_back`) instead of receiving them
+    through a pipe (a grace_velocity day's orbit fits are ~100 MB a run)."""
+    estimates = {n: None if ("offline", n) in data.kept else e for n, e in data.estimates.items()}
+    bounds = {n: None if ("bounds", n) in data.kept else b for n, b in data.bounds.items()}
+    return dataclasses.replace(data, estimates=estimates, bounds=bounds)
+
+
+def _taken_back(data: BagData, cache: bool) -> BagData:
+    """A run from :func:`_handed_over` with its results mapped from their cache files; prepared again here if a
+    file cannot be read any more (removed or replaced since)."""
+    for (group, name), file in data.kept.items():
+        arrays = offline_cache.load(file, group)
+        if arrays is None:
+            return prepared(data.path, cache)
+        getattr(data, "estimates" if group == "offline" else group)[name] = _from_arrays(group, arrays)
+    return data
 
 
 def prepare_runs(
@@ -262,16 +313,18 @@ def prepare_runs(
     bench_engine.executors), with a progress bar; in this process when there is one run or one job. ``cache``:
     offline estimates and bounds kept beside each bag and read back (bench_eval.offline_cache)."""
     jobs = len(os.sched_getaffinity(0)) if jobs is None else max(1, int(jobs))  # the CPUs it may use
-    task = partial(_prepared_in_worker, cache=cache)
     if scheduler is not None:
         from bench_engine.executors import map_dask  # dask: imported only when a cluster scores
 
+        task = partial(_prepared_in_worker, cache=cache)  # whole: a cluster's workers may not share our files
         return map_dask(task, runs, scheduler, jobs, desc="scoring")
     if jobs == 1 or len(runs) == 1:
         return [prepared(r, cache) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
     # forkserver, not fork: a process forked from a threaded one (a test runner, a node) may inherit a held lock
     with ProcessPoolExecutor(min(jobs, len(runs)), mp_context=multiprocessing.get_context("forkserver")) as pool:
-        return list(tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring"))
+        task = partial(_prepared_in_worker, cache=cache, hand_over=True)  # a worker here: the same files
+        done = tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring")
+        return [_taken_back(data, cache) for data in done]
 
 
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
@@ -280,7 +333,7 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     covariance of their errors (bench_models.states.error_labels). Steps without a truth sample (an imported
     TDM whose reference covers part of it: bench_ccsds.ingest) are left out."""
     est = data.estimates[filter_name]
-    covered = np.array([int(k) in data.truth for k in est.steps], dtype=bool)
+    covered, _, truth = data.truth_at(est.steps)
     if not covered.all():
         est = Estimates(
             est.steps[covered],
@@ -299,8 +352,7 @@ def track_of(data: BagData, filter_name: str) -> metrics.Track:
     all_errors, errors = error_labels(est.labels), error_labels(labels)
     cov = [all_errors.index(lab) for lab in errors]
     truth_index = [data.truth_labels.index(lab) for lab in labels]
-    x_true = np.array([data.truth[int(k)][1][truth_index] for k in est.steps])
-    return metrics.Track(est.t, est.x[:, scored], est.P[:, cov][:, :, cov], x_true, labels)
+    return metrics.Track(est.t, est.x[:, scored], metrics.covariance_block(est.P, cov), truth[:, truth_index], labels)
 
 
 def _scenario_name(runs: list[BagData]) -> str:
@@ -360,24 +412,31 @@ def _cached(
     )
     arrays = offline_cache.load(file, group)
     if arrays is not None:
+        data.kept[group, name] = file
         return _from_arrays(group, arrays)
     result = compute()
-    offline_cache.store(file, result)
+    if offline_cache.store(file, result):
+        data.kept[group, name] = file
     return result
 
 
 def _from_arrays(group: str, a: dict[str, np.ndarray]):
     """The Estimates (group ``offline``) or BoundSeries (``bounds``) of a cache file's arrays."""
-    steps, t, P, labels = a["steps"].astype(np.int64), a["t"].astype(float), a["P"].astype(float), a["labels"]
+    steps, t, P, labels = (
+        a["steps"].astype(np.int64, copy=False),
+        a["t"].astype(float, copy=False),
+        a["P"].astype(float, copy=False),
+        a["labels"],
+    )
     if group == "bounds":
         return BoundSeries(steps, t, [str(s) for s in labels], P)
     return Estimates(
         steps,
         t,
-        a["x"].astype(float),
+        a["x"].astype(float, copy=False),
         P,
         [str(s) for s in labels],
-        {str(n): v.astype(float) for n, v in zip(a["diagnostic_names"], a["diagnostic_values"])},
+        {str(n): v.astype(float, copy=False) for n, v in zip(a["diagnostic_names"], a["diagnostic_values"])},
     )
 
 

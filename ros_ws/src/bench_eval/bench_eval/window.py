@@ -61,8 +61,7 @@ class ScoringWindow(Settings):
     def cut(self, data: Run, scored: list[str], part: str = "window") -> tuple[Run, list[str]]:
         """``data`` restricted to ``part`` of the run (its truth's span), and the estimators scored there: in the
         window, the steps where every scored estimator has a finite estimate; in an edge, each one's own steps."""
-        times = [t for t, _ in data.truth.values()]
-        t0, t1 = min(times), max(times)
+        t0, t1 = data.truth_span()
 
         def inside(t: np.ndarray) -> np.ndarray:
             return self.inside(t, t0, t1, part)
@@ -84,9 +83,9 @@ class ScoringWindow(Settings):
                 estimates[name] = _rows(estimates[name], _finite(estimates[name]))
         measurements = {}
         for sensor, by_step in data.measurements.items():
-            steps = [k for k in by_step if int(k) in data.truth]
-            keep = inside(np.array([data.truth[int(k)][0] for k in steps], dtype=float))
-            measurements[sensor] = {k: by_step[k] for k, kept in zip(steps, keep) if kept}
+            steps = np.fromiter(by_step, dtype=np.int64, count=len(by_step))
+            covered, t, _ = data.truth_at(steps)
+            measurements[sensor] = {k: by_step[k] for k in steps[covered][inside(t)].tolist()}
         bounds = {name: _bound_rows(series, inside(series.t)) for name, series in (data.bounds or {}).items()}
         return dataclasses.replace(data, estimates=estimates, measurements=measurements, bounds=bounds), having
 
@@ -119,6 +118,7 @@ def _common_steps(estimates: list[Estimates]) -> np.ndarray:
 
 
 def _rows(est: Estimates, keep: np.ndarray) -> Estimates:
+    keep = _slice(keep)
     return dataclasses.replace(
         est,
         steps=est.steps[keep],
@@ -131,4 +131,16 @@ def _rows(est: Estimates, keep: np.ndarray) -> Estimates:
 
 
 def _bound_rows(series, keep: np.ndarray):
+    keep = _slice(keep)
     return dataclasses.replace(series, steps=series.steps[keep], t=series.t[keep], P=series.P[keep])
+
+
+def _slice(keep: np.ndarray) -> np.ndarray | slice:
+    """The rows a mask keeps as a slice when they are evenly spaced (a window of a run's sorted steps, or every
+    other step where another estimator runs at half the rate: views, not copies of the covariances), else the
+    mask."""
+    rows = np.flatnonzero(keep)
+    if len(rows) < 2:
+        return keep
+    stride = int(rows[1] - rows[0])
+    return slice(int(rows[0]), int(rows[-1]) + 1, stride) if np.all(np.diff(rows) == stride) else keep

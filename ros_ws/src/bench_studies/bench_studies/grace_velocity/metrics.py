@@ -24,7 +24,7 @@ from scipy.special import chdtri  # chi-square quantile: chi2.ppf(q, k) = chdtri
 from bench_engine.config import ScenarioError
 from bench_engine.settings import Check, Settings, setting
 from bench_eval.metric_families import Metric, Tracks
-from bench_eval.metrics import effective_samples
+from bench_eval.metrics import covariance_block, effective_samples
 from bench_eval.scoring import BagData
 
 STATS = ("std", "mean", "max", "min", "rms")
@@ -92,7 +92,7 @@ def baseline_states(data: BagData, name: str, options: RangeRateOptions) -> tupl
     cols = None if est is None else _columns(est.labels, options.baseline)
     if cols is None:
         return None
-    P = est.P[:, cols][:, :, cols]
+    P = covariance_block(est.P, cols)
     return est.steps, est.t, est.x[:, cols], (P if np.all(np.isfinite(P)) else None)
 
 
@@ -105,14 +105,15 @@ def residuals(data: BagData, name: str, options: RangeRateOptions) -> dict[str, 
     if states is None or not kbr:
         return None
     steps, t, bw, P = states
-    t0 = min(tt for tt, _ in data.truth.values())
-    keep = [i for i, k in enumerate(steps) if int(k) in kbr]
-    if not keep:
+    t0 = data.truth_span()[0]
+    keep = np.flatnonzero(np.isin(steps, np.fromiter(kbr, dtype=np.int64, count=len(kbr))))
+    covered, _, truth = data.truth_at(steps[keep])
+    keep = keep[covered]
+    if not len(keep):
         return None
-    truth_cols = _columns(data.truth_labels, options.baseline)
-    truth = np.array([data.truth[int(steps[i])][1][truth_cols] for i in keep])
+    truth = truth[:, _columns(data.truth_labels, options.baseline)]
     rr = range_rate(bw[keep, :3], bw[keep, 3:])
-    z = np.array([kbr[int(steps[i])][-1] for i in keep])
+    z = np.array([kbr[k][-1] for k in steps[keep].tolist()])
     out = {
         "t": t[keep] - t0,
         "kbr": rr - z,
@@ -178,8 +179,10 @@ def _kbr_noise(data: BagData, options: RangeRateOptions) -> float | None:
     cols = _columns(data.truth_labels, options.baseline)
     if not kbr or cols is None:
         return None
-    truth = np.array([data.truth[k][1][cols] for k in kbr])
-    return float(np.std(np.array([z[-1] for z in kbr.values()]) - range_rate(truth[:, :3], truth[:, 3:])))
+    steps = np.fromiter(kbr, dtype=np.int64, count=len(kbr))
+    covered, _, truth = data.truth_at(steps)
+    z = np.array([kbr[k][-1] for k in steps[covered].tolist()])
+    return float(np.std(z - range_rate(truth[:, cols][:, :3], truth[:, cols][:, 3:])))
 
 
 def range_rate_bound(data: BagData, series) -> np.ndarray:
@@ -195,7 +198,7 @@ def range_rate_bounds(data: BagData) -> dict[str, dict[str, np.ndarray]]:
     to the range rate at the truth: {bound: {t (s from the first truth step), sd}}."""
     if _columns(data.truth_labels, BASELINE) is None:
         return {}
-    t0 = min(tt for tt, _ in data.truth.values())
+    t0 = data.truth_span()[0]
     return {
         name: {"t": series.t - t0, "sd": range_rate_bound(data, series)}
         for name, series in (data.bounds or {}).items()
