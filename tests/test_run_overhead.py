@@ -75,6 +75,43 @@ def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path, monkeyp
     assert bags["fresh"] == bags["forked"] and bags["fresh"]["/truth/state"][1] == 201
 
 
+FORKING_SCRIPT = """
+import os
+import sys
+
+with open(os.environ["IMPORTS_LOG"], "a") as f:
+    f.write(__name__ + "\\n")
+
+from bench_engine.batch_run import fork_context
+
+
+def child():
+    main = sys.modules["__main__"]
+    assert main.__file__ == os.environ["SCRIPT"] and main.child is child, (main, child)
+
+
+if __name__ == "__main__":
+    context = fork_context()
+    for _ in range(3):
+        process = context.Process(target=child)
+        process.start()
+        process.join()
+        assert process.exitcode == 0
+"""
+
+
+def test_the_fork_server_imports_the_command_script_once_for_every_forked_run(tmp_path):
+    """A run forked from the fork server finds the command's script as its __main__ (preload.MAIN_ENV) instead of
+    importing it again, with all it imports (multiprocessing runs it in each child otherwise)."""
+    script_path, log = tmp_path / "forking.py", tmp_path / "imports.log"
+    script_path.write_text(FORKING_SCRIPT)
+    env = dict(os.environ, IMPORTS_LOG=str(log), SCRIPT=str(script_path))
+    env.pop(NO_FORK_ENV, None)
+    res = subprocess.run([sys.executable, str(script_path)], env=env, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert log.read_text().split() == ["__main__", "__mp_main__"]  # the command, then the fork server only
+
+
 def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path):
     out, log = tmp_path / "orphan", tmp_path / "phases.jsonl"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{phases.ENV: str(log)})

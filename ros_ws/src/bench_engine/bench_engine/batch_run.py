@@ -26,13 +26,13 @@ import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from multiprocessing import forkserver
+from multiprocessing import forkserver, spawn
 from pathlib import Path
 
 from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.launcher import NO_FORK_ENV
-from bench_engine.preload import WARM_ENV
+from bench_engine.preload import MAIN_ENV, WARM_ENV
 from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 from bench_engine.views import SWITCH as VIEWS_SWITCH
@@ -148,7 +148,8 @@ def _forked_run(argv: list[str], log: str) -> None:
 
 
 def fork_context():
-    """The forkserver context whose server has imported PRELOAD (None where runs cannot be forked)."""
+    """The forkserver context whose server has imported PRELOAD and the command's script (preload.MAIN_ENV), or
+    None where runs cannot be forked."""
     global _fork_context
     if os.environ.get(NO_FORK_ENV) == "1" or sys.platform != "linux":
         return None
@@ -157,12 +158,16 @@ def fork_context():
             os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
             os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything
+            main = spawn.get_preparation_data("fork server").get("init_main_from_path")
+            if main:
+                os.environ[MAIN_ENV] = main  # ... and the command's script (preload.MAIN_ENV)
             try:
                 context = multiprocessing.get_context("forkserver")
                 context.set_forkserver_preload([PRELOAD])
                 forkserver.ensure_running()  # now, while WARM_ENV is set ...
             finally:
                 del os.environ[WARM_ENV]  # ... and only for it: this process's other children import as usual
+                os.environ.pop(MAIN_ENV, None)
             _fork_context = context
     return _fork_context
 
