@@ -273,8 +273,8 @@ MUTATIONS = [
     Mutation(
         "cqkf_points_transposed_factor",
         CQKF,
-        "return self.x + self._xi @ S.T",
-        "return self.x + self._xi @ S",
+        "return self.x + self._xi.dot(S.T)",
+        "return self.x + self._xi.dot(S)",
         ("tests/test_cqkf.py",),
         "points x + S' xi: the transposed Cholesky factor",
     ),
@@ -297,8 +297,8 @@ MUTATIONS = [
     Mutation(
         "cqkf_update_half_gain_term",
         CQKF,
-        "self.P = self.P - K @ P_yy @ K.T",
-        "self.P = self.P - 0.5 * K @ P_yy @ K.T",
+        "self.P = self.P - K.dot(P_yy).dot(K.T)",
+        "self.P = self.P - 0.5 * K.dot(P_yy).dot(K.T)",
         ("tests/test_cqkf.py",),
         "CQKF covariance update halved",
     ),

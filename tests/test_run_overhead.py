@@ -75,6 +75,77 @@ def test_monte_carlo_runs_forked_or_fresh_record_the_same_bags(tmp_path, monkeyp
     assert bags["fresh"] == bags["forked"] and bags["fresh"]["/truth/state"][1] == 201
 
 
+FORKING_SCRIPT = """
+import os
+import sys
+
+with open(os.environ["IMPORTS_LOG"], "a") as f:
+    f.write(__name__ + "\\n")
+
+from bench_engine.batch_run import fork_context
+
+
+def child():
+    main = sys.modules["__main__"]
+    assert main.__file__ == os.environ["SCRIPT"] and main.child is child, (main, child)
+
+
+if __name__ == "__main__":
+    context = fork_context()
+    for _ in range(3):
+        process = context.Process(target=child)
+        process.start()
+        process.join()
+        assert process.exitcode == 0
+"""
+
+
+def test_the_fork_server_imports_the_command_script_once_for_every_forked_run(tmp_path):
+    """A run forked from the fork server finds the command's script as its __main__ (preload.MAIN_ENV) instead of
+    importing it again, with all it imports (multiprocessing runs it in each child otherwise)."""
+    script_path, log = tmp_path / "forking.py", tmp_path / "imports.log"
+    script_path.write_text(FORKING_SCRIPT)
+    env = dict(os.environ, IMPORTS_LOG=str(log), SCRIPT=str(script_path))
+    env.pop(NO_FORK_ENV, None)
+    res = subprocess.run([sys.executable, str(script_path)], env=env, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert log.read_text().split() == ["__main__", "__mp_main__"]  # the command, then the fork server only
+
+
+WARMING_SCRIPT = """
+from bench_engine.batch_run import fork_context
+
+
+def child():
+    from star_tracker.star_camera import _pair_table
+
+    assert _pair_table.cache_info().currsize == 1, _pair_table.cache_info()
+
+
+if __name__ == "__main__":
+    run = ["star_tracker", "--seed", "3", "--variant", "rotation,sigma_rotation_lo", "--out", "never_written"]
+    process = fork_context(warm=run).Process(target=child)
+    process.start()
+    process.join()
+    assert process.exitcode == 0
+"""
+
+
+def test_the_fork_server_builds_the_first_run_once_for_the_runs_forked_from_it(tmp_path):
+    """preload.RUN_ENV: a run forked from the server inherits what the first run's validation cached (here a star
+    camera's k-vector, shared by every sigma_px of a sweep); that it records the same bag is the forked-or-fresh
+    tests' concern."""
+    script_path = tmp_path / "warming.py"
+    script_path.write_text(WARMING_SCRIPT)
+    env = dict(os.environ)
+    env.pop(NO_FORK_ENV, None)
+    res = subprocess.run(
+        [sys.executable, str(script_path)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert not (tmp_path / "never_written").exists()
+
+
 def test_forked_nodes_stop_and_close_the_bag_when_the_launcher_is_killed(tmp_path):
     out, log = tmp_path / "orphan", tmp_path / "phases.jsonl"
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **{phases.ENV: str(log)})

@@ -16,6 +16,7 @@ from star_tracker.catalogue import (
     StarCatalogue,
     angle_between,
     build_catalogue,
+    chord,
     load_catalogue,
     merge_close,
     propagate,
@@ -171,6 +172,24 @@ def test_a_cone_search_returns_exactly_the_stars_within_the_radius(tmp_path):
         got = c.cone(axis, np.radians(12.0))
         want = np.flatnonzero(angle_between(c.vectors, axis[None]) <= np.radians(12.0))
         np.testing.assert_array_equal(got, want)
+
+
+def test_neighbourhoods_hold_exactly_the_stars_within_the_radius_each_star_last_built_once(tmp_path):
+    c = load_catalogue(4.0, cache_dir=tmp_path)
+    radius = np.radians(15.0)
+    start, stars = c.neighbourhoods(radius)
+    assert start.shape == (len(c) + 1,) and start[-1] == len(stars)
+    chords = np.linalg.norm(c.vectors[:, None] - c.vectors[None], axis=-1)
+    for a in range(len(c)):
+        near = stars[start[a] : start[a + 1]]
+        assert near[-1] == a  # the star itself last
+        np.testing.assert_array_equal(
+            np.sort(near[:-1]), np.flatnonzero((chords[a] <= chord(radius)) & (np.arange(len(c)) != a))
+        )
+    again = c.neighbourhoods(radius)
+    assert again[0] is start and again[1] is stars  # shared by every identifier of the catalogue
+    assert not (start.flags.writeable or stars.flags.writeable)
+    assert len(c.neighbourhoods(radius / 2)[1]) < len(stars)  # another radius, another index
 
 
 def test_catalogue_sorts_its_entries_brightest_first():

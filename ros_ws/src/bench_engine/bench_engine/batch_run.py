@@ -17,6 +17,7 @@ with the same seed it records the bag it would have recorded (tests/test_chaos.p
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import re
@@ -26,13 +27,13 @@ import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from multiprocessing import forkserver
+from multiprocessing import forkserver, spawn
 from pathlib import Path
 
 from bench_engine import phases, yamlio
 from bench_engine.graph import TRUTH_TOPIC
 from bench_engine.launcher import NO_FORK_ENV
-from bench_engine.preload import WARM_ENV
+from bench_engine.preload import MAIN_ENV, RUN_ENV, WARM_ENV
 from bench_engine.process import exit_now
 from bench_engine.timegrid import build_time
 from bench_engine.views import SWITCH as VIEWS_SWITCH
@@ -147,8 +148,10 @@ def _forked_run(argv: list[str], log: str) -> None:
     exit_now(code)  # as bench_engine.run's own end: the run's ROS objects are left to it (launcher.run_single_process)
 
 
-def fork_context():
-    """The forkserver context whose server has imported PRELOAD (None where runs cannot be forked)."""
+def fork_context(warm: list[str] | None = None):
+    """The forkserver context whose server has imported PRELOAD and the command's script (preload.MAIN_ENV), or
+    None where runs cannot be forked. ``warm``: the arguments of a run (bench_engine.run's) whose objects the
+    server builds once as it starts (preload.RUN_ENV), for every run forked from it to inherit what they cache."""
     global _fork_context
     if os.environ.get(NO_FORK_ENV) == "1" or sys.platform != "linux":
         return None
@@ -157,12 +160,19 @@ def fork_context():
             os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
             os.environ[WARM_ENV] = "1"  # the fork server (started with this environment) imports everything
+            main = spawn.get_preparation_data("fork server").get("init_main_from_path")
+            if main:
+                os.environ[MAIN_ENV] = main  # ... and the command's script (preload.MAIN_ENV)
+            if warm:
+                os.environ[RUN_ENV] = json.dumps(warm)  # ... and builds a run's objects (preload.RUN_ENV)
             try:
                 context = multiprocessing.get_context("forkserver")
                 context.set_forkserver_preload([PRELOAD])
                 forkserver.ensure_running()  # now, while WARM_ENV is set ...
             finally:
                 del os.environ[WARM_ENV]  # ... and only for it: this process's other children import as usual
+                os.environ.pop(MAIN_ENV, None)
+                os.environ.pop(RUN_ENV, None)
             _fork_context = context
     return _fork_context
 
@@ -171,7 +181,7 @@ def launch_run(cmd: list[str], log: Path, **popen) -> int:
     """Run ``python -m bench_engine.run ...`` (``cmd``, as RunSpec.command gives it) with its output to
     ``log``; forked from the fork server unless ``popen`` asks for a subprocess's own settings (the Dask
     executor) or runs cannot be forked. Returns the exit code (-N: killed by signal N)."""
-    context = None if popen else fork_context()
+    context = None if popen else fork_context(warm=cmd[3:])
     if context is None:
         with open(log, "w") as f:
             return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, **popen).returncode

@@ -103,6 +103,27 @@ def write_parameters(plan: RunPlan) -> None:
         plan.parameters_file(spec.name).write_text(parameters_file(flat))
 
 
+def resolve_run(
+    scenario: str,
+    estimators: list[str] | None = None,
+    seed: int | None = None,
+    overrides: list[str] = (),
+    variant: str | None = None,
+    source: str = "truth",
+    cfg: dict | None = None,
+) -> tuple[dict, list[str]]:
+    """The validated scenario of a run (``cfg``, else ``scenario`` with its ``variant`` and ``overrides``; the
+    ``seed`` set; bench_engine.scenario.coerce_scenario) and its estimators; every object of the run is built
+    once (:func:`validate`), so raises ScenarioError naming the first bad key or value."""
+    if cfg is None:
+        cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
+    if seed is not None:
+        cfg = {**cfg, "seed": int(seed)}
+    names = resolve_estimators(cfg, estimators)
+    validate(cfg, names, source)
+    return coerce_scenario(cfg), names
+
+
 def prepare_run(
     scenario: str,
     out: Path,
@@ -118,13 +139,7 @@ def prepare_run(
     """Resolve and validate the scenario, build the graph and write ``run_config.yaml`` into ``out``: the
     scenario as validated (every value of its declared type, deprecated keys renamed:
     bench_engine.scenario.coerce_scenario), the selected ``estimators``, the seed and the run's options."""
-    if cfg is None:
-        cfg = apply_overrides(select_variant(load_scenario(scenario), variant), overrides)
-    if seed is not None:
-        cfg = {**cfg, "seed": int(seed)}
-    names = resolve_estimators(cfg, estimators)
-    validate(cfg, names, source)
-    cfg = coerce_scenario(cfg)
+    cfg, names = resolve_run(scenario, estimators, seed, overrides, variant, source, cfg)
     graph = build_graph(cfg, names, record, source)
     out = Path(out).resolve()
     if record and (out / "bag").exists():

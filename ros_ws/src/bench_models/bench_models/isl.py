@@ -40,7 +40,10 @@ class RangeAzElModel:
 
     def _axes(self, x: np.ndarray) -> np.ndarray:
         """Position(s) in the convention's axes, component first: shape (3, ...) for x (..., n)."""
-        return np.tensordot(self._M, np.asarray(x, dtype=float)[..., 0:3], axes=([1], [-1]))
+        p = np.asarray(x, dtype=float)[..., 0:3]
+        if p.ndim <= 2:  # tensordot's own product (M . p^T), without its axis bookkeeping: a filter's per-step cost
+            return self._M.dot(p.T)
+        return np.tensordot(self._M, p, axes=([1], [-1]))
 
     def h(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """[rho, alpha, delta] for one state (n,) -> (3,) or a batch (m, n) -> (m, 3).
@@ -54,8 +57,8 @@ class RangeAzElModel:
         alpha = np.arctan2(qy, qx, out=out[1, ...])
         alpha += np.where(alpha < 0.0, TWO_PI, 0.0)
         alpha[alpha >= TWO_PI] = 0.0  # a tiny negative angle + 2 pi rounds to 2 pi
-        np.arcsin(np.clip(qz / rho, -1.0, 1.0), out=out[2, ...])
-        return np.moveaxis(out, 0, -1)
+        np.arcsin(np.minimum(np.maximum(qz / rho, -1.0), 1.0), out=out[2, ...])  # np.clip, without its wrapper
+        return out.T if out.ndim <= 2 else np.moveaxis(out, 0, -1)
 
     def jacobian(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """Analytic d[rho, alpha, delta]/dx (3, n) at one state x (n,)."""

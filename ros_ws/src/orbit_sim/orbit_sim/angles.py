@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -23,13 +24,25 @@ def wrapped_residual(z: np.ndarray, z_pred: np.ndarray, angle_indices: Sequence[
     """Difference z - z_pred with the given components wrapped; shared by all measurement models."""
     d = np.asarray(z, dtype=float) - np.asarray(z_pred, dtype=float)
     if len(angle_indices):
-        idx = _as_slice(angle_indices)
+        idx = as_slice(angle_indices)
         d[..., idx] = wrap_angle(d[..., idx])
     return d
 
 
-def _as_slice(indices: Sequence[int]) -> slice | list[int]:
-    """A slice for consecutive indices (a view, no gather/scatter copies), else the list."""
+def as_slice(indices: Sequence[int]) -> slice | list[int]:
+    """A slice for consecutive indices (a view, no gather/scatter copies), else the list. A model's indices
+    (a tuple) are looked up once: a filter asks for them twice per update."""
+    if isinstance(indices, tuple):
+        return _tuple_as_slice(indices)
+    return _slice_of(indices)
+
+
+@lru_cache(maxsize=64)
+def _tuple_as_slice(indices: tuple[int, ...]) -> slice | list[int]:
+    return _slice_of(indices)
+
+
+def _slice_of(indices: Sequence[int]) -> slice | list[int]:
     idx = [int(i) for i in indices]
     if idx == list(range(idx[0], idx[0] + len(idx))) and idx[0] >= 0:
         return slice(idx[0], idx[0] + len(idx))

@@ -93,6 +93,7 @@ class StarCatalogue:
     """(N,) number of Hipparcos stars merged into the entry (1 for a single star)."""
     epoch: float = HIPPARCOS_EPOCH
     _tree: cKDTree | None = field(default=None, init=False, repr=False, compare=False)
+    _neighbourhoods: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         order = np.argsort(self.magnitudes, kind="stable")
@@ -112,6 +113,25 @@ class StarCatalogue:
         if self._tree is None:
             self._tree = cKDTree(self.vectors)
         return self._tree
+
+    def neighbourhoods(self, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """(start (N + 1,), stars), read-only: the stars within ``radius`` (rad) of star a are
+        ``stars[start[a]:start[a + 1]]``, a itself last (a CSR index of the k-d tree's pairs). Built once per
+        radius: the trackers of a camera share their catalogue, and their identifiers the same radius."""
+        found = self._neighbourhoods.get(radius)
+        if found is None:
+            n = len(self)
+            pairs = self.tree.query_pairs(chord(radius), output_type="ndarray")
+            first = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+            second = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+            start = np.zeros(n + 1, dtype=np.intp)
+            start[1:] = np.bincount(first, minlength=n).cumsum()
+            # a stable sort by first: on 16-bit keys numpy's radix sort, the same order several times faster
+            keys = first.astype(np.int16) if n <= np.iinfo(np.int16).max else first
+            stars = second[keys.argsort(kind="stable")].astype(np.intp)
+            start.flags.writeable = stars.flags.writeable = False
+            found = self._neighbourhoods[radius] = (start, stars)
+        return found
 
     def cone(self, axis: np.ndarray, radius: float) -> np.ndarray:
         """Indices (ascending, i.e. brightest first) of the stars within ``radius`` (rad) of ``axis``."""

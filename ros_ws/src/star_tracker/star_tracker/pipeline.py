@@ -44,7 +44,6 @@ stars they are independent as long as the known rate is exact).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -52,11 +51,10 @@ import numpy as np
 from star_tracker.attitude import AttitudeSolution, error_vector, residuals, triad, wahba, wahba_matrix
 from star_tracker.camera import Camera
 from star_tracker.catalogue import ARCSEC, StarCatalogue
-from star_tracker.kvector import PairTable
 from star_tracker.motion import ConstantVelocity, CoordinatedTurn, MotionModel
 from star_tracker.options import AIDS, MOTIONS, SOLVERS, TRACKERS
 from star_tracker.pyramid import UNIDENTIFIED, PyramidIdentifier
-from star_tracker.star_camera import camera_of, catalogue_of
+from star_tracker.star_camera import camera_of, catalogue_of, pair_table
 from star_tracker.tracking import JPDAFTracker, SNATracker, image_velocity, member, predict_centroids
 
 BIAS_WINDOW = 10
@@ -459,13 +457,6 @@ class JPDAFTracking:
 TRACKING = {"sna": SNATracking, "jpdaf": JPDAFTracking}
 """The tracking strategy of each ``tracker`` (TRACKERS)."""
 assert tuple(TRACKING) == TRACKERS
-
-
-@lru_cache(maxsize=4)
-def pair_table(cam) -> PairTable:
-    """The k-vector of a camera's catalogue pairs (camera_stage.CameraConfig), built once per process and shared
-    by the trackers of one camera (it is read-only)."""
-    return PairTable(catalogue_of(cam), camera_of(cam).max_separation)
 
 
 def pipeline_for(conf, cam) -> StarTrackerPipeline:

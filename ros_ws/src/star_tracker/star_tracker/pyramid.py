@@ -108,25 +108,13 @@ class _Angles:
         return np.stack([self.column(c)[rows] for c in cols], axis=1)
 
 
-def _neighbourhoods(catalogue: StarCatalogue, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """(start (N + 1,), stars): the catalogue stars within ``radius`` of star a are
-    ``stars[start[a]:start[a + 1]]``, a itself last (a CSR index of the catalogue's k-d tree's pairs)."""
-    n = len(catalogue)
-    pairs = catalogue.tree.query_pairs(chord(radius), output_type="ndarray")
-    first = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-    second = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-    start = np.zeros(n + 1, dtype=np.intp)
-    start[1:] = np.bincount(first, minlength=n).cumsum()
-    return start, second[first.argsort(kind="stable")].astype(np.intp)
-
-
 class _Near:
     """The nearest catalogue star to directions in the field of a candidate triangle: brute force over the
-    catalogue stars within the identifier's reach of its first star a (``_neighbourhoods``), a few hundred dot
-    products instead of a k-d tree query. Exact: it answers only when every direction is close enough to a
-    that each star within the bound of it lies in a's neighbourhood (chord triangle inequality), else the
-    caller asks the k-d tree. Nearest by the largest dot product, the same order as the chord distance of
-    unit vectors (ties aside)."""
+    catalogue stars within the identifier's reach of its first star a (StarCatalogue.neighbourhoods), a few
+    hundred dot products instead of a k-d tree query. Exact: it answers only when every direction is close
+    enough to a that each star within the bound of it lies in a's neighbourhood (chord triangle inequality),
+    else the caller asks the k-d tree. Nearest by the largest dot product, the same order as the chord distance
+    of unit vectors (ties aside)."""
 
     def __init__(self, identifier: PyramidIdentifier, a: int) -> None:
         self.stars = identifier._near[identifier._near_start[a] : identifier._near_start[a + 1]]
@@ -182,7 +170,7 @@ class PyramidIdentifier:
         # _Near's neighbourhood radius: a frame spans camera.max_separation, the pyramid test searches 50 match
         # radii around a direction, and a candidate triangle's attitude puts a's centroid near a
         reach = camera.max_separation + 50.0 * self.match_radius + 4.0 * self.epsilon
-        self._near_start, self._near = _neighbourhoods(catalogue, reach)
+        self._near_start, self._near = catalogue.neighbourhoods(reach)
         self._reach_chord = float(chord(reach)) * (1.0 - 1e-9)  # (the margin: rounding of the chord distances)
         cone = camera.half_diagonal
         self._cone_radius = cone

@@ -1,6 +1,7 @@
 """The star camera's core (the node kind ``star_camera``: camera_stage.py): per attitude truth sample, the frame's
 measured centroids and their truth (frames.simulate_frame), with the gyro's body rate and its jitter part; and
-what a camera's settings (camera_stage.CameraConfig) make: its pinhole model and its on-board catalogue.
+what a camera's settings (camera_stage.CameraConfig) make: its pinhole model, its on-board catalogue and the
+k-vector of the catalogue's pairs.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from star_tracker.attitude import matrix_from_quaternion
 from star_tracker.camera import Camera
 from star_tracker.catalogue import StarCatalogue, load_catalogue
 from star_tracker.frames import FALSE_STAR, simulate_frame
+from star_tracker.kvector import PairTable
 from star_tracker.messages import StarFrame, star_truth_topic
 from star_tracker.truth_model import orbit_of
 
@@ -35,6 +37,22 @@ def catalogue_of(conf) -> StarCatalogue:
 @lru_cache(maxsize=2)
 def _catalogue(magnitude_limit: float, epoch: float, merge_arcsec: float, cache_dir: str | None) -> StarCatalogue:
     return load_catalogue(magnitude_limit, epoch, merge_arcsec, cache_dir=cache_dir)
+
+
+def pair_table(conf) -> PairTable:
+    """The k-vector of the pairs of a camera's catalogue (camera_stage.CameraConfig), built once per process and
+    shared (it is read-only) by the trackers of every camera with that catalogue and field, whatever its noise:
+    the cells of a sweep over sigma_px, forked from one process (bench_engine.preload), share one."""
+    c = conf
+    return _pair_table(c.magnitude_limit, c.epoch, c.merge_arcsec, c.cache_dir, c.fov_deg, c.width, c.height)
+
+
+@lru_cache(maxsize=4)
+def _pair_table(
+    magnitude_limit: float, epoch: float, merge_arcsec: float, cache_dir: str | None, fov: float, w: int, h: int
+) -> PairTable:
+    catalogue = _catalogue(magnitude_limit, epoch, merge_arcsec, cache_dir)
+    return PairTable(catalogue, Camera(fov, w, h).max_separation)
 
 
 def lvlh_boresight_rate(truth: TruthSection) -> float:

@@ -233,7 +233,7 @@ def _spec(cfg: dict, name: str) -> NodeSpec:
 
 def _check(cfg: dict, name: str) -> None:
     """Build the tracker's pipeline once at validation: a bad key stops the launch, and node processes forked
-    from the launcher inherit the camera's k-vector (pipeline.pair_table) instead of each building it."""
+    from the launcher inherit the camera's k-vector (star_camera.pair_table) instead of each building it."""
     build_pipeline(cfg, name)
 
 

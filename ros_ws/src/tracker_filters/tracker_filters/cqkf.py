@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench_models.models import DynamicsModel, MeasurementModel
+from orbit_sim.angles import as_slice
 from tracker_filters.covariance import ensure_pd
 from tracker_filters.cubature import cubature_quadrature_points
 from tracker_filters.filter_base import Filter
@@ -18,10 +19,11 @@ from tracker_filters.kf import cholesky_lower, gain_and_nis
 
 def weighted_measurement_mean(Y: np.ndarray, weights: np.ndarray, angle_indices: list[int]) -> np.ndarray:
     """Σ w_j Y_j (paper 004 eq. 22), with angle components replaced by the weighted circular mean."""
-    y = weights @ Y
+    y = weights.dot(Y)
     if angle_indices:
-        a = Y[:, angle_indices]
-        y[angle_indices] = np.arctan2(weights @ np.sin(a), weights @ np.cos(a))
+        idx = as_slice(angle_indices)
+        a = Y[:, idx]
+        y[idx] = np.arctan2(weights.dot(np.sin(a)), weights.dot(np.cos(a)))
     return y
 
 
@@ -45,27 +47,27 @@ class CubatureQuadratureKF(Filter):
             self.P, _ = ensure_pd(self.P)
             self._warnings.append(f"{self.name}: covariance failed Cholesky before sampling; repaired")
             S = cholesky_lower(self.P)
-        return self.x + self._xi @ S.T
+        return self.x + self._xi.dot(S.T)
 
     def _predict(self, dt: float) -> None:
         """Eqs. 16–18: propagate the points, weighted mean and spread, plus Q."""
         Q = self.dynamics.process_noise(self.x, dt)
         chi = self.dynamics.propagate(self._points(), dt)
-        self.x = self._w @ chi
+        self.x = self._w.dot(chi)
         D = chi - self.x
-        self.P = (D.T * self._w) @ D + Q
+        self.P = (D.T * self._w).dot(D) + Q
 
     def _update(self, z: np.ndarray, R: np.ndarray, model: MeasurementModel) -> float:
         """Eqs. 19–27; returns the normalised innovation squared νᵀ P_yy⁻¹ ν."""
         chi = self._points()
         Y = model.h(chi, self.t)
-        y_hat = weighted_measurement_mean(Y, self._w, list(model.angle_indices))
+        y_hat = weighted_measurement_mean(Y, self._w, model.angle_indices)
         dY = model.residual(Y, y_hat)
         dX = chi - self.x
-        P_yy = (dY.T * self._w) @ dY + R
-        P_xy = (dX.T * self._w) @ dY
+        P_yy = (dY.T * self._w).dot(dY) + R
+        P_xy = (dX.T * self._w).dot(dY)
         nu = model.residual(z, y_hat)
         K, nis = gain_and_nis(P_xy, P_yy, nu)
-        self.x = self.x + K @ nu
-        self.P = self.P - K @ P_yy @ K.T
+        self.x = self.x + K.dot(nu)
+        self.P = self.P - K.dot(P_yy).dot(K.T)
         return nis
