@@ -47,13 +47,11 @@ from bench_engine.labels import POSITION, VELOCITY
 from bench_engine.scenario import default_estimators
 from bench_engine.settings import NON_NEGATIVE, NoKeys, Settings, setting, variant
 from bench_eval import metrics
+from bench_eval.bag_data import BagData
 from bench_models.truth_dynamics import truth_dynamics
 from tracker_filters.builders import build_dynamics, build_filter_stack, measurement_source
 from tracker_filters.filter_settings import DynamicsSettings
 from tracker_filters.pcrb import pcrb_along_truth
-
-Run = Any
-"""A recorded run, bench_eval.scoring.BagData (which imports this module: not imported here, no circle)."""
 
 GROUPS = {"position": POSITION, "velocity": VELOCITY}
 
@@ -75,7 +73,7 @@ class Bound:
     """``run(bag data, params) -> BoundSeries``; ``check(cfg, params)`` raises ScenarioError naming a bad
     value before any run starts; ``params``: the Settings class of its parameters."""
 
-    run: Callable[[Run, Any], BoundSeries]
+    run: Callable[[BagData, Any], BoundSeries]
     check: Callable[[dict, Any], None]
     params: type = NoKeys
 
@@ -151,7 +149,7 @@ def score_bound(tracks: list[metrics.Track], bounds: list[BoundSeries], from_s: 
     return scores, series
 
 
-def compute_bounds(runs: list[Run], bounds: Mapping[str, BoundRun]) -> None:
+def compute_bounds(runs: list[BagData], bounds: Mapping[str, BoundRun]) -> None:
     """Compute each configured bound over each run once, into the run's ``bounds`` (name -> BoundSeries), where
     metric families may use it too (e.g. a bound in a sensor's coordinates)."""
     for data in runs:
@@ -161,7 +159,7 @@ def compute_bounds(runs: list[Run], bounds: Mapping[str, BoundRun]) -> None:
 
 
 def score_bounds(
-    tracks: Mapping[str, list[metrics.Track]], runs: list[Run], bounds: Mapping[str, BoundRun]
+    tracks: Mapping[str, list[metrics.Track]], runs: list[BagData], bounds: Mapping[str, BoundRun]
 ) -> tuple[dict, dict]:
     """({estimator: {bound: scores}}, {estimator: {bound: series}}) for every scored estimator whose tracks
     share components with the bound (module docstring), from the runs' bounds (:func:`compute_bounds`)."""
@@ -231,7 +229,7 @@ def _pcrb_check(cfg: dict, params: PcrbParameters) -> None:
         measurement_source(cfg, name, dynamics.labels)
 
 
-def _pcrb_run(data: Run, params: PcrbParameters) -> BoundSeries:
+def _pcrb_run(data: BagData, params: PcrbParameters) -> BoundSeries:
     """The PCRB (tracker_filters.pcrb) of the run: the truth at the steps where the bound's sensors delivered a
     scan, F and Q of ``dynamics`` between them, each scan's information H^T R^{-1} H with the sensor's own model
     and R. J_0 is the inverse of the prior filter's initial covariance, from its initialiser applied to the

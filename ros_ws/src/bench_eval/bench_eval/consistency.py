@@ -39,7 +39,7 @@ def score_without_truth(scenario: str, runs: list, with_series: bool):
 
 def innovation_scores(runs: list) -> dict[str, dict]:
     """{estimator: {"innovations": {...}}} for every run filter with estimates in ``runs`` (loaded bags:
-    bench_eval.scoring.BagData, which imports this module where it needs it)."""
+    bench_eval.bag_data.BagData)."""
     names = [
         n
         for n in dict.fromkeys(n for d in runs for n in d.run.get("estimators", []))

@@ -2,7 +2,7 @@
 
 The scorer computes two things per run from its bag alone, which may take a minute a run (grace_velocity's
 orbit fits and its orbit bound): the offline estimators' estimates (bench_eval.offline: an
-:class:`bench_eval.scoring.Estimates`) and the bounds (bench_eval.bounds: a :class:`bench_eval.bounds.BoundSeries`).
+:class:`bench_eval.bag_data.Estimates`) and the bounds (bench_eval.bounds: a :class:`bench_eval.bounds.BoundSeries`).
 Each result is written into the bag's directory as ``offline_cache/GROUP-NAME-KEY.npz`` (GROUP ``offline`` or
 ``bounds``, NAME its name in the scenario's ``scoring`` section) and read back the next time the same
 computation runs over the same bag, where KEY is the SHA-256 of:
@@ -277,7 +277,7 @@ def _mapped(f: BinaryIO, file: Path, info: zipfile.ZipInfo) -> np.ndarray:
 
 
 def store(file: Path, result) -> bool:
-    """Write ``result`` (a bench_eval.scoring.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
+    """Write ``result`` (a bench_eval.bag_data.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
     and an Estimates' x and diagnostics) to ``file`` atomically; True once it is there, False with a warning
     when the directory cannot be written."""
     arrays = {

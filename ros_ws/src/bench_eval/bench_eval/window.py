@@ -28,18 +28,13 @@ from __future__ import annotations
 import dataclasses
 import sys
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from bench_engine.config import ScenarioError
 from bench_engine.settings import NON_NEGATIVE, Settings, read, setting
 from bench_engine.timegrid import Time
-
-Run = Any
-"""A recorded run, bench_eval.scoring.BagData (which imports this module: not imported here, no circle)."""
-Estimates = Any
-"""One estimator's estimates of a run, bench_eval.scoring.Estimates."""
+from bench_eval.bag_data import BagData, Estimates
 
 EDGES = ("head", "tail")
 
@@ -58,7 +53,7 @@ class ScoringWindow(Settings):
         t = np.asarray(t, dtype=float)
         return {"window": (t >= lo) & (t <= hi), "head": (t >= t0) & (t < lo), "tail": (t > hi) & (t <= t1)}[part]
 
-    def cut(self, data: Run, scored: list[str], part: str = "window") -> tuple[Run, list[str]]:
+    def cut(self, data: BagData, scored: list[str], part: str = "window") -> tuple[BagData, list[str]]:
         """``data`` restricted to ``part`` of the run (its truth's span), and the estimators scored there: in the
         window, the steps where every scored estimator has a finite estimate; in an edge, each one's own steps."""
         t0, t1 = data.truth_span()
