@@ -99,7 +99,7 @@ class BagData:
 
     def truth_at(self, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(which of ``steps`` have a truth sample (K,) bool, their times (k,) s, their states (k, n)): the truth
-        looked up for many steps at once (its arrays built once per ``truth`` dict, as it is now)."""
+        looked up for many steps at once (arrays built by ``_truth_arrays``)."""
         known, t, states = self._truth_arrays()
         steps = np.asarray(steps, dtype=np.int64)
         at = np.minimum(np.searchsorted(known, steps), max(len(known) - 1, 0))
@@ -107,12 +107,15 @@ class BagData:
         return covered, t[at[covered]], states[at[covered]]
 
     def _truth_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The truth as arrays sorted by step (steps, t, states), built once per ``truth`` dict as it is now."""
+        """The truth as arrays sorted by step (steps, t, states), built again only when ``truth`` is another dict or
+        another size (a value replaced in place is not seen: the bench fills a truth once)."""
         if self._truth_index[0] is not self.truth or len(self._truth_index[1]) != len(self.truth):
             known = np.fromiter(self.truth, dtype=np.int64, count=len(self.truth))
             order = np.argsort(known, kind="stable")
             t = np.fromiter((tt for tt, _ in self.truth.values()), dtype=float, count=len(known))
-            states = np.array([s for _, s in self.truth.values()], dtype=float).reshape(len(known), -1)
+            states = np.array([s for _, s in self.truth.values()], dtype=float).reshape(
+                len(known), -1 if known.size else 0
+            )
             self._truth_index = (self.truth, known[order], t[order], states[order])
         return self._truth_index[1:]
 
