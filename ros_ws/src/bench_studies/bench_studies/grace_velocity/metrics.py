@@ -181,8 +181,9 @@ def _kbr_noise(data: BagData, options: RangeRateOptions) -> float | None:
         return None
     steps = np.fromiter(kbr, dtype=np.int64, count=len(kbr))
     covered, _, truth = data.truth_at(steps)
+    baseline = truth[:, cols]
     z = np.array([kbr[k][-1] for k in steps[covered].tolist()])
-    return float(np.std(z - range_rate(truth[:, cols][:, :3], truth[:, cols][:, 3:])))
+    return float(np.std(z - range_rate(baseline[:, :3], baseline[:, 3:])))
 
 
 def range_rate_bound(data: BagData, series) -> np.ndarray:
