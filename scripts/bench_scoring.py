@@ -9,7 +9,11 @@ Carlo's output directory), then times ``score.py`` on all of them as a user runs
   filling cache    ``--jobs JOBS`` after the bags' offline_cache/ folders are removed: fits and keeps them
   from cache       ``--jobs JOBS`` again: each offline estimator's result read back (bench_eval.offline_cache)
 
-and prints the wall times with their share of the one-core time. The default is grace_velocity's
+and prints the wall times with their share of the one-core time. Then what the machine itself allows: one bag
+scored alone on one CPU against JOBS copies of it scored at once, one per CPU (twice each, alternated). JOBS
+copies at once taking longer than one alone (shared caches and memory bandwidth, a host's other load on its
+virtual CPUs) is a slowdown no scheduling can win back: JOBS jobs then take at least slowdown / JOBS of the
+one-core time. The default is grace_velocity's
 dynamic variant, whose orbit fits make scoring the long part of its Monte Carlo. Nothing is asserted: these
 are measurements.
 
@@ -35,6 +39,8 @@ from bench_eval.offline_cache import DIRECTORY as CACHE_DIR
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 SCRIPTS = Path(__file__).resolve().parent
+FLOOR_REPEATS = 2
+"""How many times the machine's slowdown is measured (one alone, then the copies at once)."""
 
 
 def run(cmd: list[str], cpus: set[int] | None = None) -> float:
@@ -48,6 +54,37 @@ def run(cmd: list[str], cpus: set[int] | None = None) -> float:
             f"error: {' '.join(Path(c).name if c.endswith('.py') else c for c in cmd)} failed:\n{done.stderr[-2000:]}"
         )
     return time.perf_counter() - start
+
+
+def at_once(cmds: list[list[str]], cpus: list[int]) -> float:
+    """Run the commands at once, each pinned to its own CPU; the wall time until the last ends, in s."""
+    start = time.perf_counter()
+    procs = [
+        subprocess.Popen(
+            [sys.executable, *cmd],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=lambda cpu=cpu: os.sched_setaffinity(0, {cpu}),
+        )
+        for cmd, cpu in zip(cmds, cpus)
+    ]
+    for proc in procs:
+        _, err = proc.communicate()
+        if proc.returncode != 0:
+            sys.exit(f"error: score.py failed:\n{err[-2000:]}")
+    return time.perf_counter() - start
+
+
+def machine_slowdown(score_one: list[str], jobs: int, repeats: int = FLOOR_REPEATS) -> tuple[float, float]:
+    """The mean wall time of ``score_one`` alone on one CPU and of ``jobs`` copies of it at once, one per CPU
+    (alternated ``repeats`` times)."""
+    cpus = sorted(os.sched_getaffinity(0))[:jobs]
+    alone, together = [], []
+    for _ in range(repeats):
+        alone.append(run(score_one, cpus={cpus[0]}))
+        together.append(at_once([score_one] * len(cpus), cpus))
+    return sum(alone) / repeats, sum(together) / repeats
 
 
 def make_bags(args: argparse.Namespace, out: Path) -> float:
@@ -79,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(bag / CACHE_DIR, ignore_errors=True)
         filling = run([*score, "--jobs", str(args.jobs)])
         cached = run([*score, "--jobs", str(args.jobs)])
+        jobs = min(args.jobs, len(os.sched_getaffinity(0)))
+        alone, together = machine_slowdown([str(SCRIPTS / "score.py"), str(bags[0]), "--json", "--no-cache"], jobs)
     variant = f" --variant {args.variant}" if args.variant else ""
     print(f"score.py on {len(bags)} bags of {args.scenario}{variant}; {os.cpu_count()} CPUs")
     if made is not None:
@@ -91,6 +130,12 @@ def main(argv: list[str] | None = None) -> int:
         (f"{args.jobs} jobs, from the cache", cached),
     ):
         print(f"| {name} | {wall:.1f} | {wall / one:.2f} |")
+    slowdown = together / alone
+    print(
+        f"\nThis machine: one bag scored alone on one CPU {alone:.1f} s, {jobs} copies at once (one per CPU) "
+        f"{together:.1f} s (means of {FLOOR_REPEATS}): a slowdown of {slowdown:.3f}, so {jobs} jobs take at least "
+        f"{slowdown / jobs:.3f} of the one-core time here."
+    )
     return 0
 
 
