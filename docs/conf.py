@@ -14,6 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import yaml
+
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(DOCS / "_ext"))
@@ -40,17 +42,7 @@ html_title = project
 html_static_path: list[str] = []
 
 # api_pages: one page per package, every module that imports no ROS client library at its top level.
-api_packages = [
-    "bench_engine",
-    "orbit_sim",
-    "bench_models",
-    "radar_sensor",
-    "tracker_filters",
-    "star_tracker",
-    "bench_eval",
-    "bench_ccsds",
-    "bench_studies",
-]
+api_packages = yaml.safe_load((ROOT / "ros_ws" / "packages.yaml").read_text())["layers"]  # lowest layer first
 
 # Every reference is checked (nitpicky), except to what lies outside the bench: the standard library, numpy,
 # scipy and the other libraries its signatures name have no inventory here (the site is built offline).

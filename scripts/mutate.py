@@ -35,21 +35,14 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import yaml
+
 ROOT = Path(__file__).resolve().parent.parent
 SRC = "ros_ws/src"
 COPIED = ("ros_ws/src", "tests", "scripts", "pytest.ini")
 SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache", "build", "install", "log")
-PACKAGES = (
-    "bench_engine",
-    "orbit_sim",
-    "bench_models",
-    "radar_sensor",
-    "tracker_filters",
-    "star_tracker",
-    "bench_eval",
-    "bench_studies",
-)
-"""The editable packages (ros_ws/src/PKG): the copy's are put on PYTHONPATH in this order."""
+PACKAGES = tuple(yaml.safe_load((ROOT / "ros_ws" / "packages.yaml").read_text())["layers"])
+"""The editable packages (ros_ws/src/PKG), lowest layer first: the copy's are put on PYTHONPATH in this order."""
 
 
 @dataclass(frozen=True)

@@ -25,20 +25,12 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
-PACKAGES = (
-    "bench_engine",
-    "orbit_sim",
-    "bench_models",
-    "radar_sensor",
-    "tracker_filters",
-    "star_tracker",
-    "bench_eval",
-    "bench_ccsds",
-    "bench_studies",
-)
+PACKAGES = tuple(yaml.safe_load((SRC.parent / "packages.yaml").read_text())["layers"])
+"""The bench's packages, lowest layer first (ros_ws/packages.yaml)."""
 
 TREE = [ROOT / "ros_ws" / "src", ROOT / "scripts", ROOT / "tests"]
 """Where the rules on function-level imports apply."""

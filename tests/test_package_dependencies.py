@@ -27,18 +27,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "ros_ws" / "src"
-LAYERS = (
-    "bench_engine",
-    "orbit_sim",
-    "bench_models",
-    "radar_sensor",
-    "tracker_filters",
-    "star_tracker",
-    "bench_eval",
-    "bench_ccsds",
-    "bench_studies",
-)
-"""Lowest first. bench_msgs (generated messages) is below all of them."""
+LAYERS = tuple(yaml.safe_load((SRC.parent / "packages.yaml").read_text())["layers"])
+"""Lowest first (ros_ws/packages.yaml). bench_msgs (generated messages) is below all of them."""
 PRESENT = [p for p in LAYERS if (SRC / p / p).is_dir()]
 WORKSPACE_PACKAGES = {p.parent.name for p in SRC.glob("*/package.xml")}
 ROSDEP_KEYS = {
@@ -144,7 +134,7 @@ def declared(package: str, tags: tuple[str, ...]) -> set[str]:
 
 def test_the_layers_list_every_package_of_the_workspace():
     packages = {p.name for p in SRC.iterdir() if (p / "setup.py").is_file()}
-    assert packages == set(PRESENT), "add a new package to LAYERS at its place in the dependency order"
+    assert packages == set(PRESENT), "add a new package to ros_ws/packages.yaml at its place in the dependency order"
 
 
 @pytest.mark.parametrize("package", PRESENT)
