@@ -14,12 +14,17 @@ pre-1972 rate lines are left out, no bench date is before 1972). Orekit needs it
 dates ("no IERS UTC-TAI history data loaded" otherwise). CENTER_NAME EARTH makes the parser build the Earth as a
 celestial body, which Orekit loads from JPL ephemerides the bench does not ship; the parser only stores it, so
 the test registers a stand-in Earth (name and GM) in place of the ephemerides. One JVM for the module (about 4 s
-to start; a JVM cannot be restarted in a process).
+to start; a JVM cannot be restarted in a process). The JVM starts on pytest's main thread, which it then treats
+as a Java thread of ``-Xss`` stack: :func:`vm_args` gives it the stack the process's limit grants (see there).
 """
 
 from __future__ import annotations
 
 import datetime as dt_
+import os
+import resource
+import subprocess
+import sys
 from pathlib import Path
 
 import jpype
@@ -37,10 +42,25 @@ from orbit_sim.frames import gmst82, julian_date
 
 DATA = Path(__file__).parent / "data" / "orekit"
 RTOL = 1e-15
-VM_ARGS = "-Xrs,-XX:TieredStopAtLevel=1"
-"""-Xrs: the JVM leaves SIGINT, SIGTERM and SIGHUP to Python (pytest's Ctrl-C, the graph's signals).
-TieredStopAtLevel=1 (the quick C1 compiler only): less CPU than the optimising compiler for parsing a few
-thousand lines once (``/usr/bin/time -f '%U' .venv/bin/python -m pytest tests/test_ccsds_orekit.py``)."""
+JVM_MAX_XSS = 1 << 30
+"""The largest -Xss HotSpot accepts (1 GiB)."""
+
+
+def stack_limit() -> int:
+    """The stack the process's limit (RLIMIT_STACK) grants its main thread, in bytes, at most JVM_MAX_XSS."""
+    soft, _hard = resource.getrlimit(resource.RLIMIT_STACK)
+    return JVM_MAX_XSS if soft == resource.RLIM_INFINITY else min(soft, JVM_MAX_XSS)
+
+
+def vm_args() -> str:
+    """The JVM's options. -Xrs: the JVM leaves SIGINT, SIGTERM and SIGHUP to Python (pytest's Ctrl-C, the graph's
+    signals). TieredStopAtLevel=1 (the quick C1 compiler only): less CPU than the optimising compiler for parsing
+    a few thousand lines once (``/usr/bin/time -f '%U' .venv/bin/python -m pytest tests/test_ccsds_orekit.py``).
+    -Xss: the stack limit of the process (:func:`stack_limit`). Started on the process's main thread, HotSpot
+    caps that thread's stack at -Xss with guard pages (1 MiB by default) for the life of the process: any later
+    test of the same pytest process, e.g. OpenBLAS's multithreaded LU (dgetrf_parallel, half a MiB of stack a
+    level) under np.linalg.inv, would overflow into them and die of SIGSEGV."""
+    return f"-Xrs,-XX:TieredStopAtLevel=1,-Xss{stack_limit() // 1024}k"
 
 
 def java(name: str):
@@ -90,7 +110,7 @@ class StandInLoader:
 def orekit():
     """The Orekit classes the tests use, on a JVM started once, with the leap seconds and a stand-in Earth."""
     if not jpype.isJVMStarted():
-        orekit_jpype.initVM(vmargs=VM_ARGS)
+        orekit_jpype.initVM(vmargs=vm_args())
     file, frames = java("java.io.File"), java("org.orekit.frames.FramesFactory")
     context = java("org.orekit.data.DataContext").getDefault()
     context.getDataProvidersManager().addProvider(java("org.orekit.data.DirectoryCrawler")(file(str(DATA))))
@@ -119,6 +139,35 @@ def orekit():
         z_axis = java("org.hipparchus.geometry.euclidean.threed.Vector3D").PLUS_K
 
     return Orekit
+
+
+STACK_PROBE = """
+import numpy as np, orekit_jpype
+from test_ccsds_orekit import vm_args
+orekit_jpype.initVM(vmargs=vm_args())
+maps = [line.split() for line in open("/proc/self/maps")]
+spans = [[int(a, 16) for a in m[0].split("-")] for m in maps]
+top = next(k for k, m in enumerate(maps) if m[-1] == "[stack]")
+room = spans[top][1] - max(hi for lo, hi in spans if hi <= spans[top][0])
+a = np.random.default_rng(0).normal(size=(200, 200)) + 200 * np.eye(200)
+print(room, np.abs(np.linalg.inv(a) @ a - np.eye(200)).max())
+"""
+"""Starts the JVM as the fixture does, then prints the room the main thread's stack has below its top (to the next
+mapping: the JVM's guard pages if it put any) and the error of an inverse by OpenBLAS's threaded LU (a deep stack)."""
+
+
+def test_the_jvm_leaves_the_main_thread_the_stack_of_the_process_limit():
+    """In a child process (a JVM and a crash are the process's): after the JVM starts on the main thread, that
+    thread can still grow its stack to the limit (within 64 KiB: the pages HotSpot keeps), and a 200 x 200 inverse
+    by two OpenBLAS threads (dgetrf_parallel: half a MiB of stack a level) runs instead of dying of SIGSEGV."""
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="2")
+    cwd = Path(__file__).parent
+    res = subprocess.run(
+        [sys.executable, "-c", STACK_PROBE], capture_output=True, text=True, timeout=120, env=env, cwd=cwd
+    )
+    assert res.returncode == 0, (res.returncode, res.stdout, res.stderr[-2000:])
+    room, residual = (float(x) for x in res.stdout.split()[-2:])
+    assert stack_limit() - 64 * 1024 <= room and residual < 1e-12
 
 
 @pytest.fixture(scope="module")
