@@ -126,14 +126,17 @@ def test_a_second_scoring_reads_the_offline_results_back(bags, calls):
     assert again == first  # read back exactly
 
 
-def test_pool_workers_hand_cached_results_over_by_file(bags):
+def test_pool_workers_hand_cached_results_over_by_file(bags, tmp_path):
     """Workers of a process pool leave out the arrays a cache file holds; the scorer maps them from the file: the
     same scores as in one process, exactly (the same files), filling the cache and reading it back."""
     serial = score_bags(bags, jobs=1)
     assert score_bags(bags, jobs=2) == serial
     data = scoring.prepared(bags[0])
     assert sorted(data.kept) == sorted([*(("offline", n) for n in OFFLINE), ("bounds", "pcrb")])
-    handed = scoring._handed_over(data)
+    hand_over = tmp_path / "hand_over"
+    hand_over.mkdir()
+    handed = scoring._handed_over(data, hand_over)
+    assert list(hand_over.iterdir()) == []  # every result is in the cache already
     assert [handed.estimates[n] for n in OFFLINE] == [None] * 3 and handed.bounds["pcrb"] is None
     assert handed.estimates[data.run["estimators"][0]] is data.estimates[data.run["estimators"][0]]
     back = scoring._taken_back(handed, cache=True)
@@ -143,9 +146,27 @@ def test_pool_workers_hand_cached_results_over_by_file(bags):
     assert list(back.estimates) == list(data.estimates)
 
 
-def test_a_cache_file_gone_before_it_is_taken_back_is_computed_again(bags, calls):
+def test_without_the_cache_workers_hand_results_over_by_file_too(bags, tmp_path):
+    """With the cache off, a worker writes its results to the hand-over directory and the scorer maps them from
+    there: the same arrays, the same scores as in one process."""
+    assert score_bags(bags, jobs=2, cache=False) == score_bags(bags, jobs=1, cache=False)
+    data = scoring.prepared(bags[0], cache=False)
+    assert data.kept == {}
+    hand_over = tmp_path / "hand_over"
+    hand_over.mkdir()
+    handed = scoring._handed_over(data, hand_over)
+    assert len(list(hand_over.glob("*.npz"))) == len(OFFLINE) + 1
+    assert [handed.estimates[n] for n in OFFLINE] == [None] * 3 and handed.bounds["pcrb"] is None
+    back = scoring._taken_back(handed, cache=False)
+    for name in OFFLINE:
+        assert isinstance(back.estimates[name].P, np.memmap)
+        np.testing.assert_array_equal(back.estimates[name].x, data.estimates[name].x)
+    np.testing.assert_array_equal(back.bounds["pcrb"].P, data.bounds["pcrb"].P)
+
+
+def test_a_cache_file_gone_before_it_is_taken_back_is_computed_again(bags, calls, tmp_path):
     data = scoring.prepared(bags[0])
-    handed = scoring._handed_over(data)
+    handed = scoring._handed_over(data, tmp_path)
     data.kept["offline", "ss_rts"].unlink()
     calls.clear()
     back = scoring._taken_back(handed, cache=True)

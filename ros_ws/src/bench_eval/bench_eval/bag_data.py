@@ -81,8 +81,9 @@ class BagData:
     offline: list[str] = field(default_factory=list)
     """The offline estimators whose estimates joined ``estimates`` (run_offline)."""
     kept: dict[tuple[str, str], Path] = field(default_factory=dict)
-    """(group, name) -> the cache file that holds that result of ``estimates`` (group ``offline``) or ``bounds``
-    (bench_eval.offline_cache), for each result read from or written to the cache."""
+    """(group, name) -> the file that holds that result of ``estimates`` (group ``offline``) or ``bounds``: its
+    cache file (bench_eval.offline_cache), for each result read from or written to the cache, or the file a
+    scoring worker handed it over in (bench_eval.scoring.prepare_runs)."""
     _truth_index: tuple = field(default=(None,), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:

@@ -276,10 +276,10 @@ def _mapped(f: BinaryIO, file: Path, info: zipfile.ZipInfo) -> np.ndarray:
     return np.memmap(file, dtype, "r", offset, shape, "F" if fortran else "C")
 
 
-def store(file: Path, result) -> bool:
+def store(file: Path, result, instead: str = "scored without a cache") -> bool:
     """Write ``result`` (a bench_eval.bag_data.Estimates or a bench_eval.bounds.BoundSeries: steps, t, P, labels,
     and an Estimates' x and diagnostics) to ``file`` atomically; True once it is there, False with a warning
-    when the directory cannot be written."""
+    (saying what happens ``instead``) when the directory cannot be written."""
     arrays = {
         "steps": np.asarray(result.steps, dtype=np.int64),
         "t": np.asarray(result.t, dtype=float),
@@ -305,6 +305,6 @@ def store(file: Path, result) -> bool:
     except OSError as err:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
-        _warn(f"could not keep a result in {file.parent} ({err.strerror or err}); scored without a cache")
+        _warn(f"could not keep a result in {file.parent} ({err.strerror or err}); {instead}")
         return False
     return True

@@ -10,6 +10,8 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing
 import os
+import tempfile
+import uuid
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import partial
@@ -123,27 +125,36 @@ def in_scoring_worker() -> bool:
     return _IN_WORKER
 
 
-def _prepared_in_worker(run: Path | str | BagData, cache: bool = True, hand_over: bool = False) -> BagData:
+def _prepared_in_worker(run: Path | str | BagData, cache: bool = True, hand_over: Path | None = None) -> BagData:
     """:func:`prepared` in a scoring worker (:func:`in_scoring_worker`); with ``hand_over`` (a worker on this
-    host, which sees the same files) its results that are kept in cache files left out (:func:`_handed_over`)."""
+    host, which sees the same files: a directory) its results handed over by file (:func:`_handed_over`)."""
     global _IN_WORKER
     _IN_WORKER = True
     data = prepared(run, cache)
-    return _handed_over(data) if hand_over else data
+    return data if hand_over is None else _handed_over(data, hand_over)
 
 
-def _handed_over(data: BagData) -> BagData:
-    """``data`` without the arrays of its results that cache files hold (``data.kept``; each left as None in its
-    place): the process it goes to maps them from the files (:func:`_taken_back`) instead of receiving them
-    through a pipe (a grace_velocity day's orbit fits are ~100 MB a run)."""
+def _handed_over(data: BagData, directory: Path) -> BagData:
+    """``data`` without the arrays of its offline results and bounds (each left as None in its place), which go
+    by file: those the cache keeps stay where they are (``data.kept``), the others are first written to
+    ``directory`` (bench_eval.offline_cache.store; a result that cannot be written stays in ``data``). The process
+    it goes to maps them from the files (:func:`_taken_back`) instead of receiving them through a pipe: a
+    grace_velocity day's orbit fits are ~100 MB a run, and pickling them through the pipe cost two jobs ~5 % of
+    their wall time against passing files (scripts/bench_scoring.py: no cache against filling the cache)."""
+    for group, results in (("offline", data.estimates), ("bounds", data.bounds)):
+        for name in data.offline if group == "offline" else list(data.bounds):
+            if (group, name) not in data.kept and results.get(name) is not None:
+                file = directory / f"{group}-{name}-{uuid.uuid4().hex}.npz"
+                if offline_cache.store(file, results[name], "sent through the pipe"):
+                    data.kept[group, name] = file
     estimates = {n: None if ("offline", n) in data.kept else e for n, e in data.estimates.items()}
     bounds = {n: None if ("bounds", n) in data.kept else b for n, b in data.bounds.items()}
     return dataclasses.replace(data, estimates=estimates, bounds=bounds)
 
 
 def _taken_back(data: BagData, cache: bool) -> BagData:
-    """A run from :func:`_handed_over` with its results mapped from their cache files; prepared again here if a
-    file cannot be read any more (removed or replaced since)."""
+    """A run from :func:`_handed_over` with its results mapped from their files; prepared again here if a file
+    cannot be read any more (removed or replaced since)."""
     for (group, name), file in data.kept.items():
         arrays = offline_cache.load(file, group)
         if arrays is None:
@@ -168,10 +179,13 @@ def prepare_runs(
     if jobs == 1 or len(runs) == 1:
         return [prepared(r, cache) for r in tqdm(runs, unit="run", desc="scoring", disable=len(runs) == 1)]
     # forkserver, not fork: a process forked from a threaded one (a test runner, a node) may inherit a held lock
-    with ProcessPoolExecutor(min(jobs, len(runs)), mp_context=multiprocessing.get_context("forkserver")) as pool:
-        task = partial(_prepared_in_worker, cache=cache, hand_over=True)  # a worker here: the same files
+    with (
+        tempfile.TemporaryDirectory(prefix="scoring-") as hand_over,
+        ProcessPoolExecutor(min(jobs, len(runs)), mp_context=multiprocessing.get_context("forkserver")) as pool,
+    ):
+        task = partial(_prepared_in_worker, cache=cache, hand_over=Path(hand_over))  # a worker here: the same files
         done = tqdm(pool.map(task, runs), total=len(runs), unit="run", desc="scoring")
-        return [_taken_back(data, cache) for data in done]
+        return [_taken_back(data, cache) for data in done]  # mapped: the files may go (POSIX keeps mapped data)
 
 
 def track_of(data: BagData, filter_name: str) -> metrics.Track:
