@@ -13,9 +13,10 @@ and prints the wall times with their share of the one-core time. Then what the m
 scored alone on one CPU against JOBS copies of it scored at once, one per CPU (twice each, alternated). JOBS
 copies at once taking longer than one alone (shared caches and memory bandwidth, a host's other load on its
 virtual CPUs) is a slowdown no scheduling can win back: JOBS jobs then take at least slowdown / JOBS of the
-one-core time. The default is grace_velocity's
-dynamic variant, whose orbit fits make scoring the long part of its Monte Carlo. Nothing is asserted: these
-are measurements.
+one-core time.
+
+The default is grace_velocity's dynamic variant, whose orbit fits make scoring the long part of its Monte Carlo.
+Nothing is asserted: these are measurements.
 
 Example:
   .venv/bin/python scripts/bench_scoring.py                                # grace_velocity dynamic, 20 runs

@@ -138,9 +138,8 @@ def _handed_over(data: BagData, directory: Path) -> BagData:
     """``data`` without the arrays of its offline results and bounds (each left as None in its place), which go
     by file: those the cache keeps stay where they are (``data.kept``), the others are first written to
     ``directory`` (bench_eval.offline_cache.store; a result that cannot be written stays in ``data``). The process
-    it goes to maps them from the files (:func:`_taken_back`) instead of receiving them through a pipe: a
-    grace_velocity day's orbit fits are ~100 MB a run, and pickling them through the pipe cost two jobs ~5 % of
-    their wall time against passing files (scripts/bench_scoring.py: no cache against filling the cache)."""
+    it goes to maps them from the files (:func:`_taken_back`) instead of receiving them pickled through a pipe
+    (a grace_velocity day's orbit fits are ~100 MB a run)."""
     for group, results in (("offline", data.estimates), ("bounds", data.bounds)):
         for name in data.offline if group == "offline" else list(data.bounds):
             if (group, name) not in data.kept and results.get(name) is not None:
