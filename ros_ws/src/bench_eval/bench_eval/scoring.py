@@ -140,12 +140,12 @@ def _handed_over(data: BagData, directory: Path) -> BagData:
     ``directory`` (bench_eval.offline_cache.store; a result that cannot be written stays in ``data``). The process
     it goes to maps them from the files (:func:`_taken_back`) instead of receiving them pickled through a pipe
     (a grace_velocity day's orbit fits are ~100 MB a run)."""
-    for group, results in (("offline", data.estimates), ("bounds", data.bounds)):
-        for name in data.offline if group == "offline" else list(data.bounds):
-            if (group, name) not in data.kept and results.get(name) is not None:
-                file = directory / f"{group}-{name}-{uuid.uuid4().hex}.npz"
-                if offline_cache.store(file, results[name], "sent through the pipe"):
-                    data.kept[group, name] = file
+    results = [("offline", n, data.estimates[n]) for n in data.offline] + [("bounds", *b) for b in data.bounds.items()]
+    for group, name, result in results:
+        if (group, name) not in data.kept:
+            file = directory / f"{group}-{name}-{uuid.uuid4().hex}.npz"
+            if offline_cache.store(file, result, "sent through the pipe"):
+                data.kept[group, name] = file
     estimates = {n: None if ("offline", n) in data.kept else e for n, e in data.estimates.items()}
     bounds = {n: None if ("bounds", n) in data.kept else b for n, b in data.bounds.items()}
     return dataclasses.replace(data, estimates=estimates, bounds=bounds)
