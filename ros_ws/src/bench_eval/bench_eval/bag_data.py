@@ -121,8 +121,8 @@ class BagData:
 
     def __getstate__(self) -> dict:
         """The fields as pickled (a run sent between a scoring worker and the main process), the truth's and each
-        sensor's values by step packed into arrays (:class:`PerStep`): a day's ~18,700 steps pickled as one small
-        array each took ~0.35 s to write and ~0.25 s to read, a run, both processes on the same cores."""
+        sensor's values by step packed into arrays (:class:`PerStep`), not pickled as one small array a step: both
+        processes spend that time on the cores the other runs need."""
         state = dict(self.__dict__, _truth_index=(None,))
         state["truth"] = PerStep.packed(self.truth, timed=True)
         state["measurements"] = {name: PerStep.packed(z) for name, z in self.measurements.items()}
