@@ -9,7 +9,11 @@ Carlo's output directory), then times ``score.py`` on all of them as a user runs
   filling cache    ``--jobs JOBS`` after the bags' offline_cache/ folders are removed: fits and keeps them
   from cache       ``--jobs JOBS`` again: each offline estimator's result read back (bench_eval.offline_cache)
 
-and prints the wall times with their share of the one-core time. Then what the machine itself allows: one bag
+The two long JOBS rows are measured ``--rounds`` times in alternation (no cache, filling, no cache, filling, ...),
+so that neither always runs first after the one-core run. It prints each row's wall time per round, their mean and
+its share of the one-core time, and the CPU time the host took from this virtual machine while the row ran (steal,
+/proc/stat; empty where the kernel does not count it): time a row waited for a CPU its own work did not use.
+Then what the machine itself allows: one bag
 scored alone on one CPU against JOBS copies of it scored at once, one per CPU (twice each, alternated). JOBS
 copies at once taking longer than one alone (shared caches and memory bandwidth, a host's other load on its
 virtual CPUs) is a slowdown no scheduling can win back: JOBS jobs then take at least slowdown / JOBS of the
@@ -33,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from bench_eval.offline_cache import DIRECTORY as CACHE_DIR
@@ -42,6 +47,43 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 SCRIPTS = Path(__file__).resolve().parent
 FLOOR_REPEATS = 2
 """How many times the machine's slowdown is measured (one alone, then the copies at once)."""
+STAT = Path("/proc/stat")
+"""The kernel's CPU time counters; the 'cpu' line's eighth value is the time the host ran others on our CPUs."""
+
+
+def steal() -> float | None:
+    """The CPU time the host has taken from this (virtual) machine since it booted, s (/proc/stat's steal); None
+    where the kernel does not say."""
+    try:
+        fields = STAT.read_text().split("\n", 1)[0].split()
+        return int(fields[8]) / os.sysconf("SC_CLK_TCK") if fields[0] == "cpu" and len(fields) > 8 else None
+    except (OSError, ValueError):
+        return None
+
+
+@dataclass
+class Row:
+    """A measured row: its wall times (one per round) and the host's steal over them, s (None: not counted)."""
+
+    name: str
+    walls: list[float] = field(default_factory=list)
+    stolen: float | None = 0.0
+
+    def time(self, cmd: list[str], cpus: set[int] | None = None) -> None:
+        """Run ``cmd`` (:func:`run`) once more."""
+        before = steal()
+        self.walls.append(run(cmd, cpus))
+        after = steal()
+        self.stolen = None if None in (before, after, self.stolen) else self.stolen + after - before
+
+    @property
+    def mean(self) -> float:
+        return sum(self.walls) / len(self.walls)
+
+    def line(self, one: float) -> str:
+        stolen = "" if self.stolen is None else f"{self.stolen:.1f}"
+        walls = ", ".join(f"{w:.1f}" for w in self.walls)
+        return f"| {self.name} | {walls} | {self.mean:.1f} | {self.mean / one:.3f} | {stolen} |"
 
 
 def run(cmd: list[str], cpus: set[int] | None = None) -> float:
@@ -101,9 +143,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--runs", type=int, default=20, help="Monte Carlo runs to make (default 20)")
     p.add_argument("--bags", type=Path, help="score this Monte Carlo's bags (OUT/run_*/bag) instead of making them")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel jobs (default: every CPU)")
+    p.add_argument(
+        "--rounds", type=int, default=2, help="times the two long JOBS rows are measured, alternated (default 2)"
+    )
     args = p.parse_args(argv)
-    if args.runs < 1 or args.jobs < 1:
-        p.error("--runs and --jobs must be at least 1")
+    if min(args.runs, args.jobs, args.rounds) < 1:
+        p.error("--runs, --jobs and --rounds must be at least 1")
     with tempfile.TemporaryDirectory() as tmp:
         mc = args.bags or Path(tmp) / "mc"
         made = None if args.bags else make_bags(args, mc)
@@ -111,26 +156,33 @@ def main(argv: list[str] | None = None) -> int:
         if not bags:
             sys.exit(f"error: {mc}: no Monte Carlo bags (run_*/bag) in it")
         score = [str(SCRIPTS / "score.py"), *map(str, bags), "--json"]
-        one = run([*score, "--jobs", "1", "--no-cache"], cpus={min(os.sched_getaffinity(0))})
-        parallel = run([*score, "--jobs", str(args.jobs), "--no-cache"])
-        for bag in bags:
-            shutil.rmtree(bag / CACHE_DIR, ignore_errors=True)
-        filling = run([*score, "--jobs", str(args.jobs)])
-        cached = run([*score, "--jobs", str(args.jobs)])
+        rows = [
+            Row(name)
+            for name in (
+                "one job on one core, no cache",
+                f"{args.jobs} jobs, no cache",
+                f"{args.jobs} jobs, filling the cache",
+                f"{args.jobs} jobs, from the cache",
+            )
+        ]
+        rows[0].time([*score, "--jobs", "1", "--no-cache"], cpus={min(os.sched_getaffinity(0))})
+        for _ in range(args.rounds):
+            rows[1].time([*score, "--jobs", str(args.jobs), "--no-cache"])
+            for bag in bags:
+                shutil.rmtree(bag / CACHE_DIR, ignore_errors=True)
+            rows[2].time([*score, "--jobs", str(args.jobs)])
+        rows[3].time([*score, "--jobs", str(args.jobs)])
         jobs = min(args.jobs, len(os.sched_getaffinity(0)))
         alone, together = machine_slowdown([str(SCRIPTS / "score.py"), str(bags[0]), "--json", "--no-cache"], jobs)
     variant = f" --variant {args.variant}" if args.variant else ""
     print(f"score.py on {len(bags)} bags of {args.scenario}{variant}; {os.cpu_count()} CPUs")
     if made is not None:
         print(f"(making them: montecarlo.py --runs {args.runs} --jobs {args.jobs}, scored once, {made:.0f} s)")
-    print("| scoring | wall [s] | of one core |\n|---|---|---|")
-    for name, wall in (
-        ("one job on one core, no cache", one),
-        (f"{args.jobs} jobs, no cache", parallel),
-        (f"{args.jobs} jobs, filling the cache", filling),
-        (f"{args.jobs} jobs, from the cache", cached),
-    ):
-        print(f"| {name} | {wall:.1f} | {wall / one:.2f} |")
+    print(f"(the two long {args.jobs}-job rows alternated, {args.rounds} rounds)")
+    print("| scoring | wall per round [s] | mean [s] | of one core | taken by the host [CPU s] |")
+    print("|---|---|---|---|---|")
+    for row in rows:
+        print(row.line(rows[0].mean))
     slowdown = together / alone
     print(
         f"\nThis machine: one bag scored alone on one CPU {alone:.1f} s, {jobs} copies at once (one per CPU) "

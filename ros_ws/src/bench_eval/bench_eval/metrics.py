@@ -96,7 +96,8 @@ def time_grid(stamps: Sequence[np.ndarray], tol: float = DEFAULT_TOL_S) -> tuple
     Sorted stamps less than ``tol`` apart belong to one grid step (its time is the earliest of them).
     Raises ValueError if one run has two stamps in the same step (``tol`` too large for its rate).
     """
-    everything = np.sort(np.concatenate([np.asarray(s, dtype=float) for s in stamps]))
+    # each run's stamps are in order: a stable sort (timsort) merges those runs instead of sorting afresh
+    everything = np.sort(np.concatenate([np.asarray(s, dtype=float) for s in stamps]), kind="stable")
     starts = everything[np.concatenate(([True], np.diff(everything) > tol))]
     index = [np.searchsorted(starts, s, side="right") - 1 for s in stamps]
     for i in index:

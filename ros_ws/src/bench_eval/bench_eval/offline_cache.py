@@ -19,8 +19,8 @@ computation runs over the same bag, where KEY is the SHA-256 of:
 A cache file is read as a hostile file: the archive's members must be stored uncompressed (as ``np.savez``
 writes them), every member's .npy header is checked (a plain number or text dtype, no pickles) and its data
 must lie inside the member, every array's kind and shape is checked against the others. The arrays are then
-mapped read-only from the file (``np.memmap``), not copied: a day of orbit-fit covariances is read only as the
-scorer uses it, and a scoring worker hands the main process the file's name, not its arrays
+mapped read-only from the file (an ndarray over an ``np.memmap``), not copied: a day of orbit-fit covariances
+is read only as the scorer uses it, and a scoring worker hands the main process the file's name, not its arrays
 (bench_eval.scoring.prepare_runs). Files are only ever replaced whole (below), so a mapped file never changes
 under its reader. A file that fails any check is ignored with a warning naming it and the reason (the
 result is computed again and replaces the file). Files are written atomically (a temporary file, then a
@@ -273,7 +273,8 @@ def _mapped(f: BinaryIO, file: Path, info: zipfile.ZipInfo) -> np.ndarray:
         raise ValueError(f"{info.filename}: shape {shape} does not fit its {info.file_size} bytes")
     if 0 in shape:
         return np.zeros(shape, dtype)  # (mmap cannot map nothing)
-    return np.memmap(file, dtype, "r", offset, shape, "F" if fortran else "C")
+    # a plain ndarray over the map (its base): np.memmap's Python-level indexing is slower on every slice
+    return np.asarray(np.memmap(file, dtype, "r", offset, shape, "F" if fortran else "C"))
 
 
 def store(file: Path, result, instead: str = "scored without a cache") -> bool:
