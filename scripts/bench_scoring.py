@@ -11,13 +11,12 @@ Carlo's output directory), then times ``score.py`` on all of them as a user runs
 
 The two long JOBS rows are measured ``--rounds`` times in alternation (no cache, filling, no cache, filling, ...),
 so that neither always runs first after the one-core run. It prints each row's wall time per round, their mean and
-its share of the one-core time, and the CPU time the host took from this virtual machine while the row ran (steal,
-/proc/stat; empty where the kernel does not count it): time a row waited for a CPU its own work did not use.
-Then what the machine itself allows: one bag
-scored alone on one CPU against JOBS copies of it scored at once, one per CPU (twice each, alternated). JOBS
-copies at once taking longer than one alone (shared caches and memory bandwidth, a host's other load on its
-virtual CPUs) is a slowdown no scheduling can win back: JOBS jobs then take at least slowdown / JOBS of the
-one-core time.
+its share of the one-core time, and the CPU time the host took from this virtual machine while the row ran
+(steal, /proc/stat: time its CPUs had work but the host ran something else; empty where the kernel does not count
+it). Then what the machine itself allows: one bag scored alone on one CPU against JOBS copies of it scored at once,
+one per CPU (twice each, alternated). JOBS copies at once taking longer than one alone (shared caches and memory
+bandwidth, a host's other load on its virtual CPUs) is a slowdown no scheduling can win back: JOBS jobs then take
+at least slowdown / JOBS of the one-core time.
 
 The default is grace_velocity's dynamic variant, whose orbit fits make scoring the long part of its Monte Carlo.
 Nothing is asserted: these are measurements.
@@ -70,7 +69,7 @@ class Row:
     stolen: float | None = 0.0
 
     def time(self, cmd: list[str], cpus: set[int] | None = None) -> None:
-        """Run ``cmd`` (:func:`run`) once more."""
+        """Run ``cmd`` (:func:`run`, on ``cpus``) once more, counting the host's steal meanwhile."""
         before = steal()
         self.walls.append(run(cmd, cpus))
         after = steal()
